@@ -1,0 +1,108 @@
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Result;
+use clap::Subcommand;
+use serde::Serialize;
+
+use crate::data::archive::DataRoot;
+use crate::data::registry::{self, Dataset, DatasetClips, Skipped};
+
+#[derive(Subcommand, Debug)]
+pub enum DataCommand {
+    /// Per-class clip and frame counts, fps, joints, and every skipped file.
+    Stats {
+        #[arg(long)]
+        dataset: String,
+        /// Dataset folder (default: $GLOCAL_DATA, else ../shared/data).
+        #[arg(long)]
+        data: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Serialize)]
+pub struct ClassStats {
+    pub name: String,
+    pub clips: usize,
+    pub frames: usize,
+}
+
+#[derive(Serialize)]
+pub struct Stats {
+    pub dataset: String,
+    pub fps: f32,
+    pub joints: usize,
+    pub clips: usize,
+    pub frames: usize,
+    pub classes: Vec<ClassStats>,
+    pub skipped: Vec<Skipped>,
+}
+
+/// Counts of a loaded dataset, as `glocal data stats` prints them.
+pub fn stats(d: &DatasetClips) -> Stats {
+    let classes = d
+        .classes
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let clips: Vec<_> = d.clips.iter().filter(|c| c.class == k).collect();
+            ClassStats { name: name.clone(), clips: clips.len(), frames: clips.iter().map(|c| c.motion.frames()).sum() }
+        })
+        .collect();
+    Stats {
+        dataset: d.dataset.name().to_string(),
+        fps: d.dataset.source_fps(),
+        joints: d.clips.first().map_or(0, |c| c.motion.joints()),
+        clips: d.clips.len(),
+        frames: d.clips.iter().map(|c| c.motion.frames()).sum(),
+        classes,
+        skipped: d.skipped.clone(),
+    }
+}
+
+pub fn run(command: DataCommand) -> Result<()> {
+    match command {
+        DataCommand::Stats { dataset, data, json } => {
+            let dataset: Dataset = dataset.parse()?;
+            let loaded = registry::load(dataset, &DataRoot::resolve(data.as_deref()))?;
+            let s = stats(&loaded);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&s)?);
+            } else {
+                print_stats(&s);
+            }
+            Ok(())
+        }
+    }
+}
+
+fn print_stats(s: &Stats) {
+    println!("{}: {} clips, {} frames at {} fps, {} joints", s.dataset, s.clips, s.frames, s.fps, s.joints);
+    println!("{:<20} {:>6} {:>9}", "class", "clips", "frames");
+    for c in &s.classes {
+        println!("{:<20} {:>6} {:>9}", c.name, c.clips, c.frames);
+    }
+    if s.skipped.is_empty() {
+        println!("no files skipped");
+    }
+    for k in &s.skipped {
+        println!("skipped {}: {}", k.file, k.reason);
+    }
+}
+
+pub fn bench_load(dataset: &str, data: Option<&Path>, json: bool) -> Result<()> {
+    let dataset: Dataset = dataset.parse()?;
+    let root = DataRoot::resolve(data);
+    let start = Instant::now();
+    let loaded = registry::load(dataset, &root)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let s = stats(&loaded);
+    if json {
+        println!("{}", serde_json::json!({"dataset": s.dataset, "seconds": seconds, "clips": s.clips, "frames": s.frames}));
+    } else {
+        println!("loaded {} ({} clips, {} frames) in {:.2} s", s.dataset, s.clips, s.frames, seconds);
+    }
+    Ok(())
+}

@@ -1,0 +1,52 @@
+//! The `glocal` command line: every subcommand is a thin layer over the library.
+
+mod data_cmd;
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser, Debug)]
+#[command(name = "glocal", version, about = "Glocal Studio: long-term, class-aware human motion synthesis")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Inspect the datasets.
+    Data {
+        #[command(subcommand)]
+        command: data_cmd::DataCommand,
+    },
+    /// Time the engine's parts.
+    Bench {
+        #[command(subcommand)]
+        command: BenchCommand,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Time to load a whole dataset from its archive.
+    Load {
+        #[arg(long)]
+        dataset: String,
+        #[arg(long)]
+        data: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        None => crate::studio::run(),
+        Some(Command::Data { command }) => data_cmd::run(command),
+        Some(Command::Bench { command }) => match command {
+            BenchCommand::Load { dataset, data, json } => data_cmd::bench_load(&dataset, data.as_deref(), json),
+        },
+    }
+}

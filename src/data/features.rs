@@ -1,0 +1,279 @@
+//! The model's pose features and their exact inverse.
+//!
+//! Per frame, with the body's heading θ (the horizontal direction perpendicular to the
+//! left-to-right hip line) and the root r:
+//!
+//! | index | feature |
+//! |---|---|
+//! | 0 | root height r.y |
+//! | 1, 2 | root displacement on the ground since the previous sample, in the previous sample's heading frame (x: right, z: forward) |
+//! | 3 | heading change since the previous sample (radians) |
+//! | 4.. | every other kept joint relative to the root, in this frame's heading frame (x, y, z) |
+//!
+//! Displacements make walking travel instead of walking in place, and heading-relative
+//! joints make a pose mean the same whichever way the body faces. Decoding integrates the
+//! displacements and heading changes from a given start, so `decode(encode(x)) == x` up to
+//! float rounding. A sample's "previous sample" is `stride` frames earlier: sparse poses use
+//! the sparse stride, dense frames use 1.
+
+use std::sync::Arc;
+
+use glam::{Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::motion::{Motion, Skeleton};
+
+/// Values per frame before the joints.
+pub const ROOT_FEATURES: usize = 4;
+
+/// Where the body is on the ground and which way it faces.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Placement {
+    pub x: f32,
+    pub z: f32,
+    pub heading: f32,
+}
+
+impl Default for Placement {
+    fn default() -> Self {
+        Self { x: 0.0, z: 0.0, heading: 0.0 }
+    }
+}
+
+/// How poses become feature vectors for one skeleton.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FeatureLayout {
+    /// The model's skeleton (the dataset skeleton's informative joints).
+    pub skeleton: Arc<Skeleton>,
+    pub left_hip: usize,
+    pub right_hip: usize,
+}
+
+impl FeatureLayout {
+    /// Finds the hips by name (`Left`/`Right` or `_L`/`_R` with `UpLeg`, `Thigh`, `UpperLeg`
+    /// or `Hip`); falls back to the root's first two children.
+    pub fn new(skeleton: Arc<Skeleton>) -> Self {
+        let find = |side: &[&str]| {
+            skeleton.names.iter().position(|n| {
+                let l = n.to_lowercase();
+                side.iter().any(|s| l.contains(s)) && ["upleg", "thigh", "upperleg", "hip"].iter().any(|k| l.contains(k))
+            })
+        };
+        let kids: Vec<usize> = skeleton.children(0).collect();
+        let left_hip = find(&["left", "_l", "l_"]).or(kids.first().copied()).unwrap_or(0);
+        let right_hip = find(&["right", "_r", "r_"]).or(kids.get(1).copied()).unwrap_or(0);
+        Self { skeleton, left_hip, right_hip }
+    }
+
+    pub fn joints(&self) -> usize {
+        self.skeleton.len()
+    }
+
+    pub fn dim(&self) -> usize {
+        ROOT_FEATURES + 3 * (self.joints() - 1)
+    }
+
+    /// Heading angle of a frame: 0 when facing +z, positive turning towards +x.
+    pub fn heading(&self, frame: &[Vec3]) -> f32 {
+        let lateral = frame[self.right_hip] - frame[self.left_hip];
+        // Facing +z, the right hip lies at -x: up x (right - left) points forward.
+        let forward = Vec3::Y.cross(lateral);
+        if forward.x.abs() + forward.z.abs() < 1e-8 {
+            0.0
+        } else {
+            forward.x.atan2(forward.z)
+        }
+    }
+
+    /// Features of `frames` (each `joints` long) taken `stride` frames apart; the first
+    /// sample's displacement is measured from `previous` when given, else zero.
+    pub fn encode(&self, frames: &[&[Vec3]], previous: Option<&[Vec3]>) -> Vec<f32> {
+        let dim = self.dim();
+        let mut out = Vec::with_capacity(frames.len() * dim);
+        let mut prev = previous.map(|f| (f[0], self.heading(f)));
+        for frame in frames {
+            let root = frame[0];
+            let heading = self.heading(frame);
+            let (disp, turn) = match prev {
+                Some((p, h)) => (yaw(-h) * Vec3::new(root.x - p.x, 0.0, root.z - p.z), wrap(heading - h)),
+                None => (Vec3::ZERO, 0.0),
+            };
+            out.extend([root.y, disp.x, disp.z, turn]);
+            let inv = yaw(-heading);
+            for p in &frame[1..] {
+                out.extend((inv * (*p - root)).to_array());
+            }
+            prev = Some((root, heading));
+        }
+        out
+    }
+
+    /// Features of a whole motion sampled every `stride` frames from `start`.
+    pub fn encode_motion(&self, motion: &Motion, start: usize, stride: usize, count: usize) -> Vec<f32> {
+        let frames: Vec<&[Vec3]> = (0..count).map(|k| motion.frame(start + k * stride)).collect();
+        let previous = start.checked_sub(stride).map(|p| motion.frame(p));
+        self.encode(&frames, previous)
+    }
+
+    /// Rebuilds world positions from features, starting from `start` (where the sample
+    /// before the first one stood). Returns the positions and where the last sample ends.
+    pub fn decode(&self, features: &[f32], start: Placement) -> (Vec<Vec3>, Placement) {
+        let dim = self.dim();
+        let mut out = Vec::with_capacity(features.len() / dim * self.joints());
+        let mut place = start;
+        for f in features.chunks_exact(dim) {
+            let step = yaw(place.heading) * Vec3::new(f[1], 0.0, f[2]);
+            place = Placement { x: place.x + step.x, z: place.z + step.z, heading: wrap(place.heading + f[3]) };
+            let root = Vec3::new(place.x, f[0], place.z);
+            let rot = yaw(place.heading);
+            out.push(root);
+            for j in f[ROOT_FEATURES..].chunks_exact(3) {
+                out.push(root + rot * Vec3::new(j[0], j[1], j[2]));
+            }
+        }
+        (out, place)
+    }
+
+    /// Where a frame stands: its root on the ground and its heading.
+    pub fn placement(&self, frame: &[Vec3]) -> Placement {
+        Placement { x: frame[0].x, z: frame[0].z, heading: self.heading(frame) }
+    }
+}
+
+fn yaw(angle: f32) -> Quat {
+    Quat::from_rotation_y(angle)
+}
+
+fn wrap(a: f32) -> f32 {
+    let tau = std::f32::consts::TAU;
+    a - tau * ((a + std::f32::consts::PI) / tau).floor()
+}
+
+/// Per-dimension mean and standard deviation, from the training split only.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Normalizer {
+    pub mean: Vec<f32>,
+    pub std: Vec<f32>,
+}
+
+impl Normalizer {
+    /// Statistics of `rows` (each `dim` long); a standard deviation is floored so that
+    /// near-constant dimensions do not blow up.
+    pub fn fit(data: &[f32], dim: usize) -> Self {
+        let n = (data.len() / dim).max(1) as f64;
+        let mut mean = vec![0f64; dim];
+        let mut sq = vec![0f64; dim];
+        for row in data.chunks_exact(dim) {
+            for (k, v) in row.iter().enumerate() {
+                mean[k] += *v as f64;
+                sq[k] += (*v as f64) * (*v as f64);
+            }
+        }
+        let mean: Vec<f64> = mean.iter().map(|m| m / n).collect();
+        let std: Vec<f64> = sq.iter().zip(&mean).map(|(s, m)| (s / n - m * m).max(0.0).sqrt()).collect();
+        let floor = std.iter().cloned().fold(0.0, f64::max) * 1e-3 + 1e-8;
+        Self { mean: mean.iter().map(|m| *m as f32).collect(), std: std.iter().map(|s| s.max(floor) as f32).collect() }
+    }
+
+    pub fn normalize(&self, data: &mut [f32]) {
+        let dim = self.mean.len();
+        for row in data.chunks_exact_mut(dim) {
+            for ((v, m), s) in row.iter_mut().zip(&self.mean).zip(&self.std) {
+                *v = (*v - m) / s;
+            }
+        }
+    }
+
+    pub fn denormalize(&self, data: &mut [f32]) {
+        let dim = self.mean.len();
+        for row in data.chunks_exact_mut(dim) {
+            for ((v, m), s) in row.iter_mut().zip(&self.mean).zip(&self.std) {
+                *v = *v * s + m;
+            }
+        }
+    }
+}
+
+/// Dense frames between sparse poses, by linear interpolation of world positions (the
+/// paper's equation for LocGen's input): `stride` frames per interval, the last sparse pose
+/// included once at the end.
+pub fn interpolate(sparse: &[Vec3], joints: usize, stride: usize) -> Vec<Vec3> {
+    let n = sparse.len() / joints;
+    let mut out = Vec::with_capacity(((n.max(1) - 1) * stride + 1) * joints);
+    for k in 0..n.saturating_sub(1) {
+        let (a, b) = (&sparse[k * joints..(k + 1) * joints], &sparse[(k + 1) * joints..(k + 2) * joints]);
+        for s in 0..stride {
+            let w = s as f32 / stride as f32;
+            out.extend(a.iter().zip(b).map(|(p, q)| p.lerp(*q, w)));
+        }
+    }
+    if n > 0 {
+        out.extend_from_slice(&sparse[(n - 1) * joints..]);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn walker() -> (FeatureLayout, Vec<Vec<Vec3>>) {
+        let skeleton = Skeleton::new(
+            vec!["Hips".into(), "LeftUpLeg".into(), "RightUpLeg".into(), "Head".into()],
+            vec![None, Some(0), Some(0), Some(0)],
+            vec![Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0), Vec3::new(0.0, 5.0, 0.0)],
+            0.01,
+        )
+        .unwrap();
+        let layout = FeatureLayout::new(Arc::new(skeleton.clone()));
+        let frames = (0..12)
+            .map(|t| {
+                let turn = Quat::from_rotation_y(0.2 * t as f32);
+                let root = Vec3::new(0.5 * t as f32, 9.0 + (t as f32).sin(), 0.3 * t as f32 * t as f32);
+                skeleton.rest_positions().iter().map(|p| root + turn * *p).collect()
+            })
+            .collect();
+        (layout, frames)
+    }
+
+    #[test]
+    fn decode_inverts_encode() {
+        let (layout, frames) = walker();
+        let refs: Vec<&[Vec3]> = frames.iter().map(|f| f.as_slice()).collect();
+        let feats = layout.encode(&refs[1..], Some(refs[0]));
+        let (back, _) = layout.decode(&feats, layout.placement(refs[0]));
+        for (t, f) in frames[1..].iter().enumerate() {
+            for j in 0..4 {
+                assert!(back[t * 4 + j].distance(f[j]) < 1e-4, "frame {t} joint {j}");
+            }
+        }
+    }
+
+    #[test]
+    fn hips_give_heading() {
+        let (layout, frames) = walker();
+        // Left hip at +x, right at -x: facing +z, heading 0.
+        assert!(layout.heading(&frames[0]).abs() < 1e-6);
+        assert!((layout.heading(&frames[1]) - 0.2).abs() < 1e-5);
+    }
+
+    #[test]
+    fn normalizer_round_trip() {
+        let data = vec![1.0, 10.0, 3.0, 10.0, 5.0, 10.0];
+        let n = Normalizer::fit(&data, 2);
+        let mut x = data.clone();
+        n.normalize(&mut x);
+        assert!((x[0] + 1.2247).abs() < 1e-3);
+        n.denormalize(&mut x);
+        assert!(x.iter().zip(&data).all(|(a, b)| (a - b).abs() < 1e-5));
+    }
+
+    #[test]
+    fn interpolation_keeps_keyframes() {
+        let sparse = vec![Vec3::ZERO, Vec3::splat(5.0)];
+        let dense = interpolate(&sparse, 1, 5);
+        assert_eq!(dense.len(), 6);
+        assert_eq!(dense[1], Vec3::ONE);
+        assert_eq!(dense[5], Vec3::splat(5.0));
+    }
+}

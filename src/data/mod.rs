@@ -1,0 +1,12 @@
+//! Reading and writing motion files, the dataset registry and the model's pose features.
+
+pub mod archive;
+pub mod bvh;
+mod error;
+pub mod expmap;
+pub mod features;
+pub mod npy;
+pub mod registry;
+pub mod write;
+
+pub use error::{FormatError, Location};

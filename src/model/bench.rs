@@ -1,0 +1,200 @@
+//! Benchmarks of the seq2seq block: the fast fused LSTM against candle-nn's LSTM, with exactly the
+//! shapes, loss and optimiser of `/work/shared/bench/torch_reference.py` (input 80 + 12 class,
+//! hidden 200 per direction, 10 steps, batch 64, MSE + motion-flow MSE, AdamW lr 2e-3, dropout 0.25).
+use super::block::{motion_loss, BlockConfig, Seq2SeqBlock};
+use candle_core::{DType, Device, Result, Tensor};
+use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TrainBenchConfig {
+    pub batch: usize,
+    pub steps_in: usize,
+    pub feat: usize,
+    pub classes: usize,
+    pub hidden: usize,
+    pub dropout: f32,
+    pub lr: f64,
+    /// Untimed steps before measuring.
+    pub warmup: usize,
+}
+
+impl Default for TrainBenchConfig {
+    fn default() -> Self {
+        Self { batch: 64, steps_in: 10, feat: 80, classes: 12, hidden: 200, dropout: 0.25, lr: 2e-3, warmup: 3 }
+    }
+}
+
+impl TrainBenchConfig {
+    pub fn block_config(&self) -> BlockConfig {
+        BlockConfig {
+            in_dim: self.feat,
+            cond_dim: self.classes,
+            cond_in_decoder: false,
+            hidden: self.hidden,
+            out_dim: self.feat,
+            dropout: self.dropout,
+        }
+    }
+}
+
+/// How long to measure each implementation.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub enum Budget {
+    /// At least this many seconds (whole steps).
+    Seconds(f64),
+    /// Exactly this many steps.
+    Steps(usize),
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TrainBench {
+    pub fast_steps_per_s: f64,
+    pub candle_nn_steps_per_s: f64,
+    /// fast / candle-nn.
+    pub speedup: f64,
+    pub fast_final_loss: f32,
+    pub candle_nn_final_loss: f32,
+    pub config: TrainBenchConfig,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct InferBench {
+    /// `Seq2SeqBlock::forward(train = false)` (candle tensors, fused LSTM op).
+    pub fast_ms_per_block: f64,
+    /// `Seq2SeqBlock::forward_with_reference_lstm` (candle-nn LSTMs).
+    pub candle_nn_ms_per_block: f64,
+    /// `FrozenBlock::infer` (plain f32).
+    pub frozen_ms_per_block: f64,
+    pub batch: usize,
+    pub steps_in: usize,
+    pub config: TrainBenchConfig,
+}
+
+fn one_hot(b: usize, c: usize, dev: &Device) -> Result<Tensor> {
+    let mut v = vec![0f32; b * c];
+    for i in 0..b {
+        v[i * c + i % c.max(1)] = 1.0;
+    }
+    Tensor::from_vec(v, (b, c), dev)
+}
+
+/// Run `step` for the budget (after `warmup` untimed calls); returns (steps/s, last value).
+fn measure<F: FnMut() -> Result<f32>>(warmup: usize, budget: Budget, mut step: F) -> Result<(f64, f32)> {
+    let mut last = 0f32;
+    for _ in 0..warmup {
+        last = step()?;
+    }
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    loop {
+        match budget {
+            Budget::Steps(s) if n >= s.max(1) => break,
+            Budget::Seconds(s) if n > 0 && t0.elapsed().as_secs_f64() >= s => break,
+            _ => {}
+        }
+        last = step()?;
+        n += 1;
+    }
+    Ok((n as f64 / t0.elapsed().as_secs_f64(), last))
+}
+
+/// Training steps per second of the block with the fast LSTM and with candle-nn's LSTM (each its
+/// own freshly initialised model and AdamW), measured one after the other in the same call.
+pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> {
+    let dev = Device::Cpu;
+    let (b, t, f, c) = (cfg.batch, cfg.steps_in, cfg.feat, cfg.classes);
+    let x = Tensor::randn(0f32, 1.0, (b, t, f), &dev)?;
+    let cond = one_hot(b, c, &dev)?;
+    let y = Tensor::randn(0f32, 1.0, (b, t, f), &dev)?;
+    let cond = if c > 0 { Some(&cond) } else { None };
+    let run = |reference: bool| -> Result<(f64, f32)> {
+        let vm = VarMap::new();
+        let blk = Seq2SeqBlock::new(cfg.block_config(), VarBuilder::from_varmap(&vm, DType::F32, &dev))?;
+        let mut opt = AdamW::new(vm.all_vars(), ParamsAdamW { lr: cfg.lr, ..Default::default() })?;
+        measure(cfg.warmup, budget, || {
+            let out = if reference {
+                blk.forward_with_reference_lstm(&x, cond, true)?
+            } else {
+                blk.forward(&x, cond, true)?
+            };
+            let loss = motion_loss(&out, &y)?;
+            opt.backward_step(&loss)?;
+            loss.to_scalar::<f32>()
+        })
+    };
+    let (fast, fl) = run(false)?;
+    let (slow, sl) = run(true)?;
+    Ok(TrainBench {
+        fast_steps_per_s: fast,
+        candle_nn_steps_per_s: slow,
+        speedup: fast / slow,
+        fast_final_loss: fl,
+        candle_nn_final_loss: sl,
+        config: cfg,
+    })
+}
+
+/// Milliseconds for one block forward at `batch` (1 in the reference), three ways.
+pub fn bench_infer(cfg: TrainBenchConfig, batch: usize, budget: Budget) -> Result<InferBench> {
+    let dev = Device::Cpu;
+    let (t, f, c) = (cfg.steps_in, cfg.feat, cfg.classes);
+    let vm = VarMap::new();
+    let blk = Seq2SeqBlock::new(cfg.block_config(), VarBuilder::from_varmap(&vm, DType::F32, &dev))?;
+    let x = Tensor::randn(0f32, 1.0, (batch, t, f), &dev)?;
+    let cond_t = one_hot(batch, c, &dev)?;
+    let cond = if c > 0 { Some(&cond_t) } else { None };
+    let warm = cfg.warmup.max(10);
+    let (fast, _) = measure(warm, budget, || {
+        let y = blk.forward(&x, cond, false)?;
+        Ok(y.dims().len() as f32)
+    })?;
+    let (slow, _) = measure(warm, budget, || {
+        let y = blk.forward_with_reference_lstm(&x, cond, false)?;
+        Ok(y.dims().len() as f32)
+    })?;
+    let mut fz = blk.freeze()?;
+    let xv = x.flatten_all()?.to_vec1::<f32>()?;
+    let cv = cond_t.flatten_all()?.to_vec1::<f32>()?;
+    let cvo = if c > 0 { Some(cv.as_slice()) } else { None };
+    let mut out = vec![0f32; batch * t * f];
+    let (frozen, _) = measure(warm, budget, || {
+        fz.infer(&xv, cvo, batch, t, &mut out);
+        Ok(out[0])
+    })?;
+    Ok(InferBench {
+        fast_ms_per_block: 1e3 / fast,
+        candle_nn_ms_per_block: 1e3 / slow,
+        frozen_ms_per_block: 1e3 / frozen,
+        batch,
+        steps_in: t,
+        config: cfg,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bench_runs_small() {
+        let cfg = TrainBenchConfig { batch: 4, steps_in: 5, feat: 6, classes: 3, hidden: 8, warmup: 1, ..Default::default() };
+        let r = bench_train(cfg.clone(), Budget::Steps(2)).unwrap();
+        assert!(r.fast_steps_per_s > 0.0 && r.candle_nn_steps_per_s > 0.0);
+        let r = bench_infer(cfg, 1, Budget::Steps(2)).unwrap();
+        assert!(r.frozen_ms_per_block > 0.0);
+        serde_json::to_string(&r).unwrap();
+    }
+
+    /// `cargo test --release --lib model::bench -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn print_benchmarks() {
+        let secs: f64 = std::env::var("GLOCAL_BENCH_SECS").ok().and_then(|s| s.parse().ok()).unwrap_or(5.0);
+        let tr = bench_train(TrainBenchConfig::default(), Budget::Seconds(secs)).unwrap();
+        println!("train: {}", serde_json::to_string_pretty(&tr).unwrap());
+        let inf = bench_infer(TrainBenchConfig::default(), 1, Budget::Seconds(secs.min(3.0))).unwrap();
+        println!("infer: {}", serde_json::to_string_pretty(&inf).unwrap());
+    }
+}

@@ -1,0 +1,142 @@
+//! Training material for one dataset: every clip resampled to the working frame rate, cut
+//! to the model's joints, with the normalisation statistics of the training split.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use glam::Vec3;
+use rand::Rng;
+
+use crate::data::archive::DataRoot;
+use crate::data::features::{interpolate, FeatureLayout, Normalizer};
+use crate::data::registry::{self, Dataset, Split};
+use crate::motion::{Motion, Skeleton};
+
+/// Bones shorter than this fraction of the skeleton's longest bone are duplicates or
+/// collapsed end sites, and their joints are left out of the model.
+const MIN_BONE_FRACTION: f32 = 0.02;
+
+pub struct Track {
+    pub class: usize,
+    pub file: String,
+    pub motion: Motion,
+}
+
+pub struct Corpus {
+    pub dataset: Dataset,
+    pub classes: Vec<String>,
+    /// The dataset's whole skeleton, and the joints of it the model keeps.
+    pub source_skeleton: Arc<Skeleton>,
+    pub source_joints: Vec<usize>,
+    pub layout: FeatureLayout,
+    pub fps: f32,
+    pub stride: usize,
+    pub train: Vec<Track>,
+    pub test: Vec<Track>,
+}
+
+impl Corpus {
+    /// Loads a dataset. `min_clips` drops classes with fewer training clips (Bandai's
+    /// one-clip contents cannot be learned or evaluated).
+    pub fn load(dataset: Dataset, root: &DataRoot, stride: usize, min_clips: usize) -> Result<Self> {
+        let loaded = registry::load(dataset, root)?;
+        let Some(first) = loaded.clips.first() else { bail!("{dataset} has no readable clips") };
+        let skeleton = first.motion.skeleton.clone();
+        let longest = skeleton.rest_bone_lengths().into_iter().fold(0.0, f32::max);
+        let source_joints = skeleton.informative_joints(longest * MIN_BONE_FRACTION);
+        let layout = FeatureLayout::new(Arc::new(skeleton.subset(&source_joints)));
+        let fps = dataset.working_fps();
+        let mut counts = vec![0usize; loaded.classes.len()];
+        for c in loaded.split(Split::Train) {
+            counts[c.class] += 1;
+        }
+        let kept: Vec<usize> = (0..loaded.classes.len()).filter(|&k| counts[k] >= min_clips).collect();
+        let classes = kept.iter().map(|&k| loaded.classes[k].clone()).collect();
+        let (mut train, mut test) = (Vec::new(), Vec::new());
+        for clip in loaded.clips {
+            let Some(class) = kept.iter().position(|&k| k == clip.class) else { continue };
+            let mut motion = clip.motion.resample(fps).subset(&source_joints);
+            motion.skeleton = layout.skeleton.clone();
+            let track = Track { class, file: clip.file, motion };
+            match clip.split {
+                Split::Train => train.push(track),
+                Split::Test => test.push(track),
+            }
+        }
+        Ok(Self { dataset, classes, source_skeleton: skeleton, source_joints, layout, fps, stride, train, test })
+    }
+
+    /// Mean joint speed of each class over its training clips, in units per second.
+    pub fn class_speeds(&self) -> Vec<f32> {
+        (0..self.classes.len())
+            .map(|k| {
+                let (mut sum, mut n) = (0.0f64, 0usize);
+                for t in self.train.iter().filter(|t| t.class == k) {
+                    sum += mean_joint_speed(&t.motion) as f64 * t.motion.frames() as f64;
+                    n += t.motion.frames();
+                }
+                (sum / n.max(1) as f64) as f32
+            })
+            .collect()
+    }
+
+    /// Normalisation of sparse features (`stride` apart) and of dense ones (1 apart).
+    pub fn normalizers(&self) -> (Normalizer, Normalizer) {
+        let dim = self.layout.dim();
+        let (mut sparse, mut dense) = (Vec::new(), Vec::new());
+        for t in &self.train {
+            let m = &t.motion;
+            for phase in 0..self.stride.min(m.frames()) {
+                let count = (m.frames() - phase).div_ceil(self.stride);
+                sparse.extend(self.layout.encode_motion(m, phase, self.stride, count));
+            }
+            dense.extend(self.layout.encode_motion(m, 0, 1, m.frames()));
+        }
+        (Normalizer::fit(&sparse, dim), Normalizer::fit(&dense, dim))
+    }
+}
+
+/// Mean speed of all joints, units per second.
+pub fn mean_joint_speed(m: &Motion) -> f32 {
+    if m.frames() < 2 {
+        return 0.0;
+    }
+    let j = m.joints();
+    let mut sum = 0.0f64;
+    for t in 1..m.frames() {
+        let (a, b) = (m.frame(t - 1), m.frame(t));
+        sum += a.iter().zip(b).map(|(p, q)| p.distance(*q) as f64).sum::<f64>();
+    }
+    (sum / ((m.frames() - 1) * j) as f64 * m.fps as f64) as f32
+}
+
+/// A random training window: `count` sparse samples `stride` apart from one clip, class
+/// chosen uniformly first so that rare classes are seen as often as common ones.
+pub fn sample_window<'a>(tracks: &'a [Track], classes: usize, span: usize, rng: &mut impl Rng) -> Option<(&'a Track, usize)> {
+    let class = rng.random_range(0..classes);
+    let fits: Vec<&Track> = tracks.iter().filter(|t| t.class == class && t.motion.frames() > span).collect();
+    let pool = if fits.is_empty() { tracks.iter().filter(|t| t.motion.frames() > span).collect() } else { fits };
+    let total: usize = pool.iter().map(|t| t.motion.frames() - span).sum();
+    if total == 0 {
+        return None;
+    }
+    let mut pick = rng.random_range(0..total);
+    for t in pool {
+        let room = t.motion.frames() - span;
+        if pick < room {
+            return Some((t, pick));
+        }
+        pick -= room;
+    }
+    None
+}
+
+/// LocGen's input for the dense frames `[start, start + window)`: the linear interpolation
+/// between the sparse keyframes `stride` apart (the next window's first keyframe included).
+pub fn interpolated_window(m: &Motion, start: usize, window: usize, stride: usize) -> Vec<Vec3> {
+    let j = m.joints();
+    let keys: Vec<Vec3> = (0..=window / stride).flat_map(|k| m.frame(start + k * stride).to_vec()).collect();
+    let mut dense = interpolate(&keys, j, stride);
+    dense.truncate(window * j);
+    dense
+}

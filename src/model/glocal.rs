@@ -1,0 +1,129 @@
+//! A trained GlocalNet loaded for generation: GloGen and LocGen frozen to plain f32, the
+//! model description and the seed bank.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use candle_core::{DType, Device};
+use candle_nn::{VarBuilder, VarMap};
+
+use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
+use super::spec::{ModelSpec, Seed};
+
+pub const GLOGEN_FILE: &str = "glogen.safetensors";
+pub const LOCGEN_FILE: &str = "locgen.safetensors";
+pub const SEEDS_FILE: &str = "seeds.json";
+
+pub struct GlocalModel {
+    pub dir: PathBuf,
+    pub spec: ModelSpec,
+    pub seeds: Vec<Seed>,
+    glogen: FrozenBlock,
+    locgen: Option<FrozenBlock>,
+}
+
+impl GlocalModel {
+    /// Loads a model folder; every file is checked, and a missing or mismatched one is an
+    /// error that names it. A folder without LocGen still generates (plain interpolation).
+    pub fn load(dir: &Path) -> Result<Self> {
+        if !dir.is_dir() {
+            bail!("model folder {} does not exist", dir.display());
+        }
+        let spec = ModelSpec::read(dir)?;
+        let glogen = load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?;
+        let locgen_path = dir.join(LOCGEN_FILE);
+        let locgen = if locgen_path.exists() { Some(load_block(&locgen_path, &spec.locgen.block)?.freeze()?) } else { None };
+        let seeds_path = dir.join(SEEDS_FILE);
+        let seeds: Vec<Seed> = serde_json::from_str(
+            &std::fs::read_to_string(&seeds_path).with_context(|| format!("model folder has no readable {}", seeds_path.display()))?,
+        )
+        .with_context(|| format!("{} is not a valid seed bank", seeds_path.display()))?;
+        let width = spec.block_len * spec.layout.dim();
+        if let Some(bad) = seeds.iter().position(|s| s.features.len() != width || s.class >= spec.classes.len()) {
+            bail!("{}: seed {bad} does not fit the model ({} sparse poses of {} features, {} classes)", seeds_path.display(), spec.block_len, spec.layout.dim(), spec.classes.len());
+        }
+        Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen })
+    }
+
+    pub fn has_locgen(&self) -> bool {
+        self.locgen.is_some()
+    }
+
+    /// One-hot class vector (all zeros when the model was trained without classes).
+    pub fn class_vector(&self, class: usize) -> Vec<f32> {
+        let mut v = vec![0.0; self.spec.glogen.block.cond_dim];
+        if let Some(x) = v.get_mut(class) {
+            *x = 1.0;
+        }
+        v
+    }
+
+    /// One GloGen block: `input` is `block_len` normalised sparse poses, `class` a class
+    /// vector (may be a blend of two). `strength` > 1 applies classifier-free guidance
+    /// (`uncond + strength * (cond - uncond)`), available when the model was trained with
+    /// class dropout.
+    pub fn glogen_block(&mut self, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) {
+        let t = self.spec.block_len;
+        let cond = (self.spec.glogen.block.cond_dim > 0).then_some(class);
+        self.glogen.infer(input, cond, 1, t, out);
+        if cond.is_some() && self.spec.glogen.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6 {
+            let zeros = vec![0.0; class.len()];
+            let mut uncond = vec![0.0; out.len()];
+            self.glogen.infer(input, Some(&zeros), 1, t, &mut uncond);
+            for (o, u) in out.iter_mut().zip(&uncond) {
+                *o = u + strength * (*o - u);
+            }
+        }
+    }
+
+    /// GloGen's encoder states over one block, concatenated: the embedding of the t-SNE panel.
+    pub fn embed(&mut self, input: &[f32], class: &[f32]) -> Vec<f32> {
+        let t = self.spec.block_len;
+        let cond = (self.spec.glogen.block.cond_dim > 0).then_some(class);
+        let mut out = vec![0.0; t * 2 * self.spec.glogen.block.hidden];
+        self.glogen.encode_infer(input, cond, 1, t, &mut out);
+        out
+    }
+
+    /// LocGen over `windows` windows of normalised interpolated dense features, in place:
+    /// LocGen predicts a residual on the interpolation. Returns false without LocGen.
+    pub fn locgen(&mut self, frames: &mut [f32], windows: usize) -> bool {
+        let Some(locgen) = self.locgen.as_mut() else { return false };
+        let w = self.spec.locgen.window;
+        let mut residual = vec![0.0; frames.len()];
+        locgen.infer(frames, None, windows, w, &mut residual);
+        for (f, r) in frames.iter_mut().zip(&residual) {
+            *f += r;
+        }
+        true
+    }
+}
+
+/// Builds a block and fills it from a safetensors file after checking that every tensor
+/// the block needs is there with the right shape and dtype.
+pub fn load_block(path: &Path, cfg: &BlockConfig) -> Result<Seq2SeqBlock> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let file = safetensors::SafeTensors::deserialize(&bytes).with_context(|| format!("{} is not a safetensors file", path.display()))?;
+    let varmap = VarMap::new();
+    let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
+    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
+    let mut names: Vec<&String> = vars.keys().collect();
+    names.sort();
+    for name in names {
+        let var = &vars[name];
+        let view = file.tensor(name).with_context(|| format!("{} has no tensor '{name}': it was saved for a different model", path.display()))?;
+        if view.dtype() != safetensors::Dtype::F32 {
+            bail!("{}: tensor '{name}' is {:?}, expected F32", path.display(), view.dtype());
+        }
+        if view.shape() != var.dims() {
+            bail!("{}: tensor '{name}' has shape {:?}, the model needs {:?}", path.display(), view.shape(), var.dims());
+        }
+        let values: Vec<f32> = view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        if values.iter().any(|v| !v.is_finite()) {
+            bail!("{}: tensor '{name}' holds NaN or infinite values", path.display());
+        }
+        var.set(&candle_core::Tensor::from_vec(values, var.shape(), &Device::Cpu)?)?;
+    }
+    drop(vars);
+    Ok(block)
+}

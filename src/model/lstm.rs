@@ -1,0 +1,1100 @@
+//! Fast LSTM layers for CPU training and inference.
+//!
+//! * [`BiLstm`] — a bidirectional single-layer LSTM whose weights use candle-nn's (and PyTorch's)
+//!   names and layout, so the same `VarBuilder` can also drive candle-nn's `LSTM`:
+//!   `weight_ih_l0 [4H, I]`, `weight_hh_l0 [4H, H]`, `bias_ih_l0 [4H]`, `bias_hh_l0 [4H]` for the
+//!   forward direction and the same names with the suffix `_reverse` for the backward direction
+//!   (candle-nn's `Direction::Backward`, PyTorch's `bidirectional=True`). Gate order i, f, g, o.
+//! * Training path ([`BiLstm::forward`]): the whole sequence is projected for both directions with
+//!   one matmul (`x [B*T, I] · [W_ih_fwd; W_ih_bwd]ᵀ`), then one candle custom op runs both
+//!   recurrences (one thread per direction, the reverse one walking time backwards inside the op)
+//!   on plain f32 buffers with the `gemm` crate, and writes `[B, T, 2H]` directly. Its backward pass
+//!   is hand-written backprop through time, using the gate activations kept from the forward pass.
+//!   Biases are added inside the op (their gradient is the column sum of the gate gradients).
+//! * Inference path ([`CpuBiLstm::infer`]): a frozen copy of the weights as `Vec<f32>`, no candle
+//!   tensors, reusable [`Scratch`] buffers.
+use candle_core::{
+    backprop::GradStore, bail, CpuStorage, CustomOp3, DType, Device, Layout, Result, Shape,
+    Storage, Tensor,
+};
+use candle_nn::rnn::{Direction, LSTMConfig, LSTM, RNN};
+use candle_nn::{Init, VarBuilder};
+use gemm::Parallelism;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Mutex;
+
+// ---------------------------------------------------------------------------------------------
+// Threading policy
+
+/// How the two directions of a bidirectional LSTM use the cores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Threading {
+    /// One scoped thread per direction, single-threaded gemm inside (default).
+    PerDirection,
+    /// Directions one after the other, gemm parallel over rayon.
+    RayonGemm,
+    /// Everything on the calling thread.
+    Single,
+}
+
+static THREADING: AtomicU8 = AtomicU8::new(0);
+
+/// Select the threading policy of the fused LSTM (process wide; for benchmarking).
+pub fn set_threading(t: Threading) {
+    THREADING.store(
+        match t {
+            Threading::PerDirection => 0,
+            Threading::RayonGemm => 1,
+            Threading::Single => 2,
+        },
+        Ordering::Relaxed,
+    );
+}
+
+pub fn threading() -> Threading {
+    match THREADING.load(Ordering::Relaxed) {
+        0 => Threading::PerDirection,
+        1 => Threading::RayonGemm,
+        _ => Threading::Single,
+    }
+}
+
+/// Minimum batch for which the inference path splits directions over two threads.
+const INFER_THREAD_MIN_BATCH: usize = 8;
+
+fn run2<A: FnOnce() + Send, B: FnOnce() + Send>(parallel: bool, a: A, b: B) {
+    if parallel {
+        std::thread::scope(|s| {
+            let hb = s.spawn(b);
+            a();
+            hb.join().expect("lstm worker thread panicked");
+        });
+    } else {
+        a();
+        b();
+    }
+}
+
+fn gemm_par(t: Threading) -> Parallelism {
+    match t {
+        Threading::RayonGemm => Parallelism::Rayon(0),
+        _ => Parallelism::None,
+    }
+}
+
+/// A raw pointer that may cross to the per-direction worker thread. The two directions only
+/// ever write disjoint columns of the shared buffers.
+#[derive(Clone, Copy)]
+struct SPtr(*mut f32);
+unsafe impl Send for SPtr {}
+unsafe impl Sync for SPtr {}
+impl SPtr {
+    #[inline(always)]
+    fn get(self) -> *mut f32 {
+        self.0
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fast elementwise math (branch free, auto-vectorisable)
+
+#[inline(always)]
+fn fast_exp(x: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0; // 1.5 * 2^23: adding it rounds to an integer
+    const LN2_HI: f32 = 0.693_359_4;
+    const LN2_LO: f32 = -2.121_944_4e-4;
+    let x = x.max(-87.0).min(88.0);
+    let tm = x * std::f32::consts::LOG2_E + MAGIC;
+    let n = tm - MAGIC;
+    let ni = tm.to_bits().wrapping_sub(MAGIC.to_bits()) as i32;
+    let r = x - n * LN2_HI - n * LN2_LO;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
+    p * f32::from_bits(((ni + 127) as u32) << 23)
+}
+
+#[inline(always)]
+fn sigm(x: f32) -> f32 {
+    1.0 / (1.0 + fast_exp(-x))
+}
+
+#[inline(always)]
+fn tanh_f(x: f32) -> f32 {
+    2.0 / (1.0 + fast_exp(-2.0 * x)) - 1.0
+}
+
+/// Forward LSTM cell for one batch row. `z` = recurrent pre-activations `h·W_hhᵀ`, `g` = projected
+/// input, `bias` = `b_ih + b_hh` (all `4H`). Writes the gate activations, the new cell and `h`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn cell_fwd_impl(
+    h: usize,
+    z: &[f32],
+    g: &[f32],
+    bias: &[f32],
+    c_prev: &[f32],
+    acts: &mut [f32],
+    c: &mut [f32],
+    hout: &mut [f32],
+) {
+    let (zi, r) = z[..4 * h].split_at(h);
+    let (zf, r) = r.split_at(h);
+    let (zg, zo) = r.split_at(h);
+    let (gi, r) = g[..4 * h].split_at(h);
+    let (gf, r) = r.split_at(h);
+    let (gg, go) = r.split_at(h);
+    let (bi, r) = bias[..4 * h].split_at(h);
+    let (bf, r) = r.split_at(h);
+    let (bg, bo) = r.split_at(h);
+    let (ai, r) = acts[..4 * h].split_at_mut(h);
+    let (af, r) = r.split_at_mut(h);
+    let (ag, ao) = r.split_at_mut(h);
+    let c_prev = &c_prev[..h];
+    let c = &mut c[..h];
+    let hout = &mut hout[..h];
+    for j in 0..h {
+        let i = sigm(zi[j] + gi[j] + bi[j]);
+        let f = sigm(zf[j] + gf[j] + bf[j]);
+        let gt = tanh_f(zg[j] + gg[j] + bg[j]);
+        let o = sigm(zo[j] + go[j] + bo[j]);
+        let cn = f * c_prev[j] + i * gt;
+        ai[j] = i;
+        af[j] = f;
+        ag[j] = gt;
+        ao[j] = o;
+        c[j] = cn;
+        hout[j] = o * tanh_f(cn);
+    }
+}
+
+/// Backward LSTM cell for one batch row: from `dh = dout + dh_rec` and the running `dc`,
+/// writes the pre-activation gate gradients `dz` (4H) and updates `dc` to the gradient w.r.t. `c_prev`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn cell_bwd_impl(
+    h: usize,
+    dout: &[f32],
+    dh_rec: &[f32],
+    dc: &mut [f32],
+    acts: &[f32],
+    c: &[f32],
+    c_prev: &[f32],
+    dz: &mut [f32],
+) {
+    let (ai, r) = acts[..4 * h].split_at(h);
+    let (af, r) = r.split_at(h);
+    let (ag, ao) = r.split_at(h);
+    let (di, r) = dz[..4 * h].split_at_mut(h);
+    let (df, r) = r.split_at_mut(h);
+    let (dg, dout_gate) = r.split_at_mut(h);
+    let dout = &dout[..h];
+    let dh_rec = &dh_rec[..h];
+    let dc = &mut dc[..h];
+    let c = &c[..h];
+    let c_prev = &c_prev[..h];
+    for j in 0..h {
+        let dh = dout[j] + dh_rec[j];
+        let (i, f, gt, o) = (ai[j], af[j], ag[j], ao[j]);
+        let tc = tanh_f(c[j]);
+        let dct = dc[j] + dh * o * (1.0 - tc * tc);
+        di[j] = dct * gt * i * (1.0 - i);
+        df[j] = dct * c_prev[j] * f * (1.0 - f);
+        dg[j] = dct * i * (1.0 - gt * gt);
+        dout_gate[j] = dh * tc * o * (1.0 - o);
+        dc[j] = dct * f;
+    }
+}
+
+/// `z[n] += sum_k h[k] * wt[k, n]` (small-batch recurrent product with `W_hhᵀ` stored `[H, 4H]`).
+#[inline(always)]
+fn axpy_rows_impl(hk: &[f32], wt: &[f32], z: &mut [f32]) {
+    let n = z.len();
+    for (k, &hv) in hk.iter().enumerate() {
+        let row = &wt[k * n..k * n + n];
+        for (zz, &w) in z.iter_mut().zip(row) {
+            *zz += hv * w;
+        }
+    }
+}
+
+macro_rules! dispatch_simd {
+    ($name:ident, $impl_:ident, ($($arg:ident : $ty:ty),*)) => {
+        #[allow(clippy::too_many_arguments)]
+        #[inline]
+        fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                unsafe fn v4($($arg: $ty),*) { $impl_($($arg),*) }
+                #[target_feature(enable = "avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                unsafe fn v3($($arg: $ty),*) { $impl_($($arg),*) }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    return unsafe { v4($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    return unsafe { v3($($arg),*) };
+                }
+            }
+            $impl_($($arg),*)
+        }
+    };
+}
+
+dispatch_simd!(cell_fwd, cell_fwd_impl, (h: usize, z: &[f32], g: &[f32], bias: &[f32], c_prev: &[f32], acts: &mut [f32], c: &mut [f32], hout: &mut [f32]));
+dispatch_simd!(cell_bwd, cell_bwd_impl, (h: usize, dout: &[f32], dh_rec: &[f32], dc: &mut [f32], acts: &[f32], c: &[f32], c_prev: &[f32], dz: &mut [f32]));
+dispatch_simd!(axpy_rows, axpy_rows_impl, (hk: &[f32], wt: &[f32], z: &mut [f32]));
+
+/// `dst[m, n] = lhs[m, k] · rhs[k, n]` with explicit (row, column) strides.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+unsafe fn mm(
+    m: usize,
+    n: usize,
+    k: usize,
+    dst: *mut f32,
+    dst_rs: usize,
+    lhs: *const f32,
+    lhs_rs: usize,
+    lhs_cs: usize,
+    rhs: *const f32,
+    rhs_rs: usize,
+    rhs_cs: usize,
+    accumulate: bool,
+    par: Parallelism,
+) {
+    gemm::gemm(
+        m,
+        n,
+        k,
+        dst,
+        1,
+        dst_rs as isize,
+        accumulate,
+        lhs,
+        lhs_cs as isize,
+        lhs_rs as isize,
+        rhs,
+        rhs_cs as isize,
+        rhs_rs as isize,
+        1.0f32,
+        1.0f32,
+        false,
+        false,
+        false,
+        par,
+    )
+}
+
+// ---------------------------------------------------------------------------------------------
+// One direction of the recurrence on raw buffers
+
+/// Buffers and sizes of one direction's forward recurrence.
+struct DirFwd<'a> {
+    d: usize,
+    b: usize,
+    t: usize,
+    h: usize,
+    /// Projected gates `[B*T, 8H]` (this direction's columns start at `d*4H`), no bias.
+    g: *const f32,
+    /// This direction's `W_hh [4H, H]`.
+    whh: *const f32,
+    /// This direction's `W_hhᵀ [H, 4H]`, used for small batches when present.
+    whh_t: Option<&'a [f32]>,
+    /// `b_ih + b_hh` of this direction `[4H]`.
+    bias: &'a [f32],
+    /// Output `[B*T, 2H]` (this direction's columns start at `d*H`).
+    out: SPtr,
+    /// Gate activations `[B*T, 4H]` and cells `[B*T, H]` of this direction (written).
+    acts: &'a mut [f32],
+    cs: &'a mut [f32],
+    /// Scratch `[B*4H]` and zeros `[H]`.
+    z: &'a mut [f32],
+    zeros: &'a [f32],
+    par: Parallelism,
+}
+
+#[inline(always)]
+fn time_at(d: usize, t: usize, s: usize) -> usize {
+    if d == 0 {
+        s
+    } else {
+        t - 1 - s
+    }
+}
+
+impl DirFwd<'_> {
+    fn run(self) {
+        let DirFwd { d, b, t, h, g, whh, whh_t, bias, out, acts, cs, z, zeros, par } = self;
+        let h4 = 4 * h;
+        let out = out.get();
+        for s in 0..t {
+            let tt = time_at(d, t, s);
+            let z = &mut z[..b * h4];
+            if s == 0 {
+                z.fill(0.0);
+            } else {
+                let tp = time_at(d, t, s - 1);
+                // h_prev rows: out[(bb*T + tp)*2H + d*H], row stride T*2H
+                let hp = unsafe { out.add(tp * 2 * h + d * h) } as *const f32;
+                match whh_t {
+                    Some(wt) if b <= 4 => {
+                        z.fill(0.0);
+                        for bb in 0..b {
+                            let hrow =
+                                unsafe { std::slice::from_raw_parts(hp.add(bb * t * 2 * h), h) };
+                            axpy_rows(hrow, wt, &mut z[bb * h4..(bb + 1) * h4]);
+                        }
+                    }
+                    _ => unsafe {
+                        // z[B,4H] = h_prev[B,H] · W_hhᵀ  (W_hhᵀ[k, n] = W_hh[n, k])
+                        mm(b, h4, h, z.as_mut_ptr(), h4, hp, t * 2 * h, 1, whh, 1, h, false, par);
+                    },
+                }
+            }
+            for bb in 0..b {
+                let row = bb * t + tt;
+                let grow = unsafe { std::slice::from_raw_parts(g.add(row * 8 * h + d * h4), h4) };
+                let (c_prev, c_now): (&[f32], &mut [f32]) = if s == 0 {
+                    (zeros, &mut cs[row * h..row * h + h])
+                } else {
+                    let prow = bb * t + time_at(d, t, s - 1);
+                    // split the borrow: prow != row
+                    let ptr = cs.as_mut_ptr();
+                    unsafe {
+                        (
+                            std::slice::from_raw_parts(ptr.add(prow * h), h),
+                            std::slice::from_raw_parts_mut(ptr.add(row * h), h),
+                        )
+                    }
+                };
+                let hout = unsafe { std::slice::from_raw_parts_mut(out.add(row * 2 * h + d * h), h) };
+                cell_fwd(
+                    h,
+                    &z[bb * h4..(bb + 1) * h4],
+                    grow,
+                    bias,
+                    c_prev,
+                    &mut acts[row * h4..(row + 1) * h4],
+                    c_now,
+                    hout,
+                );
+            }
+        }
+    }
+}
+
+/// Backprop through time for one direction.
+struct DirBwd<'a> {
+    d: usize,
+    b: usize,
+    t: usize,
+    h: usize,
+    /// Gradient of the output `[B*T, 2H]`.
+    dout: &'a [f32],
+    /// Output of the forward pass `[B*T, 2H]` (hidden states).
+    hs: &'a [f32],
+    whh: &'a [f32],
+    acts: &'a [f32],
+    cs: &'a [f32],
+    /// Gradient of the projected gates `[B*T, 8H]` (this direction's columns at `d*4H`), written.
+    dg: SPtr,
+    /// Gradient of this direction's `W_hh [4H, H]` and bias `[4H]`, written.
+    dw: &'a mut [f32],
+    db: &'a mut [f32],
+    par: Parallelism,
+}
+
+impl DirBwd<'_> {
+    fn run(self) {
+        let DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg, dw, db, par } = self;
+        let h4 = 4 * h;
+        let dg = dg.get();
+        let mut dh_rec = vec![0f32; b * h];
+        let mut dc = vec![0f32; b * h];
+        let zeros = vec![0f32; h];
+        for s in (0..t).rev() {
+            let tt = time_at(d, t, s);
+            for bb in 0..b {
+                let row = bb * t + tt;
+                let c_prev: &[f32] = if s == 0 {
+                    &zeros
+                } else {
+                    let prow = bb * t + time_at(d, t, s - 1);
+                    &cs[prow * h..prow * h + h]
+                };
+                let dz = unsafe { std::slice::from_raw_parts_mut(dg.add(row * 8 * h + d * h4), h4) };
+                cell_bwd(
+                    h,
+                    &dout[row * 2 * h + d * h..row * 2 * h + d * h + h],
+                    &dh_rec[bb * h..(bb + 1) * h],
+                    &mut dc[bb * h..(bb + 1) * h],
+                    &acts[row * h4..(row + 1) * h4],
+                    &cs[row * h..row * h + h],
+                    c_prev,
+                    dz,
+                );
+            }
+            if s > 0 {
+                // dh_rec[B,H] = dz_t[B,4H] · W_hh[4H,H]
+                unsafe {
+                    mm(
+                        b,
+                        h,
+                        h4,
+                        dh_rec.as_mut_ptr(),
+                        h,
+                        dg.add(tt * 8 * h + d * h4),
+                        t * 8 * h,
+                        1,
+                        whh.as_ptr(),
+                        h,
+                        1,
+                        false,
+                        par,
+                    );
+                }
+            }
+        }
+        // h_prev for every (b, t) of this direction, zero at the first step.
+        let mut hp = vec![0f32; b * t * h];
+        for bb in 0..b {
+            for s in 1..t {
+                let row = bb * t + time_at(d, t, s);
+                let prow = bb * t + time_at(d, t, s - 1);
+                hp[row * h..row * h + h]
+                    .copy_from_slice(&hs[prow * 2 * h + d * h..prow * 2 * h + d * h + h]);
+            }
+        }
+        // dW_hh[4H,H] = dZᵀ[4H, B*T] · h_prev[B*T, H]
+        unsafe {
+            mm(
+                h4,
+                h,
+                b * t,
+                dw.as_mut_ptr(),
+                h,
+                dg.add(d * h4),
+                1,
+                8 * h,
+                hp.as_ptr(),
+                h,
+                1,
+                false,
+                par,
+            );
+        }
+        db.fill(0.0);
+        for row in 0..b * t {
+            let dz = unsafe { std::slice::from_raw_parts(dg.add(row * 8 * h + d * h4), h4) };
+            for (a, &v) in db.iter_mut().zip(dz) {
+                *a += v;
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The candle custom op
+
+struct FwdCache {
+    acts: [Vec<f32>; 2],
+    cs: [Vec<f32>; 2],
+}
+
+/// Fused bidirectional recurrence: `(G [B*T, 8H], W_hh [8H, H], bias [16H]) -> H [B, T, 2H]`
+/// where `G = x·[W_ih_f; W_ih_b]ᵀ` and `bias = [b_ih_f, b_ih_b, b_hh_f, b_hh_b]`.
+/// The backward-direction weights are rows `4H..8H` of `W_hh`.
+pub struct BiLstmOp {
+    b: usize,
+    t: usize,
+    h: usize,
+    cache: Mutex<Option<FwdCache>>,
+}
+
+impl BiLstmOp {
+    pub fn new(b: usize, t: usize, h: usize) -> Self {
+        Self { b, t, h, cache: Mutex::new(None) }
+    }
+}
+
+fn contiguous_f32<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
+    let data = s.as_slice::<f32>()?;
+    match l.contiguous_offsets() {
+        Some((a, b)) => Ok(&data[a..b]),
+        None => bail!("fused lstm: input must be contiguous"),
+    }
+}
+
+/// Run `f` on the contiguous f32 data of a CPU tensor (copying only if it is not contiguous).
+fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> {
+    if !t.is_contiguous() {
+        let t = t.contiguous()?;
+        return with_f32(&t, f);
+    }
+    let (st, l) = t.storage_and_layout();
+    match &*st {
+        Storage::Cpu(cpu) => Ok(f(contiguous_f32(cpu, l)?)),
+        _ => bail!("fused lstm: only CPU tensors are supported"),
+    }
+}
+
+fn summed_bias(bias: &[f32], h: usize) -> [Vec<f32>; 2] {
+    let h4 = 4 * h;
+    let mk = |d: usize| -> Vec<f32> {
+        (0..h4).map(|j| bias[d * h4 + j] + bias[8 * h + d * h4 + j]).collect()
+    };
+    [mk(0), mk(1)]
+}
+
+impl CustomOp3 for BiLstmOp {
+    fn name(&self) -> &'static str {
+        "fused-bilstm"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        let (b, t, h) = (self.b, self.t, self.h);
+        let g = contiguous_f32(s1, l1)?;
+        let w = contiguous_f32(s2, l2)?;
+        let bias = contiguous_f32(s3, l3)?;
+        if g.len() != b * t * 8 * h || w.len() != 8 * h * h || bias.len() != 16 * h {
+            bail!("fused lstm: bad input sizes {} {} {}", g.len(), w.len(), bias.len());
+        }
+        let bsum = summed_bias(bias, h);
+        let mut out = vec![0f32; b * t * 2 * h];
+        let mut acts = [vec![0f32; b * t * 4 * h], vec![0f32; b * t * 4 * h]];
+        let mut cs = [vec![0f32; b * t * h], vec![0f32; b * t * h]];
+        let mut z = [vec![0f32; b * 4 * h], vec![0f32; b * 4 * h]];
+        let zeros = vec![0f32; h];
+        let th = threading();
+        let par = gemm_par(th);
+        let outp = SPtr(out.as_mut_ptr());
+        {
+            let [a0, a1] = &mut acts;
+            let [c0, c1] = &mut cs;
+            let [z0, z1] = &mut z;
+            let mk = |d: usize, acts, cs, z| DirFwd {
+                d,
+                b,
+                t,
+                h,
+                g: g.as_ptr(),
+                whh: w[d * 4 * h * h..].as_ptr(),
+                whh_t: None,
+                bias: &bsum[d],
+                out: outp,
+                acts,
+                cs,
+                z,
+                zeros: &zeros,
+                par,
+            };
+            let f0 = mk(0, &mut a0[..], &mut c0[..], &mut z0[..]);
+            let f1 = mk(1, &mut a1[..], &mut c1[..], &mut z1[..]);
+            let (f0, f1) = (SendBox(f0), SendBox(f1));
+            run2(
+                th == Threading::PerDirection,
+                move || f0.into_inner().run(),
+                move || f1.into_inner().run(),
+            );
+        }
+        *self.cache.lock().unwrap() = Some(FwdCache { acts, cs });
+        Ok((CpuStorage::F32(out), Shape::from((b, t, 2 * h))))
+    }
+
+    fn bwd(
+        &self,
+        _g: &Tensor,
+        w: &Tensor,
+        _bias: &Tensor,
+        res: &Tensor,
+        grad_res: &Tensor,
+    ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let (b, t, h) = (self.b, self.t, self.h);
+        let guard = self.cache.lock().unwrap();
+        let cache = match guard.as_ref() {
+            Some(c) => c,
+            None => bail!("fused lstm: backward without forward cache"),
+        };
+        let mut dg = vec![0f32; b * t * 8 * h];
+        let mut dw = vec![0f32; 8 * h * h];
+        let mut db = [vec![0f32; 4 * h], vec![0f32; 4 * h]];
+        let th = threading();
+        let par = gemm_par(th);
+        let dgp = SPtr(dg.as_mut_ptr());
+        with_f32(w, |w| {
+            with_f32(res, |hs| {
+                with_f32(grad_res, |dout| {
+                    let (dw0, dw1) = dw.split_at_mut(4 * h * h);
+                    let [db0, db1] = &mut db;
+                    let mk = |d: usize, dw, db| DirBwd {
+                        d,
+                        b,
+                        t,
+                        h,
+                        dout,
+                        hs,
+                        whh: &w[d * 4 * h * h..(d + 1) * 4 * h * h],
+                        acts: &cache.acts[d],
+                        cs: &cache.cs[d],
+                        dg: dgp,
+                        dw,
+                        db,
+                        par,
+                    };
+                    let (f0, f1) = (SendBox(mk(0, dw0, &mut db0[..])), SendBox(mk(1, dw1, &mut db1[..])));
+                    run2(
+                        th == Threading::PerDirection,
+                        move || f0.into_inner().run(),
+                        move || f1.into_inner().run(),
+                    );
+                })
+            })
+        })???;
+        drop(guard);
+        let mut dbias = Vec::with_capacity(16 * h);
+        for _ in 0..2 {
+            dbias.extend_from_slice(&db[0]);
+            dbias.extend_from_slice(&db[1]);
+        }
+        let dev = Device::Cpu;
+        Ok((
+            Some(Tensor::from_vec(dg, (b * t, 8 * h), &dev)?),
+            Some(Tensor::from_vec(dw, (8 * h, h), &dev)?),
+            Some(Tensor::from_vec(dbias, 16 * h, &dev)?),
+        ))
+    }
+}
+
+/// Wrapper that lets a per-direction job (holding raw pointers into buffers whose disjoint parts
+/// it writes) move to the worker thread.
+struct SendBox<T>(T);
+unsafe impl<T> Send for SendBox<T> {}
+impl<T> SendBox<T> {
+    fn into_inner(self) -> T {
+        self.0
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// BiLstm module
+
+/// One direction's parameters (candle tensors backed by `Var`s when built from a `VarMap`).
+#[derive(Clone, Debug)]
+pub struct LstmWeights {
+    pub w_ih: Tensor,
+    pub w_hh: Tensor,
+    pub b_ih: Tensor,
+    pub b_hh: Tensor,
+}
+
+#[derive(Clone, Debug)]
+pub struct BiLstm {
+    pub in_dim: usize,
+    pub hidden: usize,
+    pub fwd: LstmWeights,
+    pub bwd: LstmWeights,
+    ref_fwd: LSTM,
+    ref_bwd: LSTM,
+}
+
+impl BiLstm {
+    /// Weights under `vb`: `weight_ih_l0`, `weight_hh_l0`, `bias_ih_l0`, `bias_hh_l0` (forward) and
+    /// the same with `_reverse` (backward). New variables are initialised like PyTorch:
+    /// U(-1/sqrt(H), 1/sqrt(H)).
+    pub fn new(in_dim: usize, hidden: usize, vb: VarBuilder) -> Result<Self> {
+        let k = 1.0 / (hidden as f64).sqrt();
+        let init = Init::Uniform { lo: -k, up: k };
+        let get = |sfx: &str| -> Result<LstmWeights> {
+            Ok(LstmWeights {
+                w_ih: vb.get_with_hints((4 * hidden, in_dim), &format!("weight_ih_l0{sfx}"), init)?,
+                w_hh: vb.get_with_hints((4 * hidden, hidden), &format!("weight_hh_l0{sfx}"), init)?,
+                b_ih: vb.get_with_hints(4 * hidden, &format!("bias_ih_l0{sfx}"), init)?,
+                b_hh: vb.get_with_hints(4 * hidden, &format!("bias_hh_l0{sfx}"), init)?,
+            })
+        };
+        let fwd = get("")?;
+        let bwd = get("_reverse")?;
+        let ref_fwd = LSTM::new(in_dim, hidden, LSTMConfig::default(), vb.clone())?;
+        let ref_bwd = LSTM::new(
+            in_dim,
+            hidden,
+            LSTMConfig { direction: Direction::Backward, ..LSTMConfig::default() },
+            vb,
+        )?;
+        Ok(Self { in_dim, hidden, fwd, bwd, ref_fwd, ref_bwd })
+    }
+
+    /// Fast training/inference forward with autograd: `[B, T, I] -> [B, T, 2H]`
+    /// (forward states in `[.., :H]`, backward states in `[.., H:]`).
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let (b, t, i) = x.dims3()?;
+        if i != self.in_dim {
+            bail!("BiLstm: input dim {i}, expected {}", self.in_dim);
+        }
+        let x2 = x.reshape((b * t, i))?;
+        let w_ih = Tensor::cat(&[&self.fwd.w_ih, &self.bwd.w_ih], 0)?;
+        let g = x2.matmul(&w_ih.t()?)?.contiguous()?;
+        let w_hh = Tensor::cat(&[&self.fwd.w_hh, &self.bwd.w_hh], 0)?;
+        let bias = Tensor::cat(&[&self.fwd.b_ih, &self.bwd.b_ih, &self.fwd.b_hh, &self.bwd.b_hh], 0)?;
+        g.apply_op3(&w_hh, &bias, BiLstmOp::new(b, t, self.hidden))
+    }
+
+    /// The same computation through candle-nn's `LSTM` (the backward one over the reversed
+    /// sequence). For tests and benchmarks.
+    pub fn forward_reference(&self, x: &Tensor) -> Result<Tensor> {
+        let t = x.dim(1)?;
+        let rev: Vec<u32> = (0..t as u32).rev().collect();
+        let rev = Tensor::new(rev.as_slice(), x.device())?;
+        let f = self.ref_fwd.states_to_tensor(&self.ref_fwd.seq(x)?)?;
+        let xr = x.index_select(&rev, 1)?;
+        let br = self.ref_bwd.states_to_tensor(&self.ref_bwd.seq(&xr)?)?;
+        let bk = br.index_select(&rev, 1)?;
+        Tensor::cat(&[&f, &bk], 2)
+    }
+
+    /// Copy the current weights out into plain f32 buffers for [`CpuBiLstm::infer`].
+    pub fn freeze(&self) -> Result<CpuBiLstm> {
+        let v = |t: &Tensor| -> Result<Vec<f32>> {
+            t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>()
+        };
+        let h = self.hidden;
+        let mut w_ih = v(&self.fwd.w_ih)?;
+        w_ih.extend(v(&self.bwd.w_ih)?);
+        let mut w_hh = v(&self.fwd.w_hh)?;
+        w_hh.extend(v(&self.bwd.w_hh)?);
+        let mut bias = Vec::with_capacity(8 * h);
+        for dir in [&self.fwd, &self.bwd] {
+            let (bi, bh) = (v(&dir.b_ih)?, v(&dir.b_hh)?);
+            bias.extend(bi.iter().zip(&bh).map(|(a, b)| a + b));
+        }
+        let mut w_hh_t = vec![0f32; 8 * h * h];
+        for d in 0..2 {
+            for n in 0..4 * h {
+                for k in 0..h {
+                    w_hh_t[d * 4 * h * h + k * 4 * h + n] = w_hh[d * 4 * h * h + n * h + k];
+                }
+            }
+        }
+        Ok(CpuBiLstm { in_dim: self.in_dim, hidden: h, w_ih, w_hh, w_hh_t, bias })
+    }
+
+    /// All eight parameter tensors (forward then backward: w_ih, w_hh, b_ih, b_hh).
+    pub fn tensors(&self) -> [&Tensor; 8] {
+        [
+            &self.fwd.w_ih,
+            &self.fwd.w_hh,
+            &self.fwd.b_ih,
+            &self.fwd.b_hh,
+            &self.bwd.w_ih,
+            &self.bwd.w_hh,
+            &self.bwd.b_ih,
+            &self.bwd.b_hh,
+        ]
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Plain-f32 inference
+
+/// Frozen weights of a [`BiLstm`] for autograd-free inference.
+#[derive(Clone, Debug)]
+pub struct CpuBiLstm {
+    pub in_dim: usize,
+    pub hidden: usize,
+    /// `[8H, I]`: forward rows then backward rows.
+    pub w_ih: Vec<f32>,
+    /// `[8H, H]`.
+    pub w_hh: Vec<f32>,
+    /// Per direction `W_hhᵀ [H, 4H]`, for small batches.
+    pub w_hh_t: Vec<f32>,
+    /// `b_ih + b_hh`, `[8H]`.
+    pub bias: Vec<f32>,
+}
+
+/// Reusable buffers for [`CpuBiLstm::infer`]; grows on demand, never shrinks.
+#[derive(Default, Debug, Clone)]
+pub struct Scratch {
+    g: Vec<f32>,
+    acts: [Vec<f32>; 2],
+    cs: [Vec<f32>; 2],
+    z: [Vec<f32>; 2],
+    zeros: Vec<f32>,
+}
+
+fn grow(v: &mut Vec<f32>, n: usize) {
+    if v.len() < n {
+        v.resize(n, 0.0);
+    }
+}
+
+impl CpuBiLstm {
+    /// `x [B*T, I]` (row-major, batch-major) -> `out [B*T, 2H]`.
+    pub fn infer(&self, x: &[f32], b: usize, t: usize, out: &mut [f32], sc: &mut Scratch) {
+        let (h, i) = (self.hidden, self.in_dim);
+        assert_eq!(x.len(), b * t * i, "CpuBiLstm::infer: x has the wrong size");
+        assert_eq!(out.len(), b * t * 2 * h, "CpuBiLstm::infer: out has the wrong size");
+        grow(&mut sc.g, b * t * 8 * h);
+        grow(&mut sc.zeros, h);
+        for d in 0..2 {
+            grow(&mut sc.acts[d], b * t * 4 * h);
+            grow(&mut sc.cs[d], b * t * h);
+            grow(&mut sc.z[d], b * 4 * h);
+        }
+        let parallel = b >= INFER_THREAD_MIN_BATCH;
+        let gp = SPtr(sc.g.as_mut_ptr());
+        let outp = SPtr(out.as_mut_ptr());
+        let Scratch { acts, cs, z, zeros, .. } = sc;
+        let [a0, a1] = acts;
+        let [c0, c1] = cs;
+        let [z0, z1] = z;
+        let zeros: &[f32] = zeros;
+        let j0 = SendBox((&mut a0[..], &mut c0[..], &mut z0[..]));
+        let j1 = SendBox((&mut a1[..], &mut c1[..], &mut z1[..]));
+        run2(
+            parallel,
+            move || {
+                let (a, c, z) = j0.into_inner();
+                self.infer_dir(0, x, b, t, gp, outp, a, c, z, zeros)
+            },
+            move || {
+                let (a, c, z) = j1.into_inner();
+                self.infer_dir(1, x, b, t, gp, outp, a, c, z, zeros)
+            },
+        );
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn infer_dir(
+        &self,
+        d: usize,
+        x: &[f32],
+        b: usize,
+        t: usize,
+        gp: SPtr,
+        outp: SPtr,
+        acts: &mut [f32],
+        cs: &mut [f32],
+        z: &mut [f32],
+        zeros: &[f32],
+    ) {
+        let (h, i) = (self.hidden, self.in_dim);
+        let h4 = 4 * h;
+        // this direction's gate projection: g[:, d*4H..] = x · W_ih[d]ᵀ
+        unsafe {
+            mm(
+                b * t,
+                h4,
+                i,
+                gp.get().add(d * h4),
+                8 * h,
+                x.as_ptr(),
+                i,
+                1,
+                self.w_ih.as_ptr().add(d * h4 * i),
+                1,
+                i,
+                false,
+                Parallelism::None,
+            );
+        }
+        DirFwd {
+            d,
+            b,
+            t,
+            h,
+            g: gp.get(),
+            whh: self.w_hh[d * h4 * h..].as_ptr(),
+            whh_t: Some(&self.w_hh_t[d * h4 * h..(d + 1) * h4 * h]),
+            bias: &self.bias[d * h4..(d + 1) * h4],
+            out: outp,
+            acts,
+            cs,
+            z,
+            zeros,
+            par: Parallelism::None,
+        }
+        .run();
+    }
+}
+
+/// Gradients of the eight parameters of a [`BiLstm`] from a `GradStore` (None if absent).
+pub fn grads_of(lstm: &BiLstm, grads: &GradStore) -> Vec<Option<Tensor>> {
+    lstm.tensors().iter().map(|t| grads.get(t).cloned()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::Var;
+    use candle_nn::VarMap;
+
+    fn max_abs(a: &Tensor, b: &Tensor) -> f32 {
+        (a - b).unwrap().abs().unwrap().flatten_all().unwrap().max(0).unwrap().to_scalar::<f32>().unwrap()
+    }
+
+    fn build(i: usize, h: usize) -> (VarMap, BiLstm) {
+        let vm = VarMap::new();
+        let vb = VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
+        let l = BiLstm::new(i, h, vb.pp("lstm")).unwrap();
+        // non-zero biases everywhere (PyTorch-style init already gives that)
+        (vm, l)
+    }
+
+    #[test]
+    fn fast_math_accuracy() {
+        let mut worst_e = 0f32;
+        let mut worst_t = 0f32;
+        for k in -2000..=2000 {
+            let x = k as f32 * 0.01;
+            let e = fast_exp(x);
+            worst_e = worst_e.max(((e - x.exp()) / x.exp()).abs());
+            worst_t = worst_t.max((tanh_f(x) - x.tanh()).abs());
+        }
+        assert!(worst_e < 1e-6, "exp rel err {worst_e}");
+        assert!(worst_t < 1e-6, "tanh abs err {worst_t}");
+        assert!(fast_exp(-200.0) >= 0.0 && fast_exp(-200.0) < 1e-37);
+        assert!(fast_exp(200.0).is_finite());
+    }
+
+    #[test]
+    fn forward_matches_candle_nn() {
+        for &(b, t, i, h) in &[(3usize, 7usize, 5usize, 6usize), (9, 10, 92, 40), (1, 4, 3, 17)] {
+            for th in [Threading::PerDirection, Threading::Single] {
+                set_threading(th);
+                let (_vm, l) = build(i, h);
+                let x = Tensor::randn(0f32, 1.0, (b, t, i), &Device::Cpu).unwrap();
+                let fast = l.forward(&x).unwrap();
+                let slow = l.forward_reference(&x).unwrap();
+                assert_eq!(fast.dims(), &[b, t, 2 * h]);
+                let dfwd = max_abs(&fast.narrow(2, 0, h).unwrap(), &slow.narrow(2, 0, h).unwrap());
+                let dbwd = max_abs(&fast.narrow(2, h, h).unwrap(), &slow.narrow(2, h, h).unwrap());
+                assert!(dfwd < 1e-4, "forward direction differs: {dfwd}");
+                assert!(dbwd < 1e-4, "backward direction differs: {dbwd}");
+            }
+        }
+        set_threading(Threading::PerDirection);
+    }
+
+    #[test]
+    fn frozen_infer_matches_forward() {
+        for &(b, t, i, h) in &[(1usize, 10usize, 12usize, 20usize), (3, 5, 7, 9), (16, 6, 10, 8)] {
+            let (_vm, l) = build(i, h);
+            let x = Tensor::randn(0f32, 1.0, (b, t, i), &Device::Cpu).unwrap();
+            let fast = l.forward(&x).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            let frozen = l.freeze().unwrap();
+            let xv = x.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            let mut out = vec![0f32; b * t * 2 * h];
+            let mut sc = Scratch::default();
+            frozen.infer(&xv, b, t, &mut out, &mut sc);
+            let d = fast.iter().zip(&out).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+            assert!(d < 1e-5, "frozen differs by {d}");
+            // second call on the same scratch gives the same
+            let mut out2 = vec![0f32; b * t * 2 * h];
+            frozen.infer(&xv, b, t, &mut out2, &mut sc);
+            assert_eq!(out, out2);
+        }
+    }
+
+    /// Loss = sum(out * r) through the fast op, gradient w.r.t. the op's inputs vs central finite
+    /// differences of the op's forward (accumulated in f64).
+    #[test]
+    fn op_gradients_match_finite_differences() {
+        let (b, t, h) = (2usize, 4usize, 5usize);
+        let dev = Device::Cpu;
+        let g = Var::from_tensor(&Tensor::randn(0f32, 0.8, (b * t, 8 * h), &dev).unwrap()).unwrap();
+        let w = Var::from_tensor(&Tensor::randn(0f32, 0.5, (8 * h, h), &dev).unwrap()).unwrap();
+        let bias = Var::from_tensor(&Tensor::randn(0f32, 0.5, 16 * h, &dev).unwrap()).unwrap();
+        let r = Tensor::randn(0f32, 1.0, (b, t, 2 * h), &dev).unwrap();
+        let rv = r.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let loss_of = |gv: &[f32], wv: &[f32], bv: &[f32]| -> f64 {
+            let gt = Tensor::from_slice(gv, (b * t, 8 * h), &dev).unwrap();
+            let wt = Tensor::from_slice(wv, (8 * h, h), &dev).unwrap();
+            let bt = Tensor::from_slice(bv, 16 * h, &dev).unwrap();
+            let o = gt.apply_op3_no_bwd(&wt, &bt, &BiLstmOp::new(b, t, h)).unwrap();
+            let o = o.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            o.iter().zip(&rv).map(|(a, b)| *a as f64 * *b as f64).sum()
+        };
+        let out = g.as_tensor().apply_op3(w.as_tensor(), bias.as_tensor(), BiLstmOp::new(b, t, h)).unwrap();
+        let loss = (out * &r).unwrap().sum_all().unwrap();
+        let grads = loss.backward().unwrap();
+        let gg = grads.get(g.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let gw = grads.get(w.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let gb = grads.get(bias.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let gv = g.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let wv = w.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let bv = bias.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let eps = 2e-3f32;
+        let check = |which: usize, analytic: &[f32]| {
+            let n = analytic.len();
+            let mut worst = 0f64;
+            for k in 0..n {
+                let (mut g2, mut w2, mut b2) = (gv.clone(), wv.clone(), bv.clone());
+                let (mut g3, mut w3, mut b3) = (gv.clone(), wv.clone(), bv.clone());
+                match which {
+                    0 => {
+                        g2[k] += eps;
+                        g3[k] -= eps;
+                    }
+                    1 => {
+                        w2[k] += eps;
+                        w3[k] -= eps;
+                    }
+                    _ => {
+                        b2[k] += eps;
+                        b3[k] -= eps;
+                    }
+                }
+                let fd = (loss_of(&g2, &w2, &b2) - loss_of(&g3, &w3, &b3)) / (2.0 * eps as f64);
+                let err = (fd - analytic[k] as f64).abs() / (1.0 + fd.abs());
+                worst = worst.max(err);
+            }
+            assert!(worst < 3e-3, "input {which}: finite-difference mismatch {worst}");
+        };
+        check(0, &gg);
+        check(1, &gw);
+        check(2, &gb);
+        // sanity: gradients are not trivially zero
+        assert!(gw.iter().any(|v| v.abs() > 1e-3));
+    }
+
+    /// Same loss through the fast path and through candle-nn's LSTM; gradients w.r.t. all eight
+    /// weights and the input must agree.
+    #[test]
+    fn gradients_match_candle_nn_autograd() {
+        for th in [Threading::PerDirection, Threading::RayonGemm] {
+            set_threading(th);
+            let (b, t, i, h) = (4usize, 6usize, 7usize, 9usize);
+            let (_vm, l) = build(i, h);
+            let x = Var::from_tensor(&Tensor::randn(0f32, 1.0, (b, t, i), &Device::Cpu).unwrap()).unwrap();
+            let r = Tensor::randn(0f32, 1.0, (b, t, 2 * h), &Device::Cpu).unwrap();
+            let lf = (l.forward(x.as_tensor()).unwrap() * &r).unwrap().sqr().unwrap().sum_all().unwrap();
+            let lr = (l.forward_reference(x.as_tensor()).unwrap() * &r).unwrap().sqr().unwrap().sum_all().unwrap();
+            let gf = lf.backward().unwrap();
+            let gr = lr.backward().unwrap();
+            for (k, p) in l.tensors().iter().enumerate() {
+                let a = gf.get(p).expect("fast grad");
+                let c = gr.get(p).expect("reference grad");
+                let d = max_abs(a, c);
+                let scale = c.abs().unwrap().flatten_all().unwrap().max(0).unwrap().to_scalar::<f32>().unwrap();
+                assert!(d < 1e-4 * (1.0 + scale), "param {k}: grad diff {d} (scale {scale})");
+            }
+            let d = max_abs(gf.get(x.as_tensor()).unwrap(), gr.get(x.as_tensor()).unwrap());
+            assert!(d < 1e-4, "input grad diff {d}");
+        }
+        set_threading(Threading::PerDirection);
+    }
+}

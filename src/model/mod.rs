@@ -1,0 +1,2 @@
+//! GloGen and LocGen.
+pub mod lstm;

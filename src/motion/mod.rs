@@ -1,0 +1,15 @@
+//! Skeletons, motions and kinematics: the data model everything else stands on.
+//! Conventions: y is up, column vectors (a joint's world rotation is `parent_world * local`),
+//! positions in the skeleton's own unit (see [`Skeleton::meters_per_unit`]).
+
+mod kinematics;
+mod rotation;
+mod skeleton;
+mod solve;
+mod take;
+
+pub use kinematics::{forward_kinematics, LocalPose};
+pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
+pub use skeleton::{Skeleton, SkeletonError};
+pub use solve::solve_local_poses;
+pub use take::Motion;

@@ -1,0 +1,316 @@
+//! Joint rotations from joint positions (inverse kinematics per frame, no optimisation).
+//!
+//! Every joint's world rotation is chosen so that its children's *rest* offsets point at where
+//! the children actually are:
+//! - no usable child (a leaf, or only zero-length bones): the parent's world rotation (local
+//!   identity);
+//! - one child: the minimal rotation (swing) taking the rest direction, as the parent's world
+//!   rotation carries it, onto the actual direction, applied on top of the parent's rotation,
+//!   so the bone's twist follows the parent;
+//! - several children whose rest directions span a plane (hips, chest): the rotation that best
+//!   maps the rest child directions onto the actual ones in the least-squares sense (unit
+//!   vectors, equal weights), by Horn's quaternion method: the eigenvector of the largest
+//!   eigenvalue of a symmetric 4x4 matrix, found with Jacobi rotations in f64;
+//! - several children along one line (rest or actual): treated as one child along their mean
+//!   direction.
+//!
+//! The root's translation is its position; every other translation is its rest offset, so the
+//! result has the skeleton's rest bone lengths whatever the input's (a bone-length projection).
+//! Directions are taken from the input positions (not from the rebuilt ones), so errors do not
+//! accumulate down the chains; only bone-length differences do. Always solved against the rest
+//! pose, never against another frame, so frames are independent.
+
+use glam::{DQuat, Quat, Vec3};
+
+use super::{LocalPose, Skeleton};
+
+/// Local poses whose forward kinematics reproduce `positions` (frame-major, `frames * joints`
+/// world positions; a trailing partial frame is ignored) as closely as rest bone lengths allow.
+pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPose> {
+    let n = skeleton.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (j, p) in skeleton.parents.iter().enumerate() {
+        if let Some(p) = *p {
+            if p < j {
+                children[p].push(j);
+            }
+        }
+    }
+    let scale = skeleton.offsets.iter().map(|o| o.length()).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
+    let eps = 1e-6 * scale;
+    positions.chunks_exact(n).map(|frame| solve_frame(skeleton, &children, frame, eps)).collect()
+}
+
+fn solve_frame(skeleton: &Skeleton, children: &[Vec<usize>], frame: &[Vec3], eps: f32) -> LocalPose {
+    let n = skeleton.len();
+    let mut world = vec![Quat::IDENTITY; n];
+    let mut rotations = vec![Quat::IDENTITY; n];
+    let mut translations = skeleton.offsets.clone();
+    let mut pairs: Vec<(Vec3, Vec3)> = Vec::new();
+    for j in 0..n {
+        let parent = skeleton.parents[j].filter(|&p| p < j);
+        let base = parent.map_or(Quat::IDENTITY, |p| world[p]);
+        if parent.is_none() {
+            translations[j] = frame[j];
+        }
+        pairs.clear();
+        for &c in &children[j] {
+            let rest = skeleton.offsets[c];
+            let actual = frame[c] - frame[j];
+            if rest.length() > eps && actual.length() > eps && actual.is_finite() {
+                pairs.push((rest.normalize(), actual.normalize()));
+            }
+        }
+        let w = fit(base, &pairs);
+        world[j] = w;
+        rotations[j] = (base.inverse() * w).normalize();
+    }
+    LocalPose { rotations, translations }
+}
+
+/// The world rotation of a joint whose parent's world rotation is `base`, from (rest, actual)
+/// unit child directions.
+fn fit(base: Quat, pairs: &[(Vec3, Vec3)]) -> Quat {
+    match pairs {
+        [] => base,
+        [(rest, actual)] => swing(base, *rest, *actual),
+        _ => {
+            if spans_plane(pairs.iter().map(|p| p.0)) && spans_plane(pairs.iter().map(|p| p.1)) {
+                horn(pairs)
+            } else {
+                let rest: Vec3 = pairs.iter().map(|p| p.0).sum();
+                let actual: Vec3 = pairs.iter().map(|p| p.1).sum();
+                if rest.length() > 1e-6 && actual.length() > 1e-6 {
+                    swing(base, rest.normalize(), actual.normalize())
+                } else {
+                    swing(base, pairs[0].0, pairs[0].1)
+                }
+            }
+        }
+    }
+}
+
+/// `base` followed by the shortest rotation taking `base * rest` onto `actual`.
+fn swing(base: Quat, rest: Vec3, actual: Vec3) -> Quat {
+    let from = (base * rest).normalize();
+    (Quat::from_rotation_arc(from, actual) * base).normalize()
+}
+
+/// Whether some two of the unit vectors are at least ~0.6 degrees from (anti)parallel.
+fn spans_plane(mut dirs: impl Iterator<Item = Vec3>) -> bool {
+    let Some(first) = dirs.next() else { return false };
+    dirs.any(|d| first.cross(d).length() > 1e-2)
+}
+
+/// The rotation `R` minimising `sum |R rest - actual|^2` (Horn 1987, closed form with
+/// quaternions).
+fn horn(pairs: &[(Vec3, Vec3)]) -> Quat {
+    let mut s = [[0f64; 3]; 3];
+    for (r, d) in pairs {
+        for (a, row) in s.iter_mut().enumerate() {
+            for (b, v) in row.iter_mut().enumerate() {
+                *v += r[a] as f64 * d[b] as f64;
+            }
+        }
+    }
+    let [[sxx, sxy, sxz], [syx, syy, syz], [szx, szy, szz]] = s;
+    let n = [
+        [sxx + syy + szz, syz - szy, szx - sxz, sxy - syx],
+        [syz - szy, sxx - syy - szz, sxy + syx, szx + sxz],
+        [szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy],
+        [sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz],
+    ];
+    let v = largest_eigenvector(n);
+    DQuat::from_xyzw(v[1], v[2], v[3], v[0]).normalize().as_quat()
+}
+
+/// The eigenvector of the largest eigenvalue of a symmetric 4x4 matrix (cyclic Jacobi).
+fn largest_eigenvector(mut a: [[f64; 4]; 4]) -> [f64; 4] {
+    let mut v = [[0f64; 4]; 4];
+    for (i, row) in v.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    let norm: f64 = a.iter().flatten().map(|x| x * x).sum();
+    for _sweep in 0..30 {
+        let off: f64 = (0..4).flat_map(|p| (0..4).filter(move |&q| q != p).map(move |q| (p, q))).map(|(p, q)| a[p][q] * a[p][q]).sum();
+        if !(off > 1e-30 * norm) {
+            break;
+        }
+        for p in 0..3 {
+            for q in p + 1..4 {
+                if a[p][q].abs() < 1e-300 {
+                    continue;
+                }
+                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = if theta >= 0.0 { 1.0 } else { -1.0 } / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for row in a.iter_mut() {
+                    let (kp, kq) = (row[p], row[q]);
+                    row[p] = c * kp - s * kq;
+                    row[q] = s * kp + c * kq;
+                }
+                for k in 0..4 {
+                    let (pk, qk) = (a[p][k], a[q][k]);
+                    a[p][k] = c * pk - s * qk;
+                    a[q][k] = s * pk + c * qk;
+                }
+                for row in v.iter_mut() {
+                    let (kp, kq) = (row[p], row[q]);
+                    row[p] = c * kp - s * kq;
+                    row[q] = s * kp + c * kq;
+                }
+            }
+        }
+    }
+    let best = (0..4).fold(0, |b, i| if a[i][i] > a[b][b] { i } else { b });
+    [v[0][best], v[1][best], v[2][best], v[3][best]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::motion::forward_kinematics;
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f32 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        }
+        fn quat(&mut self) -> Quat {
+            Quat::from_xyzw(self.next(), self.next(), self.next(), self.next()).normalize()
+        }
+        fn vec(&mut self) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next())
+        }
+    }
+
+    /// A small body: root with three children (spine and two legs), a chest with three
+    /// children (neck and two arms), single-child chains, a zero-length duplicate joint.
+    fn body() -> Skeleton {
+        let j = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        Skeleton::new(
+            ["hips", "spine", "chest", "neck", "head", "l_arm", "l_hand", "r_arm", "r_hand", "l_leg", "l_foot", "r_leg", "r_foot", "r_foot_dup"]
+                .map(String::from)
+                .to_vec(),
+            vec![None, Some(0), Some(1), Some(2), Some(3), Some(2), Some(5), Some(2), Some(7), Some(0), Some(9), Some(0), Some(11), Some(12)],
+            vec![
+                j(0.0, 90.0, 0.0),
+                j(0.0, 10.0, -1.0),
+                j(0.0, 20.0, 0.0),
+                j(0.0, 15.0, 2.0),
+                j(0.0, 10.0, 0.0),
+                j(15.0, 10.0, 0.0),
+                j(25.0, 0.0, 0.0),
+                j(-15.0, 10.0, 0.0),
+                j(-25.0, 0.0, 0.0),
+                j(10.0, -5.0, 0.0),
+                j(0.0, -40.0, 0.0),
+                j(-10.0, -5.0, 0.0),
+                j(0.0, -40.0, 0.0),
+                j(0.0, 0.0, 0.0),
+            ],
+            0.01,
+        )
+        .unwrap()
+    }
+
+    fn fk(s: &Skeleton, pose: &LocalPose) -> Vec<Vec3> {
+        let mut p = vec![Vec3::ZERO; s.len()];
+        let mut w = vec![Quat::IDENTITY; s.len()];
+        forward_kinematics(s, pose, &mut p, &mut w);
+        p
+    }
+
+    #[test]
+    fn horn_recovers_random_rotations() {
+        let mut rng = Rng(7);
+        for _ in 0..200 {
+            let r = rng.quat();
+            let pairs: Vec<(Vec3, Vec3)> = (0..3)
+                .map(|_| {
+                    let v = rng.vec().normalize();
+                    (v, r * v)
+                })
+                .collect();
+            let q = horn(&pairs);
+            assert!(q.dot(r).abs() > 1.0 - 1e-5, "{q} vs {r}");
+        }
+    }
+
+    #[test]
+    fn random_poses_round_trip_through_solve() {
+        let s = body();
+        let mut rng = Rng(11);
+        let mut frames = Vec::new();
+        let mut originals = Vec::new();
+        for _ in 0..50 {
+            let pose = LocalPose {
+                rotations: (0..s.len()).map(|_| rng.quat()).collect(),
+                translations: (0..s.len()).map(|j| if j == 0 { rng.vec() * 100.0 } else { s.offsets[j] }).collect(),
+            };
+            let p = fk(&s, &pose);
+            frames.extend_from_slice(&p);
+            originals.push(p);
+        }
+        let solved = solve_local_poses(&s, &frames);
+        assert_eq!(solved.len(), 50);
+        for (pose, want) in solved.iter().zip(&originals) {
+            let got = fk(&s, pose);
+            for (a, b) in got.iter().zip(want) {
+                assert!(a.distance(*b) < 1e-3, "{a} vs {b}");
+            }
+            assert_eq!(pose.translations[0], want[0]);
+            assert_eq!(&pose.translations[1..], &s.offsets[1..]);
+        }
+    }
+
+    #[test]
+    fn rest_pose_solves_to_identity_and_twist_follows_parent() {
+        let s = body();
+        let rest = s.rest_positions();
+        let pose = &solve_local_poses(&s, &rest)[0];
+        for q in &pose.rotations {
+            assert!(q.dot(Quat::IDENTITY).abs() > 1.0 - 1e-6, "{q}");
+        }
+        // Turn the whole body 90 degrees about y: every local rotation but the root's stays
+        // identity (single-child bones inherit the twist instead of inventing one).
+        let turn = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
+        let turned: Vec<Vec3> = rest.iter().map(|p| turn * *p).collect();
+        let pose = &solve_local_poses(&s, &turned)[0];
+        assert!(pose.rotations[0].dot(turn).abs() > 1.0 - 1e-5);
+        for q in &pose.rotations[1..] {
+            assert!(q.dot(Quat::IDENTITY).abs() > 1.0 - 1e-5, "{q}");
+        }
+    }
+
+    #[test]
+    fn stretched_bones_come_back_at_rest_length_and_right_direction() {
+        let s = body();
+        let mut stretched = s.rest_positions();
+        // Stretch the left forearm to twice its length and bend it down.
+        stretched[6] = stretched[5] + Vec3::new(0.0, -50.0, 0.0);
+        let pose = &solve_local_poses(&s, &stretched)[0];
+        let p = fk(&s, pose);
+        let bone = p[6] - p[5];
+        assert!((bone.length() - 25.0).abs() < 1e-3);
+        assert!(bone.normalize().dot(Vec3::NEG_Y) > 1.0 - 1e-5, "{bone}");
+    }
+
+    #[test]
+    fn degenerate_input_does_not_panic() {
+        let s = body();
+        let all_same = vec![Vec3::ZERO; s.len()];
+        let nan = vec![Vec3::NAN; s.len()];
+        for frame in [all_same, nan] {
+            let poses = solve_local_poses(&s, &frame);
+            assert_eq!(poses.len(), 1);
+        }
+        // A partial trailing frame is ignored.
+        assert_eq!(solve_local_poses(&s, &vec![Vec3::ZERO; s.len() + 3]).len(), 1);
+    }
+}
