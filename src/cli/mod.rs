@@ -1,6 +1,7 @@
 //! The `glocal` command line: every subcommand is a thin layer over the library.
 
 mod data_cmd;
+mod train_cmd;
 
 use std::path::PathBuf;
 
@@ -21,6 +22,8 @@ pub enum Command {
         #[command(subcommand)]
         command: data_cmd::DataCommand,
     },
+    /// Train GloGen or LocGen on a dataset.
+    Train(train_cmd::TrainArgs),
     /// Time the engine's parts.
     Bench {
         #[command(subcommand)]
@@ -45,6 +48,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         None => crate::studio::run(),
         Some(Command::Data { command }) => data_cmd::run(command),
+        Some(Command::Train(args)) => train_cmd::run(args),
         Some(Command::Bench { command }) => match command {
             BenchCommand::Load { dataset, data, json } => data_cmd::bench_load(&dataset, data.as_deref(), json),
         },

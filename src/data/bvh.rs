@@ -167,8 +167,8 @@ impl Reader<'_> {
             return Err(self.err(time_line, format!("frame time must be a positive number of seconds, found {}", clip(time_text))));
         }
         let fps = snap_fps(1.0 / frame_time);
-        if !fps.is_finite() {
-            return Err(self.err(time_line, format!("frame time {} is too small", clip(time_text))));
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(self.err(time_line, format!("frame time {} is out of range", clip(time_text))));
         }
 
         let skeleton = Skeleton::new(
@@ -224,7 +224,15 @@ impl Reader<'_> {
                 })
                 .collect(),
         };
-        Ok((Motion::from_local_poses(Arc::new(skeleton), fps, poses), layout))
+        let motion = Motion::from_local_poses(Arc::new(skeleton), fps, poses);
+        if let Some(k) = motion.positions().iter().position(|p| !p.is_finite()) {
+            let (t, j) = (k / motion.joints(), k % motion.joints());
+            return Err(self.err(
+                time_line + 1 + t,
+                format!("joint '{}' lands at a non-finite position in frame {} (values too large)", clip(&motion.skeleton.names[j]), t + 1),
+            ));
+        }
+        Ok((motion, layout))
     }
 
     /// `Frames:` or `Frame Time:`: the text after the colon.
@@ -474,7 +482,8 @@ fn usable_poses(motion: &Motion) -> Option<&[LocalPose]> {
 ///   [`BvhLayout::default_for`] (roots `Xposition Yposition Zposition Zrotation Xrotation
 ///   Yrotation`, other joints `Zrotation Xrotation Yrotation`). Position channels always come
 ///   first, in X Y Z order.
-/// - MOTION: `Frames:`, `Frame Time:` = 1/fps with 8 decimals, then one line per frame with 6
+/// - MOTION: `Frames:`, `Frame Time:` = 1/fps with 8 decimals (exponent form above 1000
+///   fps), then one line per frame with 6
 ///   decimals per value. Euler angles come straight from each local rotation in the joint's
 ///   order; of the two Euler solutions of a rotation, the one closest to the previous frame's
 ///   angles is written, unwrapped by whole turns, so no channel jumps by 360 (or flips
@@ -564,7 +573,12 @@ pub fn write_bvh(motion: &Motion, layout: Option<&BvhLayout>) -> String {
     let frame_time = 1.0 / motion.fps as f64;
     out.push_str("MOTION\n");
     let _ = writeln!(out, "Frames: {}", poses.len());
-    let _ = writeln!(out, "Frame Time: {frame_time:.8}");
+    if frame_time >= 1e-3 {
+        let _ = writeln!(out, "Frame Time: {frame_time:.8}");
+    } else {
+        // Above 1000 fps eight decimals are too few: shortest exact form instead.
+        let _ = writeln!(out, "Frame Time: {frame_time:e}");
+    }
     let mut previous: Vec<Option<[f64; 3]>> = vec![None; n];
     for pose in poses {
         let mut first = true;

@@ -42,8 +42,7 @@ impl Corpus {
         let loaded = registry::load(dataset, root)?;
         let Some(first) = loaded.clips.first() else { bail!("{dataset} has no readable clips") };
         let skeleton = first.motion.skeleton.clone();
-        let longest = skeleton.rest_bone_lengths().into_iter().fold(0.0, f32::max);
-        let source_joints = skeleton.informative_joints(longest * MIN_BONE_FRACTION);
+        let source_joints = model_joints(&skeleton);
         let layout = FeatureLayout::new(Arc::new(skeleton.subset(&source_joints)));
         let fps = dataset.working_fps();
         let mut counts = vec![0usize; loaded.classes.len()];
@@ -94,6 +93,26 @@ impl Corpus {
         }
         (Normalizer::fit(&sparse, dim), Normalizer::fit(&dense, dim))
     }
+}
+
+/// The joints a model of this skeleton keeps: bones shorter than a fraction of the longest
+/// limb bone are duplicates or collapsed end sites. A root with a single child (Bandai's
+/// `joint_Root`, a placement handle under `Hips`) is dropped too, so the model's root is the
+/// joint where the body branches, the one that carries the pelvis.
+fn model_joints(skeleton: &Skeleton) -> Vec<usize> {
+    let longest_limb = (0..skeleton.len())
+        .filter(|&j| skeleton.parents[j].is_some_and(|p| p != 0))
+        .map(|j| skeleton.offsets[j].length())
+        .fold(0.0, f32::max);
+    let mut keep = skeleton.informative_joints(longest_limb * MIN_BONE_FRACTION);
+    let root_children: Vec<usize> = skeleton.children(0).collect();
+    if let [body_root] = root_children[..] {
+        keep.retain(|&j| j != 0);
+        if !keep.contains(&body_root) {
+            keep.insert(0, body_root);
+        }
+    }
+    keep
 }
 
 /// Mean speed of all joints, units per second.

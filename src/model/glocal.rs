@@ -99,13 +99,19 @@ impl GlocalModel {
     }
 }
 
-/// Builds a block and fills it from a safetensors file after checking that every tensor
-/// the block needs is there with the right shape and dtype.
+/// Builds a block and fills it from a safetensors file.
 pub fn load_block(path: &Path, cfg: &BlockConfig) -> Result<Seq2SeqBlock> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let file = safetensors::SafeTensors::deserialize(&bytes).with_context(|| format!("{} is not a safetensors file", path.display()))?;
     let varmap = VarMap::new();
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
+    load_weights(path, &varmap)?;
+    Ok(block)
+}
+
+/// Fills every variable from a safetensors file after checking that each is there with
+/// the right shape and dtype and holds only finite values.
+pub fn load_weights(path: &Path, varmap: &VarMap) -> Result<()> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let file = safetensors::SafeTensors::deserialize(&bytes).with_context(|| format!("{} is not a safetensors file", path.display()))?;
     let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
     let mut names: Vec<&String> = vars.keys().collect();
     names.sort();
@@ -124,6 +130,5 @@ pub fn load_block(path: &Path, cfg: &BlockConfig) -> Result<Seq2SeqBlock> {
         }
         var.set(&candle_core::Tensor::from_vec(values, var.shape(), &Device::Cpu)?)?;
     }
-    drop(vars);
-    Ok(block)
+    Ok(())
 }

@@ -412,6 +412,9 @@ struct DirBwd<'a> {
 
 impl DirBwd<'_> {
     fn run(self) {
+        let tp0 = std::time::Instant::now();
+        let mut tcell = 0f64;
+        let mut tmm = 0f64;
         let DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg, dw, db, par } = self;
         let h4 = 4 * h;
         let dg = dg.get();
@@ -420,6 +423,7 @@ impl DirBwd<'_> {
         let zeros = vec![0f32; h];
         for s in (0..t).rev() {
             let tt = time_at(d, t, s);
+            let tc0 = std::time::Instant::now();
             for bb in 0..b {
                 let row = bb * t + tt;
                 let c_prev: &[f32] = if s == 0 {
@@ -440,6 +444,8 @@ impl DirBwd<'_> {
                     dz,
                 );
             }
+            tcell += tc0.elapsed().as_secs_f64();
+            let tc0 = std::time::Instant::now();
             if s > 0 {
                 // dh_rec[B,H] = dz_t[B,4H] · W_hh[4H,H]
                 unsafe {
@@ -460,7 +466,9 @@ impl DirBwd<'_> {
                     );
                 }
             }
+            tmm += tc0.elapsed().as_secs_f64();
         }
+        let tl = tp0.elapsed().as_secs_f64();
         // h_prev for every (b, t) of this direction, zero at the first step.
         let mut hp = vec![0f32; b * t * h];
         for bb in 0..b {
@@ -495,6 +503,9 @@ impl DirBwd<'_> {
             for (a, &v) in db.iter_mut().zip(dz) {
                 *a += v;
             }
+        }
+        if std::env::var("GLOCAL_LSTM_PROF").is_ok() {
+            eprintln!("dir {d}: loop {:.2} ms (cell {:.2}, mm {:.2}) total {:.2}", tl * 1e3, tcell * 1e3, tmm * 1e3, tp0.elapsed().as_secs_f64() * 1e3);
         }
     }
 }
@@ -624,6 +635,7 @@ impl CustomOp3 for BiLstmOp {
         grad_res: &Tensor,
     ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
         let (b, t, h) = (self.b, self.t, self.h);
+        let tp0 = std::time::Instant::now();
         let guard = self.cache.lock().unwrap();
         let cache = match guard.as_ref() {
             Some(c) => c,
@@ -665,6 +677,9 @@ impl CustomOp3 for BiLstmOp {
             })
         })???;
         drop(guard);
+        if std::env::var("GLOCAL_LSTM_PROF").is_ok() {
+            eprintln!("bwd core {:.2} ms", tp0.elapsed().as_secs_f64() * 1e3);
+        }
         let mut dbias = Vec::with_capacity(16 * h);
         for _ in 0..2 {
             dbias.extend_from_slice(&db[0]);

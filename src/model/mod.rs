@@ -1,2 +1,8 @@
 //! GloGen and LocGen.
+pub mod block;
 pub mod lstm;
+pub mod adamw;
+pub mod corpus;
+pub mod glocal;
+pub mod spec;
+pub mod train;

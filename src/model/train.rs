@@ -19,7 +19,7 @@ use rand::{Rng, SeedableRng};
 use super::adamw::AdamW;
 use super::block::{BlockConfig, Seq2SeqBlock};
 use super::corpus::{interpolated_window, sample_window, Corpus, Track};
-use super::glocal::{load_block, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
+use super::glocal::{load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
 use super::spec::{GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{FeatureLayout, Normalizer, Placement};
@@ -129,8 +129,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let state_path = opts.out.join(format!("{}{TRAIN_STATE_SUFFIX}", opts.stage.file().trim_end_matches(".safetensors")));
     let mut record = StageRecord { seed: opts.seed, ..Default::default() };
     if opts.resume && weights_path.exists() && state_path.exists() {
-        let loaded = load_block(&weights_path, &cfg)?;
-        copy_weights(&loaded, &varmap)?;
+        load_weights(&weights_path, &varmap)?;
         let state = candle_core::safetensors::load(&state_path, &Device::Cpu)?;
         let step = state.get("step").context("training state has no step")?.to_vec1::<f32>()?[0] as usize;
         opt.load_state(&state, step)?;
@@ -141,16 +140,16 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
             record = prev;
         }
     }
-    let trainer = StageTrainer { opts, corpus: &corpus, spec: &spec, norm: &norm };
+    let frozen_spec = spec.clone();
+    let trainer = StageTrainer { opts, corpus: &corpus, spec: &frozen_spec, norm: &norm };
     let validation = trainer.validation_windows();
     let start = Instant::now();
     let seconds_before = record.seconds;
     let first = opt.step;
-    let mut last_loss = f32::NAN;
     while opt.step < opts.steps && !cancel.load(Ordering::Relaxed) {
         let mut rng = StdRng::seed_from_u64(opts.seed ^ (opt.step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let loss = trainer.loss(&block, &mut rng)?;
-        last_loss = loss.to_scalar::<f32>()?;
+        let last_loss = loss.to_scalar::<f32>()?;
         if !last_loss.is_finite() {
             bail!("training diverged at step {} (loss {last_loss})", opt.step);
         }
@@ -298,16 +297,6 @@ fn seeded_init(varmap: &VarMap, seed: u64) -> Result<()> {
     Ok(())
 }
 
-fn copy_weights(from: &Seq2SeqBlock, to: &VarMap) -> Result<()> {
-    let src = from.named_tensors();
-    let vars = to.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
-    for (name, var) in vars.iter() {
-        let t = src.get(name).with_context(|| format!("checkpoint lacks {name}"))?;
-        var.set(t)?;
-    }
-    Ok(())
-}
-
 fn save_checkpoint(varmap: &VarMap, opt: &AdamW, weights: &Path, state: &Path) -> Result<()> {
     let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
     let tensors: HashMap<String, Tensor> = vars.iter().map(|(k, v)| (k.clone(), v.as_tensor().clone())).collect();
@@ -387,7 +376,7 @@ impl StageTrainer<'_> {
         let blocks = if self.opts.stage == Stage::Glogen { self.spec.glogen.rollout_blocks } else { 1 };
         let span = self.span() + self.spec.stride;
         let (mut xs, mut ys, mut conds) = (Vec::new(), Vec::new(), Vec::new());
-        let cond_dim = block.config().cond_dim;
+        let cond_dim = block.cfg.cond_dim;
         for _ in 0..b {
             let (track, start) = sample_window(&self.corpus.train, self.corpus.classes.len(), span, rng).context("no training clip is long enough")?;
             let (x, y) = self.window(track, start + self.spec.stride, blocks);
@@ -468,7 +457,7 @@ impl StageTrainer<'_> {
         let steps = windows[0].input.len() / dim;
         let x: Vec<f32> = windows.iter().flat_map(|w| w.input.iter().copied()).collect();
         let x = Tensor::from_vec(x, (n, steps, dim), &Device::Cpu)?;
-        let cond_dim = block.config().cond_dim;
+        let cond_dim = block.cfg.cond_dim;
         let cond = (cond_dim > 0)
             .then(|| {
                 let c: Vec<f32> = windows.iter().flat_map(|w| (0..cond_dim).map(move |k| if k == w.class { 1.0 } else { 0.0 })).collect();

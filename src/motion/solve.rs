@@ -20,7 +20,7 @@
 //! accumulate down the chains; only bone-length differences do. Always solved against the rest
 //! pose, never against another frame, so frames are independent.
 
-use glam::{DQuat, Quat, Vec3};
+use glam::{DQuat, DVec3, Quat, Vec3};
 
 use super::{LocalPose, Skeleton};
 
@@ -95,8 +95,25 @@ fn fit(base: Quat, pairs: &[(Vec3, Vec3)]) -> Quat {
 
 /// `base` followed by the shortest rotation taking `base * rest` onto `actual`.
 fn swing(base: Quat, rest: Vec3, actual: Vec3) -> Quat {
-    let from = (base * rest).normalize();
-    (Quat::from_rotation_arc(from, actual) * base).normalize()
+    let base = base.as_dquat();
+    let from = (base * rest.as_dvec3()).normalize();
+    let to = actual.as_dvec3().normalize();
+    (shortest_arc(from, to) * base).normalize().as_quat()
+}
+
+/// The shortest rotation taking unit `from` onto unit `to`, through the half-way vector: it
+/// stays precise up to nearly opposite directions (where `1 + from.to` loses its digits);
+/// exactly opposite ones turn half a turn about an axis perpendicular to `from`.
+fn shortest_arc(from: DVec3, to: DVec3) -> DQuat {
+    let half = from + to;
+    let len = half.length();
+    if !(len > 1e-9) {
+        let axis = from.any_orthonormal_vector();
+        return DQuat::from_xyzw(axis.x, axis.y, axis.z, 0.0);
+    }
+    let h = half / len;
+    let v = from.cross(h);
+    DQuat::from_xyzw(v.x, v.y, v.z, from.dot(h)).normalize()
 }
 
 /// Whether some two of the unit vectors are at least ~0.6 degrees from (anti)parallel.
@@ -224,6 +241,19 @@ mod tests {
         let mut w = vec![Quat::IDENTITY; s.len()];
         forward_kinematics(s, pose, &mut p, &mut w);
         p
+    }
+
+    #[test]
+    fn shortest_arc_is_precise_near_opposite() {
+        let from = DVec3::X;
+        for angle in [0.0f64, 1e-6, 0.5, 3.0, std::f64::consts::PI - 1e-4, std::f64::consts::PI - 1e-6, std::f64::consts::PI] {
+            let to = DVec3::new(angle.cos(), angle.sin(), 0.0);
+            let q = shortest_arc(from, to);
+            // `to` itself only carries ~1e-16 / (pi - angle) of precision near the opposite.
+            let tol = 1e-12 + 1e-15 / (std::f64::consts::PI - angle).max(1e-6);
+            assert!((q * from - to).length() < tol, "{angle}: {}", (q * from - to).length());
+            assert!((q.w.clamp(-1.0, 1.0).acos() * 2.0 - angle).abs() < 1e-7, "not the shortest: {angle}");
+        }
     }
 
     #[test]

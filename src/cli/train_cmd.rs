@@ -1,0 +1,101 @@
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use anyhow::Result;
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::data::archive::DataRoot;
+use crate::model::spec::LossKind;
+use crate::model::train::{train, Stage, TrainOptions};
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    #[arg(long)]
+    dataset: String,
+    #[arg(long, value_enum)]
+    stage: Stage,
+    #[arg(long, default_value_t = 4000)]
+    steps: usize,
+    /// Model folder (created when missing; both stages train into the same one).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Continue from the folder's last checkpoint of this stage.
+    #[arg(long)]
+    resume: bool,
+    #[arg(long)]
+    data: Option<PathBuf>,
+    #[arg(long, default_value_t = 64)]
+    batch: usize,
+    #[arg(long, default_value_t = 200)]
+    hidden: usize,
+    #[arg(long, value_enum, default_value = "j+mf")]
+    loss: LossKind,
+    /// Train GloGen without the class prior (ablation).
+    #[arg(long)]
+    no_class: bool,
+    /// The paper's GloGen: class only at the encoder input, no class dropout, one block per window.
+    #[arg(long)]
+    paper: bool,
+    /// Blocks GloGen rolls out on its own outputs per training window.
+    #[arg(long, default_value_t = 2)]
+    rollout: usize,
+    #[arg(long, default_value_t = 0.1)]
+    class_dropout: f32,
+    #[arg(long, default_value_t = 250)]
+    eval_every: usize,
+    #[arg(long, default_value_t = 250)]
+    checkpoint_every: usize,
+}
+
+pub fn run(args: TrainArgs) -> Result<()> {
+    let mut opts = TrainOptions::new(args.dataset.parse()?, args.stage, args.out);
+    opts.data = DataRoot::resolve(args.data.as_deref());
+    opts.steps = args.steps;
+    opts.seed = args.seed;
+    opts.resume = args.resume;
+    opts.batch = args.batch;
+    opts.hidden = args.hidden;
+    opts.loss = args.loss;
+    opts.use_class = !args.no_class;
+    opts.rollout_blocks = args.rollout;
+    opts.class_dropout = args.class_dropout;
+    opts.eval_every = args.eval_every;
+    opts.checkpoint_every = args.checkpoint_every;
+    if args.paper {
+        opts.class_in_decoder = false;
+        opts.class_dropout = 0.0;
+        opts.rollout_blocks = 1;
+    }
+    let bar = ProgressBar::new(opts.steps as u64);
+    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")?);
+    let cancel = Arc::new(AtomicBool::new(false));
+    let mut last_val = f32::NAN;
+    let spec = train(
+        &opts,
+        &mut |p| {
+            if let Some(v) = p.val_error {
+                last_val = v;
+                bar.println(format!("step {}: loss {:.4}, validation error {:.2}", p.step, p.loss, v));
+            }
+            bar.set_position(p.step as u64);
+            bar.set_message(format!("loss {:.4} val {:.2} {:.1} steps/s", p.loss, last_val, p.steps_per_s));
+        },
+        &cancel,
+    )?;
+    bar.finish();
+    let record = match args.stage {
+        Stage::Glogen => spec.glogen_training,
+        Stage::Locgen => spec.locgen_training,
+    };
+    if let Some(r) = record {
+        println!(
+            "{} steps; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
+            r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit
+        );
+    }
+    Ok(())
+}
