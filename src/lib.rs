@@ -7,6 +7,7 @@
 
 pub mod data;
 pub mod model;
+pub mod synth;
 pub mod motion;
 pub mod cli;
 pub mod studio;

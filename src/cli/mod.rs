@@ -1,6 +1,7 @@
 //! The `glocal` command line: every subcommand is a thin layer over the library.
 
 mod data_cmd;
+mod synth_cmd;
 mod train_cmd;
 
 use std::path::PathBuf;
@@ -24,6 +25,10 @@ pub enum Command {
     },
     /// Train GloGen or LocGen on a dataset.
     Train(train_cmd::TrainArgs),
+    /// Generate a take from a timeline of activities and export it.
+    Generate(synth_cmd::GenerateArgs),
+    /// Draw a contact sheet (PNG) of a take.
+    Render(synth_cmd::RenderArgs),
     /// Time the engine's parts.
     Bench {
         #[command(subcommand)]
@@ -49,6 +54,8 @@ pub fn run(cli: Cli) -> Result<()> {
         None => crate::studio::run(),
         Some(Command::Data { command }) => data_cmd::run(command),
         Some(Command::Train(args)) => train_cmd::run(args),
+        Some(Command::Generate(args)) => synth_cmd::run_generate(args),
+        Some(Command::Render(args)) => synth_cmd::run_render(args),
         Some(Command::Bench { command }) => match command {
             BenchCommand::Load { dataset, data, json } => data_cmd::bench_load(&dataset, data.as_deref(), json),
         },

@@ -1,7 +1,7 @@
 //! Benchmarks of the seq2seq block: the fast fused LSTM against candle-nn's LSTM, with exactly the
 //! shapes, loss and optimiser of `/work/shared/bench/torch_reference.py` (input 80 + 12 class,
 //! hidden 200 per direction, 10 steps, batch 64, MSE + motion-flow MSE, AdamW lr 2e-3, dropout 0.25).
-use super::block::{motion_loss, BlockConfig, Seq2SeqBlock};
+use super::block::{motion_loss, BlockConfig, FusedAdamW, Seq2SeqBlock};
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
 use serde::{Deserialize, Serialize};
@@ -50,7 +50,11 @@ pub enum Budget {
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrainBench {
+    /// Fast LSTM + [`FusedAdamW`] (the project's training setup).
     pub fast_steps_per_s: f64,
+    /// Fast LSTM + `candle_nn::AdamW` (isolates the LSTM's share of the gain).
+    pub fast_candle_adamw_steps_per_s: f64,
+    /// candle-nn's `LSTM` + `candle_nn::AdamW` (the baseline).
     pub candle_nn_steps_per_s: f64,
     /// fast / candle-nn.
     pub speedup: f64,
@@ -109,25 +113,35 @@ pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> 
     let cond = one_hot(b, c, &dev)?;
     let y = Tensor::randn(0f32, 1.0, (b, t, f), &dev)?;
     let cond = if c > 0 { Some(&cond) } else { None };
-    let run = |reference: bool| -> Result<(f64, f32)> {
+    fn run<O: Optimizer<Config = ParamsAdamW>>(
+        cfg: &TrainBenchConfig,
+        budget: Budget,
+        reference: bool,
+        x: &Tensor,
+        cond: Option<&Tensor>,
+        y: &Tensor,
+    ) -> Result<(f64, f32)> {
+        let dev = Device::Cpu;
         let vm = VarMap::new();
         let blk = Seq2SeqBlock::new(cfg.block_config(), VarBuilder::from_varmap(&vm, DType::F32, &dev))?;
-        let mut opt = AdamW::new(vm.all_vars(), ParamsAdamW { lr: cfg.lr, ..Default::default() })?;
+        let mut opt = O::new(vm.all_vars(), ParamsAdamW { lr: cfg.lr, ..Default::default() })?;
         measure(cfg.warmup, budget, || {
             let out = if reference {
-                blk.forward_with_reference_lstm(&x, cond, true)?
+                blk.forward_with_reference_lstm(x, cond, true)?
             } else {
-                blk.forward(&x, cond, true)?
+                blk.forward(x, cond, true)?
             };
-            let loss = motion_loss(&out, &y)?;
+            let loss = motion_loss(&out, y)?;
             opt.backward_step(&loss)?;
             loss.to_scalar::<f32>()
         })
-    };
-    let (fast, fl) = run(false)?;
-    let (slow, sl) = run(true)?;
+    }
+    let (fast, fl) = run::<FusedAdamW>(&cfg, budget, false, &x, cond, &y)?;
+    let (fast_c, _) = run::<AdamW>(&cfg, budget, false, &x, cond, &y)?;
+    let (slow, sl) = run::<AdamW>(&cfg, budget, true, &x, cond, &y)?;
     Ok(TrainBench {
         fast_steps_per_s: fast,
+        fast_candle_adamw_steps_per_s: fast_c,
         candle_nn_steps_per_s: slow,
         speedup: fast / slow,
         fast_final_loss: fl,

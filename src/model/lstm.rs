@@ -14,7 +14,7 @@
 //! * Inference path ([`CpuBiLstm::infer`]): a frozen copy of the weights as `Vec<f32>`, no candle
 //!   tensors, reusable [`Scratch`] buffers.
 use candle_core::{
-    backprop::GradStore, bail, CpuStorage, CustomOp3, DType, Device, Layout, Result, Shape,
+    backprop::GradStore, bail, CpuStorage, CustomOp2, DType, Device, Layout, Result, Shape,
     Storage, Tensor,
 };
 use candle_nn::rnn::{Direction, LSTMConfig, LSTM, RNN};
@@ -60,7 +60,7 @@ pub fn threading() -> Threading {
 }
 
 /// Minimum batch for which the inference path splits directions over two threads.
-const INFER_THREAD_MIN_BATCH: usize = 8;
+const INFER_THREAD_MIN_BATCH: usize = 1;
 
 fn run2<A: FnOnce() + Send, B: FnOnce() + Send>(parallel: bool, a: A, b: B) {
     if parallel {
@@ -208,14 +208,41 @@ fn cell_bwd_impl(
 }
 
 /// `z[n] += sum_k h[k] * wt[k, n]` (small-batch recurrent product with `W_hhᵀ` stored `[H, 4H]`).
+/// Register-blocked over column chunks so the accumulators stay in registers and only the weights
+/// stream from memory.
 #[inline(always)]
 fn axpy_rows_impl(hk: &[f32], wt: &[f32], z: &mut [f32]) {
-    let n = z.len();
-    for (k, &hv) in hk.iter().enumerate() {
-        let row = &wt[k * n..k * n + n];
-        for (zz, &w) in z.iter_mut().zip(row) {
-            *zz += hv * w;
+    #[inline(always)]
+    fn chunk<const C: usize>(hk: &[f32], wt: &[f32], z: &mut [f32], j: usize) {
+        let n = z.len();
+        let mut acc = [0f32; C];
+        acc.copy_from_slice(&z[j..j + C]);
+        for (k, &hv) in hk.iter().enumerate() {
+            let row: &[f32; C] = wt[k * n + j..k * n + j + C].try_into().unwrap();
+            for c in 0..C {
+                acc[c] += hv * row[c];
+            }
         }
+        z[j..j + C].copy_from_slice(&acc);
+    }
+    let n = z.len();
+    assert!(wt.len() >= hk.len() * n);
+    let mut j = 0;
+    while j + 128 <= n {
+        chunk::<128>(hk, wt, z, j);
+        j += 128;
+    }
+    while j + 32 <= n {
+        chunk::<32>(hk, wt, z, j);
+        j += 32;
+    }
+    while j + 8 <= n {
+        chunk::<8>(hk, wt, z, j);
+        j += 8;
+    }
+    while j < n {
+        chunk::<1>(hk, wt, z, j);
+        j += 1;
     }
 }
 
@@ -412,9 +439,6 @@ struct DirBwd<'a> {
 
 impl DirBwd<'_> {
     fn run(self) {
-        let tp0 = std::time::Instant::now();
-        let mut tcell = 0f64;
-        let mut tmm = 0f64;
         let DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg, dw, db, par } = self;
         let h4 = 4 * h;
         let dg = dg.get();
@@ -423,7 +447,6 @@ impl DirBwd<'_> {
         let zeros = vec![0f32; h];
         for s in (0..t).rev() {
             let tt = time_at(d, t, s);
-            let tc0 = std::time::Instant::now();
             for bb in 0..b {
                 let row = bb * t + tt;
                 let c_prev: &[f32] = if s == 0 {
@@ -444,8 +467,6 @@ impl DirBwd<'_> {
                     dz,
                 );
             }
-            tcell += tc0.elapsed().as_secs_f64();
-            let tc0 = std::time::Instant::now();
             if s > 0 {
                 // dh_rec[B,H] = dz_t[B,4H] · W_hh[4H,H]
                 unsafe {
@@ -466,9 +487,7 @@ impl DirBwd<'_> {
                     );
                 }
             }
-            tmm += tc0.elapsed().as_secs_f64();
         }
-        let tl = tp0.elapsed().as_secs_f64();
         // h_prev for every (b, t) of this direction, zero at the first step.
         let mut hp = vec![0f32; b * t * h];
         for bb in 0..b {
@@ -504,9 +523,6 @@ impl DirBwd<'_> {
                 *a += v;
             }
         }
-        if std::env::var("GLOCAL_LSTM_PROF").is_ok() {
-            eprintln!("dir {d}: loop {:.2} ms (cell {:.2}, mm {:.2}) total {:.2}", tl * 1e3, tcell * 1e3, tmm * 1e3, tp0.elapsed().as_secs_f64() * 1e3);
-        }
     }
 }
 
@@ -518,19 +534,54 @@ struct FwdCache {
     cs: [Vec<f32>; 2],
 }
 
-/// Fused bidirectional recurrence: `(G [B*T, 8H], W_hh [8H, H], bias [16H]) -> H [B, T, 2H]`
-/// where `G = x·[W_ih_f; W_ih_b]ᵀ` and `bias = [b_ih_f, b_ih_b, b_hh_f, b_hh_b]`.
-/// The backward-direction weights are rows `4H..8H` of `W_hh`.
+/// Offsets of the parameters in the flat parameter vector of [`BiLstmOp`] (`d` = direction).
+#[derive(Clone, Copy, Debug)]
+pub struct FlatLayout {
+    pub i: usize,
+    pub h: usize,
+}
+
+impl FlatLayout {
+    pub fn w_ih(&self, d: usize) -> usize {
+        d * 4 * self.h * self.i
+    }
+    pub fn w_hh(&self, d: usize) -> usize {
+        8 * self.h * self.i + d * 4 * self.h * self.h
+    }
+    pub fn b_ih(&self, d: usize) -> usize {
+        8 * self.h * (self.i + self.h) + d * 4 * self.h
+    }
+    pub fn b_hh(&self, d: usize) -> usize {
+        8 * self.h * (self.i + self.h) + 8 * self.h + d * 4 * self.h
+    }
+    pub fn len(&self) -> usize {
+        8 * self.h * (self.i + self.h) + 16 * self.h
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Fused bidirectional LSTM layer as one candle op: `(x [B*T, I], params) -> H [B, T, 2H]`, where
+/// `params` is the flat concatenation `[W_ih_f, W_ih_b, W_hh_f, W_hh_b, b_ih_f, b_ih_b, b_hh_f, b_hh_b]`
+/// (row-major, candle-nn shapes; see [`FlatLayout`]). Each direction runs on its own thread: its
+/// input projection for the whole sequence (one gemm), then the recurrence (one gemm per step and
+/// a fused cell). The backward pass is hand-written BPTT; the input gradient is only computed when
+/// `x` is part of the autograd graph.
 pub struct BiLstmOp {
     b: usize,
     t: usize,
+    i: usize,
     h: usize,
     cache: Mutex<Option<FwdCache>>,
 }
 
 impl BiLstmOp {
-    pub fn new(b: usize, t: usize, h: usize) -> Self {
-        Self { b, t, h, cache: Mutex::new(None) }
+    pub fn new(b: usize, t: usize, i: usize, h: usize) -> Self {
+        Self { b, t, i, h, cache: Mutex::new(None) }
+    }
+    fn layout(&self) -> FlatLayout {
+        FlatLayout { i: self.i, h: self.h }
     }
 }
 
@@ -543,7 +594,7 @@ fn contiguous_f32<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
 }
 
 /// Run `f` on the contiguous f32 data of a CPU tensor (copying only if it is not contiguous).
-fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> {
+pub(crate) fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> {
     if !t.is_contiguous() {
         let t = t.contiguous()?;
         return with_f32(&t, f);
@@ -555,37 +606,29 @@ fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> {
     }
 }
 
-fn summed_bias(bias: &[f32], h: usize) -> [Vec<f32>; 2] {
-    let h4 = 4 * h;
-    let mk = |d: usize| -> Vec<f32> {
-        (0..h4).map(|j| bias[d * h4 + j] + bias[8 * h + d * h4 + j]).collect()
-    };
-    [mk(0), mk(1)]
+/// `g[:, d*4H..(d+1)*4H] = x[BT, I] · W_ih[d]ᵀ` (g has row stride 8H).
+unsafe fn project(d: usize, bt: usize, i: usize, h: usize, x: *const f32, w_ih_d: *const f32, g: *mut f32, par: Parallelism) {
+    mm(bt, 4 * h, i, g.add(d * 4 * h), 8 * h, x, i, 1, w_ih_d, 1, i, false, par);
 }
 
-impl CustomOp3 for BiLstmOp {
+impl CustomOp2 for BiLstmOp {
     fn name(&self) -> &'static str {
         "fused-bilstm"
     }
 
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-        s3: &CpuStorage,
-        l3: &Layout,
-    ) -> Result<(CpuStorage, Shape)> {
-        let (b, t, h) = (self.b, self.t, self.h);
-        let g = contiguous_f32(s1, l1)?;
-        let w = contiguous_f32(s2, l2)?;
-        let bias = contiguous_f32(s3, l3)?;
-        if g.len() != b * t * 8 * h || w.len() != 8 * h * h || bias.len() != 16 * h {
-            bail!("fused lstm: bad input sizes {} {} {}", g.len(), w.len(), bias.len());
+    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+        let (b, t, i, h) = (self.b, self.t, self.i, self.h);
+        let fl = self.layout();
+        let x = contiguous_f32(s1, l1)?;
+        let p = contiguous_f32(s2, l2)?;
+        if x.len() != b * t * i || p.len() != fl.len() {
+            bail!("fused lstm: bad input sizes {} {}", x.len(), p.len());
         }
-        let bsum = summed_bias(bias, h);
+        let bsum: [Vec<f32>; 2] = [0, 1].map(|d| {
+            (0..4 * h).map(|j| p[fl.b_ih(d) + j] + p[fl.b_hh(d) + j]).collect::<Vec<f32>>()
+        });
         let mut out = vec![0f32; b * t * 2 * h];
+        let mut g = vec![0f32; b * t * 8 * h];
         let mut acts = [vec![0f32; b * t * 4 * h], vec![0f32; b * t * 4 * h]];
         let mut cs = [vec![0f32; b * t * h], vec![0f32; b * t * h]];
         let mut z = [vec![0f32; b * 4 * h], vec![0f32; b * 4 * h]];
@@ -593,6 +636,7 @@ impl CustomOp3 for BiLstmOp {
         let th = threading();
         let par = gemm_par(th);
         let outp = SPtr(out.as_mut_ptr());
+        let gp = SPtr(g.as_mut_ptr());
         {
             let [a0, a1] = &mut acts;
             let [c0, c1] = &mut cs;
@@ -602,8 +646,8 @@ impl CustomOp3 for BiLstmOp {
                 b,
                 t,
                 h,
-                g: g.as_ptr(),
-                whh: w[d * 4 * h * h..].as_ptr(),
+                g: gp.get(),
+                whh: p[fl.w_hh(d)..].as_ptr(),
                 whh_t: None,
                 bias: &bsum[d],
                 out: outp,
@@ -613,84 +657,110 @@ impl CustomOp3 for BiLstmOp {
                 zeros: &zeros,
                 par,
             };
-            let f0 = mk(0, &mut a0[..], &mut c0[..], &mut z0[..]);
-            let f1 = mk(1, &mut a1[..], &mut c1[..], &mut z1[..]);
-            let (f0, f1) = (SendBox(f0), SendBox(f1));
+            let f0 = SendBox(mk(0, &mut a0[..], &mut c0[..], &mut z0[..]));
+            let f1 = SendBox(mk(1, &mut a1[..], &mut c1[..], &mut z1[..]));
+            let xp = SPtr(x.as_ptr() as *mut f32);
+            let wp = SPtr(p.as_ptr() as *mut f32);
             run2(
                 th == Threading::PerDirection,
-                move || f0.into_inner().run(),
-                move || f1.into_inner().run(),
+                move || unsafe {
+                    project(0, b * t, i, h, xp.get(), wp.get().add(fl.w_ih(0)), gp.get(), par);
+                    f0.into_inner().run()
+                },
+                move || unsafe {
+                    project(1, b * t, i, h, xp.get(), wp.get().add(fl.w_ih(1)), gp.get(), par);
+                    f1.into_inner().run()
+                },
             );
         }
         *self.cache.lock().unwrap() = Some(FwdCache { acts, cs });
         Ok((CpuStorage::F32(out), Shape::from((b, t, 2 * h))))
     }
 
-    fn bwd(
-        &self,
-        _g: &Tensor,
-        w: &Tensor,
-        _bias: &Tensor,
-        res: &Tensor,
-        grad_res: &Tensor,
-    ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
-        let (b, t, h) = (self.b, self.t, self.h);
-        let tp0 = std::time::Instant::now();
+    fn bwd(&self, x: &Tensor, p: &Tensor, res: &Tensor, grad_res: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>)> {
+        let (b, t, i, h) = (self.b, self.t, self.i, self.h);
+        let fl = self.layout();
+        let bt = b * t;
+        let need_dx = x.track_op();
         let guard = self.cache.lock().unwrap();
         let cache = match guard.as_ref() {
             Some(c) => c,
             None => bail!("fused lstm: backward without forward cache"),
         };
-        let mut dg = vec![0f32; b * t * 8 * h];
-        let mut dw = vec![0f32; 8 * h * h];
-        let mut db = [vec![0f32; 4 * h], vec![0f32; 4 * h]];
+        let mut dg = vec![0f32; bt * 8 * h];
+        let mut dp = vec![0f32; fl.len()];
+        let mut dx = if need_dx { vec![0f32; bt * i] } else { Vec::new() };
         let th = threading();
         let par = gemm_par(th);
+        let parallel = th == Threading::PerDirection;
         let dgp = SPtr(dg.as_mut_ptr());
-        with_f32(w, |w| {
-            with_f32(res, |hs| {
-                with_f32(grad_res, |dout| {
-                    let (dw0, dw1) = dw.split_at_mut(4 * h * h);
-                    let [db0, db1] = &mut db;
-                    let mk = |d: usize, dw, db| DirBwd {
-                        d,
-                        b,
-                        t,
-                        h,
-                        dout,
-                        hs,
-                        whh: &w[d * 4 * h * h..(d + 1) * 4 * h * h],
-                        acts: &cache.acts[d],
-                        cs: &cache.cs[d],
-                        dg: dgp,
-                        dw,
-                        db,
-                        par,
-                    };
-                    let (f0, f1) = (SendBox(mk(0, dw0, &mut db0[..])), SendBox(mk(1, dw1, &mut db1[..])));
-                    run2(
-                        th == Threading::PerDirection,
-                        move || f0.into_inner().run(),
-                        move || f1.into_inner().run(),
-                    );
+        with_f32(x, |xs| {
+            with_f32(p, |ps| {
+                with_f32(res, |hs| {
+                    with_f32(grad_res, |dout| {
+                        // disjoint parameter-gradient regions of each direction
+                        let (dwih, rest) = dp.split_at_mut(8 * h * i);
+                        let (dwih0, dwih1) = dwih.split_at_mut(4 * h * i);
+                        let (dwhh, dbias) = rest.split_at_mut(8 * h * h);
+                        let (dwhh0, dwhh1) = dwhh.split_at_mut(4 * h * h);
+                        let (db0, db1) = dbias[..8 * h].split_at_mut(4 * h);
+                        let mk = |d: usize, dw, db| DirBwd {
+                            d,
+                            b,
+                            t,
+                            h,
+                            dout,
+                            hs,
+                            whh: &ps[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h],
+                            acts: &cache.acts[d],
+                            cs: &cache.cs[d],
+                            dg: dgp,
+                            dw,
+                            db,
+                            par,
+                        };
+                        let (f0, f1) = (SendBox(mk(0, dwhh0, db0)), SendBox(mk(1, dwhh1, db1)));
+                        let (w0, w1) = (SendBox(dwih0), SendBox(dwih1));
+                        let xp = SPtr(xs.as_ptr() as *mut f32);
+                        // dW_ih[d] [4H, I] = dG_dᵀ [4H, BT] · x [BT, I]
+                        let dwih_job = move |d: usize, dst: &mut [f32]| unsafe {
+                            mm(4 * h, i, bt, dst.as_mut_ptr(), i, dgp.get().add(d * 4 * h), 1, 8 * h, xp.get(), i, 1, false, par);
+                        };
+                        run2(
+                            parallel,
+                            move || {
+                                f0.into_inner().run();
+                                dwih_job(0, w0.into_inner());
+                            },
+                            move || {
+                                f1.into_inner().run();
+                                dwih_job(1, w1.into_inner());
+                            },
+                        );
+                        // the bias gradients: b_hh gets the same as b_ih
+                        let (bi, bh) = dbias.split_at_mut(8 * h);
+                        bh.copy_from_slice(bi);
+                        if need_dx {
+                            // dx [BT, I] = dG [BT, 8H] · W_ih [8H, I], rows split over the threads
+                            let half = if parallel { bt / 2 } else { bt };
+                            let (dx0, dx1) = dx.split_at_mut(half * i);
+                            let wih = SPtr(ps.as_ptr() as *mut f32);
+                            let job = move |r0: usize, rows: usize, dst: SendBox<&mut [f32]>| unsafe {
+                                if rows > 0 {
+                                    mm(rows, i, 8 * h, dst.into_inner().as_mut_ptr(), i, dgp.get().add(r0 * 8 * h), 8 * h, 1, wih.get(), i, 1, false, par);
+                                }
+                            };
+                            let (d0, d1) = (SendBox(dx0), SendBox(dx1));
+                            run2(parallel, move || job(0, half, d0), move || job(half, bt - half, d1));
+                        }
+                    })
                 })
             })
-        })???;
+        })????;
         drop(guard);
-        if std::env::var("GLOCAL_LSTM_PROF").is_ok() {
-            eprintln!("bwd core {:.2} ms", tp0.elapsed().as_secs_f64() * 1e3);
-        }
-        let mut dbias = Vec::with_capacity(16 * h);
-        for _ in 0..2 {
-            dbias.extend_from_slice(&db[0]);
-            dbias.extend_from_slice(&db[1]);
-        }
         let dev = Device::Cpu;
-        Ok((
-            Some(Tensor::from_vec(dg, (b * t, 8 * h), &dev)?),
-            Some(Tensor::from_vec(dw, (8 * h, h), &dev)?),
-            Some(Tensor::from_vec(dbias, 16 * h, &dev)?),
-        ))
+        let dx = if need_dx { Some(Tensor::from_vec(dx, x.shape(), &dev)?) } else { None };
+        Ok((dx, Some(Tensor::from_vec(dp, fl.len(), &dev)?)))
     }
 }
 
@@ -760,12 +830,21 @@ impl BiLstm {
         if i != self.in_dim {
             bail!("BiLstm: input dim {i}, expected {}", self.in_dim);
         }
-        let x2 = x.reshape((b * t, i))?;
-        let w_ih = Tensor::cat(&[&self.fwd.w_ih, &self.bwd.w_ih], 0)?;
-        let g = x2.matmul(&w_ih.t()?)?.contiguous()?;
-        let w_hh = Tensor::cat(&[&self.fwd.w_hh, &self.bwd.w_hh], 0)?;
-        let bias = Tensor::cat(&[&self.fwd.b_ih, &self.bwd.b_ih, &self.fwd.b_hh, &self.bwd.b_hh], 0)?;
-        g.apply_op3(&w_hh, &bias, BiLstmOp::new(b, t, self.hidden))
+        let x2 = x.reshape((b * t, i))?.contiguous()?;
+        let p = Tensor::cat(
+            &[
+                &self.fwd.w_ih.flatten_all()?,
+                &self.bwd.w_ih.flatten_all()?,
+                &self.fwd.w_hh.flatten_all()?,
+                &self.bwd.w_hh.flatten_all()?,
+                &self.fwd.b_ih,
+                &self.bwd.b_ih,
+                &self.fwd.b_hh,
+                &self.bwd.b_hh,
+            ],
+            0,
+        )?;
+        x2.apply_op2(&p, BiLstmOp::new(b, t, i, self.hidden))
     }
 
     /// The same computation through candle-nn's `LSTM` (the backward one over the reversed
@@ -1024,66 +1103,62 @@ mod tests {
         }
     }
 
-    /// Loss = sum(out * r) through the fast op, gradient w.r.t. the op's inputs vs central finite
-    /// differences of the op's forward (accumulated in f64).
+    /// Loss = sum(out * r) through the fast op; its gradients w.r.t. the input and every parameter
+    /// (both directions' W_ih, W_hh, biases) vs central finite differences of the op's forward
+    /// (accumulated in f64).
     #[test]
     fn op_gradients_match_finite_differences() {
-        let (b, t, h) = (2usize, 4usize, 5usize);
+        let (b, t, i, h) = (2usize, 4usize, 3usize, 5usize);
+        let fl = FlatLayout { i, h };
         let dev = Device::Cpu;
-        let g = Var::from_tensor(&Tensor::randn(0f32, 0.8, (b * t, 8 * h), &dev).unwrap()).unwrap();
-        let w = Var::from_tensor(&Tensor::randn(0f32, 0.5, (8 * h, h), &dev).unwrap()).unwrap();
-        let bias = Var::from_tensor(&Tensor::randn(0f32, 0.5, 16 * h, &dev).unwrap()).unwrap();
+        let x = Var::from_tensor(&Tensor::randn(0f32, 1.0, (b * t, i), &dev).unwrap()).unwrap();
+        let p = Var::from_tensor(&Tensor::randn(0f32, 0.5, fl.len(), &dev).unwrap()).unwrap();
         let r = Tensor::randn(0f32, 1.0, (b, t, 2 * h), &dev).unwrap();
         let rv = r.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-        let loss_of = |gv: &[f32], wv: &[f32], bv: &[f32]| -> f64 {
-            let gt = Tensor::from_slice(gv, (b * t, 8 * h), &dev).unwrap();
-            let wt = Tensor::from_slice(wv, (8 * h, h), &dev).unwrap();
-            let bt = Tensor::from_slice(bv, 16 * h, &dev).unwrap();
-            let o = gt.apply_op3_no_bwd(&wt, &bt, &BiLstmOp::new(b, t, h)).unwrap();
+        let loss_of = |xv: &[f32], pv: &[f32]| -> f64 {
+            let xt = Tensor::from_slice(xv, (b * t, i), &dev).unwrap();
+            let pt = Tensor::from_slice(pv, fl.len(), &dev).unwrap();
+            let o = xt.apply_op2_no_bwd(&pt, &BiLstmOp::new(b, t, i, h)).unwrap();
             let o = o.flatten_all().unwrap().to_vec1::<f32>().unwrap();
             o.iter().zip(&rv).map(|(a, b)| *a as f64 * *b as f64).sum()
         };
-        let out = g.as_tensor().apply_op3(w.as_tensor(), bias.as_tensor(), BiLstmOp::new(b, t, h)).unwrap();
+        let out = x.as_tensor().apply_op2(p.as_tensor(), BiLstmOp::new(b, t, i, h)).unwrap();
         let loss = (out * &r).unwrap().sum_all().unwrap();
         let grads = loss.backward().unwrap();
-        let gg = grads.get(g.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
-        let gw = grads.get(w.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
-        let gb = grads.get(bias.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
-        let gv = g.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
-        let wv = w.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
-        let bv = bias.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let gx = grads.get(x.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let gp = grads.get(p.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let xv = x.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let pv = p.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
         let eps = 2e-3f32;
-        let check = |which: usize, analytic: &[f32]| {
-            let n = analytic.len();
-            let mut worst = 0f64;
-            for k in 0..n {
-                let (mut g2, mut w2, mut b2) = (gv.clone(), wv.clone(), bv.clone());
-                let (mut g3, mut w3, mut b3) = (gv.clone(), wv.clone(), bv.clone());
-                match which {
-                    0 => {
-                        g2[k] += eps;
-                        g3[k] -= eps;
-                    }
-                    1 => {
-                        w2[k] += eps;
-                        w3[k] -= eps;
-                    }
-                    _ => {
-                        b2[k] += eps;
-                        b3[k] -= eps;
-                    }
-                }
-                let fd = (loss_of(&g2, &w2, &b2) - loss_of(&g3, &w3, &b3)) / (2.0 * eps as f64);
-                let err = (fd - analytic[k] as f64).abs() / (1.0 + fd.abs());
-                worst = worst.max(err);
-            }
-            assert!(worst < 3e-3, "input {which}: finite-difference mismatch {worst}");
-        };
-        check(0, &gg);
-        check(1, &gw);
-        check(2, &gb);
-        // sanity: gradients are not trivially zero
-        assert!(gw.iter().any(|v| v.abs() > 1e-3));
+        let mut worst_x = 0f64;
+        for k in 0..xv.len() {
+            let (mut a, mut c) = (xv.clone(), xv.clone());
+            a[k] += eps;
+            c[k] -= eps;
+            let fd = (loss_of(&a, &pv) - loss_of(&c, &pv)) / (2.0 * eps as f64);
+            worst_x = worst_x.max((fd - gx[k] as f64).abs() / (1.0 + fd.abs()));
+        }
+        let mut worst_p = 0f64;
+        for k in 0..pv.len() {
+            let (mut a, mut c) = (pv.clone(), pv.clone());
+            a[k] += eps;
+            c[k] -= eps;
+            let fd = (loss_of(&xv, &a) - loss_of(&xv, &c)) / (2.0 * eps as f64);
+            worst_p = worst_p.max((fd - gp[k] as f64).abs() / (1.0 + fd.abs()));
+        }
+        assert!(worst_x < 3e-3, "input gradient: finite-difference mismatch {worst_x}");
+        assert!(worst_p < 3e-3, "parameter gradient: finite-difference mismatch {worst_p}");
+        // not trivially zero, in every block of the parameters
+        for (lo, hi) in [(fl.w_ih(0), fl.w_ih(1)), (fl.w_hh(1), fl.b_ih(0)), (fl.b_hh(1), fl.len())] {
+            assert!(gp[lo..hi].iter().any(|v| v.abs() > 1e-3));
+        }
+        // without x in the graph, no input gradient is produced
+        let xc = Tensor::from_slice(&xv, (b * t, i), &dev).unwrap();
+        let l2 = (xc.apply_op2(p.as_tensor(), BiLstmOp::new(b, t, i, h)).unwrap() * &r).unwrap().sum_all().unwrap();
+        let g2 = l2.backward().unwrap();
+        assert!(g2.get(&xc).is_none());
+        let gp2 = g2.get(p.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        assert_eq!(gp, gp2);
     }
 
     /// Same loss through the fast path and through candle-nn's LSTM; gradients w.r.t. all eight

@@ -1,0 +1,132 @@
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::model::glocal::GlocalModel;
+use crate::synth::export::{export, ExportFormat};
+use crate::synth::render::{write_contact_sheet, SheetOptions};
+use crate::synth::{generate, GenerateOptions, InitPose, Transition};
+
+#[derive(Args, Debug)]
+pub struct GenerateArgs {
+    /// Model folder (default: models/h36m).
+    #[arg(long, default_value = "models/h36m")]
+    pub model: PathBuf,
+    /// Segments as CLASS:SECONDS[@PACE], comma-separated, e.g. "sitting:3,eating:5,walking:10".
+    #[arg(long)]
+    pub timeline: String,
+    #[arg(long, default_value_t = 1.0)]
+    pub pace: f32,
+    /// seed:CLASS, seed:N, or clip:PATH@FRAME (a BVH, NPY or exponential-map file).
+    #[arg(long, default_value = "seed:0")]
+    pub init: String,
+    /// Plain interpolation between sparse poses instead of LocGen.
+    #[arg(long)]
+    pub no_locgen: bool,
+    #[arg(long, value_enum, default_value = "blend")]
+    pub transition: Transition,
+    /// Classifier-free guidance weight (1: plain conditioning).
+    #[arg(long, default_value_t = 1.0)]
+    pub class_strength: f32,
+    /// Variation seed: 0 gives the model's deterministic take, others differ slightly.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Skip the bone-length projection.
+    #[arg(long)]
+    pub no_projection: bool,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `seed:CLASS`, `seed:N` or `clip:PATH@FRAME`.
+pub fn parse_init(s: &str) -> Result<InitPose> {
+    if let Some(rest) = s.strip_prefix("seed:") {
+        return Ok(match rest.parse::<usize>() {
+            Ok(i) => InitPose::SeedIndex(i),
+            Err(_) => InitPose::SeedClass { class: rest.to_string(), variant: 0 },
+        });
+    }
+    if let Some(rest) = s.strip_prefix("clip:") {
+        let (path, frame) = match rest.rsplit_once('@') {
+            Some((p, f)) => (p, f.parse::<usize>().with_context(|| format!("--init {s}: frame '{f}' is not a whole number"))?),
+            None => (rest, 0),
+        };
+        return Ok(InitPose::File { path: PathBuf::from(path), frame });
+    }
+    bail!("--init {s}: expected seed:CLASS, seed:N or clip:PATH@FRAME")
+}
+
+pub fn run_generate(args: GenerateArgs) -> Result<()> {
+    ExportFormat::from_path(&args.out)?;
+    let opts = GenerateOptions {
+        timeline: args.timeline.parse()?,
+        pace: args.pace,
+        init: parse_init(&args.init)?,
+        locgen: !args.no_locgen,
+        transition: args.transition,
+        class_strength: args.class_strength,
+        seed: args.seed,
+        variation: if args.seed == 0 { 0.0 } else { 0.05 },
+        project_bones: !args.no_projection,
+    };
+    let mut model = GlocalModel::load(&args.model)?;
+    let start = Instant::now();
+    let bar = ProgressBar::new(1000);
+    bar.set_style(ProgressStyle::with_template("{bar:30} {percent}% {elapsed}")?);
+    if args.json {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let take = generate(&mut model, &opts, &mut |f| {
+        bar.set_position((f * 1000.0) as u64);
+        true
+    })?;
+    let elapsed = start.elapsed();
+    bar.finish_and_clear();
+    export(&take.motion, &take.segments, &args.out)?;
+    let m = &take.motion;
+    if args.json {
+        let summary = serde_json::json!({
+            "frames": m.frames(),
+            "fps": m.fps,
+            "seconds": m.seconds(),
+            "segments": take.segments,
+            "elapsed_ms": elapsed.as_secs_f64() * 1e3,
+            "out": args.out,
+        });
+        println!("{summary}");
+    } else {
+        println!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, args.out.display());
+        for s in &take.segments {
+            println!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
+        }
+    }
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A take exported by `glocal generate` (.json keeps the segment colours; .bvh and .npy
+    /// need --model for the skeleton of an NPY).
+    #[arg(long = "in")]
+    pub input: PathBuf,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value = "models/h36m")]
+    pub model: PathBuf,
+    #[arg(long, default_value_t = 8)]
+    pub columns: usize,
+    #[arg(long, default_value_t = 3)]
+    pub rows: usize,
+}
+
+pub fn run_render(args: RenderArgs) -> Result<()> {
+    let (motion, segments) = crate::synth::export::read_take(&args.input, Some(&args.model).filter(|p| p.exists()).map(Path::new))?;
+    write_contact_sheet(&motion, &segments, &args.out, &SheetOptions { columns: args.columns, rows: args.rows, cell: 160 })?;
+    println!("{} frames -> {}", motion.frames(), args.out.display());
+    Ok(())
+}

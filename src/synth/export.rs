@@ -1,0 +1,112 @@
+//! Writing a take for other tools: BVH (Blender, game engines), JSON and NPY. Every write
+//! is atomic: a failed export leaves no half-written file behind.
+
+use std::path::Path;
+
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use super::SegmentSpan;
+use crate::data::bvh::{read_bvh, write_bvh};
+use crate::data::npy::{motion_from_npy, motion_to_npy};
+use crate::model::spec::ModelSpec;
+use crate::data::write::write_atomic;
+use crate::motion::{Motion, Skeleton};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExportFormat {
+    Bvh,
+    Json,
+    Npy,
+}
+
+impl ExportFormat {
+    /// The format a file name asks for, by its extension.
+    pub fn from_path(path: &Path) -> Result<Self> {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_lowercase).as_deref() {
+            Some("bvh") => Ok(Self::Bvh),
+            Some("json") => Ok(Self::Json),
+            Some("npy") => Ok(Self::Npy),
+            _ => bail!("{}: the file name must end in .bvh, .json or .npy", path.display()),
+        }
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonTake {
+    fps: f32,
+    meters_per_unit: f32,
+    joints: Vec<String>,
+    parents: Vec<i64>,
+    segments: Vec<SegmentSpan>,
+    /// frames x joints x [x, y, z]
+    frames: Vec<Vec<[f32; 3]>>,
+}
+
+/// Writes `motion` (already cut to the range to export) to `path` in the format its
+/// extension names. BVH gets the skeleton's hierarchy with rotations solved against its
+/// rest pose and the take's frame time; JSON and NPY get world positions.
+pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<()> {
+    let bytes = match ExportFormat::from_path(path)? {
+        ExportFormat::Bvh => write_bvh(motion, None).into_bytes(),
+        ExportFormat::Npy => motion_to_npy(motion),
+        ExportFormat::Json => {
+            let take = JsonTake {
+                fps: motion.fps,
+                meters_per_unit: motion.skeleton.meters_per_unit,
+                joints: motion.skeleton.names.clone(),
+                parents: motion.skeleton.parents.iter().map(|p| p.map_or(-1, |p| p as i64)).collect(),
+                segments: segments.to_vec(),
+                frames: (0..motion.frames()).map(|t| motion.frame(t).iter().map(|p| p.to_array()).collect()).collect(),
+            };
+            serde_json::to_vec(&take)?
+        }
+    };
+    write_atomic(path, &bytes)
+}
+
+/// The segments of a take that overlap frames `[start, end)`, shifted to start at 0.
+pub fn segments_in_range(segments: &[SegmentSpan], start: usize, end: usize) -> Vec<SegmentSpan> {
+    segments
+        .iter()
+        .filter(|s| s.end_frame > start && s.start_frame < end)
+        .map(|s| SegmentSpan { start_frame: s.start_frame.max(start) - start, end_frame: s.end_frame.min(end) - start, ..s.clone() })
+        .collect()
+}
+
+/// Reads a take back: our JSON (with its segments), a BVH, or an NPY on a model's skeleton.
+pub fn read_take(path: &Path, model_dir: Option<&Path>) -> Result<(Motion, Vec<SegmentSpan>)> {
+    let name = path.display().to_string();
+    match ExportFormat::from_path(path)? {
+        ExportFormat::Json => {
+            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
+            let take: JsonTake = serde_json::from_slice(&bytes).with_context(|| format!("{name} is not a take written by glocal"))?;
+            let parents = take.parents.iter().map(|&p| usize::try_from(p).ok()).collect();
+            let rest = take.frames.first().with_context(|| format!("{name} has no frames"))?;
+            let offsets = rest
+                .iter()
+                .zip(&take.parents)
+                .map(|(p, &parent)| Vec3::from_array(*p) - usize::try_from(parent).ok().and_then(|q| rest.get(q)).map_or(Vec3::ZERO, |q| Vec3::from_array(*q)))
+                .collect();
+            let skeleton = Skeleton::new(take.joints, parents, offsets, take.meters_per_unit).with_context(|| format!("{name}: bad skeleton"))?;
+            if let Some(bad) = take.frames.iter().position(|f| f.len() != skeleton.len()) {
+                bail!("{name}: frame {bad} has {} joints, expected {}", take.frames[bad].len(), skeleton.len());
+            }
+            let positions = take.frames.iter().flatten().map(|p| Vec3::from_array(*p)).collect();
+            Ok((Motion::from_positions(Arc::new(skeleton), take.fps, positions), take.segments))
+        }
+        ExportFormat::Bvh => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+            Ok((read_bvh(&text, &name)?, Vec::new()))
+        }
+        ExportFormat::Npy => {
+            let dir = model_dir.with_context(|| format!("{name}: an NPY take has no skeleton; give the model folder it came from"))?;
+            let spec = ModelSpec::read(dir)?;
+            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
+            Ok((motion_from_npy(&bytes, &name, spec.layout.skeleton.clone(), spec.fps)?, Vec::new()))
+        }
+    }
+}

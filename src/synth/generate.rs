@@ -1,0 +1,289 @@
+//! Long motion from a timeline: GloGen rolls out sparse poses block by block under each
+//! segment's class, LocGen refines the interpolated frames between them, pace stretches
+//! time, and a final projection restores the skeleton's bone lengths.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use super::init::initial_features;
+use super::timeline::Timeline;
+use crate::data::features::{interpolate, Placement};
+use crate::model::glocal::GlocalModel;
+use crate::motion::{solve_local_poses, Motion};
+
+/// How GloGen's class prior changes at a segment boundary.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+pub enum Transition {
+    /// The paper's method: the block that starts in the new segment gets the new class.
+    Cut,
+    /// A block that straddles a boundary gets both classes, weighted by how many of its
+    /// poses fall on each side, so the activity fades over about one block.
+    #[default]
+    Blend,
+}
+
+/// Where the first sparse poses come from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum InitPose {
+    /// A seed-bank entry of this class (the `variant`-th one, wrapping around).
+    SeedClass { class: String, variant: usize },
+    /// A seed-bank entry by index.
+    SeedIndex(usize),
+    /// A motion file (BVH, NPY (T, J, 3), or an exponential-map text of the model's
+    /// dataset) from this frame on.
+    File { path: PathBuf, frame: usize },
+}
+
+impl Default for InitPose {
+    fn default() -> Self {
+        InitPose::SeedIndex(0)
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GenerateOptions {
+    pub timeline: Timeline,
+    pub pace: f32,
+    pub init: InitPose,
+    pub locgen: bool,
+    pub transition: Transition,
+    /// Classifier-free guidance weight (1 = plain conditioning).
+    pub class_strength: f32,
+    /// Seeds the small pose noise that makes repeated takes differ (0: none).
+    pub seed: u64,
+    /// Noise added to each block's input, in normalised units, so takes with different
+    /// seeds differ while staying in class.
+    pub variation: f32,
+    pub project_bones: bool,
+}
+
+impl Default for GenerateOptions {
+    fn default() -> Self {
+        Self {
+            timeline: Timeline::default(),
+            pace: 1.0,
+            init: InitPose::default(),
+            locgen: true,
+            transition: Transition::Blend,
+            class_strength: 1.0,
+            seed: 0,
+            variation: 0.0,
+            project_bones: true,
+        }
+    }
+}
+
+/// A segment's place in the generated take.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SegmentSpan {
+    pub class: usize,
+    pub name: String,
+    pub start_frame: usize,
+    pub end_frame: usize,
+}
+
+pub struct Generated {
+    pub motion: Motion,
+    pub segments: Vec<SegmentSpan>,
+    /// GloGen's encoder embedding of each generated block's input (the t-SNE path).
+    pub block_embeddings: Vec<Vec<f32>>,
+    /// Class (segment) of each block.
+    pub block_classes: Vec<usize>,
+}
+
+/// Generates a take. `progress` gets the fraction done and returns false to cancel.
+pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
+    let spec = model.spec.clone();
+    let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
+    if !(0.0..=10.0).contains(&opts.class_strength) {
+        bail!("class strength must be between 0 and 10, got {}", opts.class_strength);
+    }
+    let dim = spec.layout.dim();
+    let t = spec.block_len;
+    let stride = spec.stride as f32;
+    let paces: Vec<f32> = opts.timeline.segments.iter().map(|s| s.pace.unwrap_or(opts.pace)).collect();
+    // Sparse poses per segment: its duration over the time one sparse step takes at its pace.
+    let counts: Vec<usize> = opts
+        .timeline
+        .segments
+        .iter()
+        .zip(&paces)
+        .map(|(s, p)| ((s.seconds * spec.fps / (stride * p)).round() as usize).max(1))
+        .collect();
+    let total: usize = counts.iter().sum::<usize>() + 1;
+    let segment_of: Vec<usize> = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
+    let segment_at = |i: usize| segment_of[i.min(segment_of.len() - 1)];
+
+    let (seed_raw, start) = initial_features(model, &opts.init)?;
+    let mut sparse = seed_raw;
+    spec.sparse_norm.normalize(&mut sparse);
+    let mut rng = Noise::new(opts.seed);
+    let (mut embeddings, mut block_classes) = (Vec::new(), Vec::new());
+    let blocks = total.saturating_sub(t).div_ceil(t);
+    let mut out = vec![0.0; t * dim];
+    for b in 0..blocks {
+        let first = t + b * t;
+        let class_vec = class_vector(model, &classes, opts.transition, (first..first + t).map(&segment_at));
+        let mut input = sparse[sparse.len() - t * dim..].to_vec();
+        if opts.variation > 0.0 && opts.seed != 0 {
+            input.iter_mut().for_each(|v| *v += opts.variation * rng.next());
+        }
+        embeddings.push(model.embed(&input, &class_vec));
+        block_classes.push(classes[segment_at(first)]);
+        model.glogen_block(&input, &class_vec, opts.class_strength, &mut out);
+        if out.iter().any(|v| !v.is_finite()) {
+            bail!("GloGen produced non-finite poses at block {b}");
+        }
+        sparse.extend_from_slice(&out);
+        if !progress(0.8 * (b + 1) as f32 / blocks as f32) {
+            bail!("cancelled");
+        }
+    }
+    sparse.truncate(total * dim);
+    spec.sparse_norm.denormalize(&mut sparse);
+    let (sparse_positions, _) = spec.layout.decode(&sparse, start);
+    let dense = densify(model, &sparse_positions, opts.locgen);
+    if !progress(0.9) {
+        bail!("cancelled");
+    }
+    let interval_paces: Vec<f32> = (0..total - 1).map(|i| paces[segment_at(i)]).collect();
+    let (positions, interval_starts) = apply_pace(&dense, spec.layout.joints(), spec.stride, &interval_paces);
+    let skeleton = spec.layout.skeleton.clone();
+    let motion = if opts.project_bones {
+        let poses = solve_local_poses(&skeleton, &positions);
+        Motion::from_local_poses(skeleton, spec.fps, poses)
+    } else {
+        Motion::from_positions(skeleton, spec.fps, positions)
+    };
+    let frames = motion.frames();
+    let mut segments = Vec::new();
+    let mut first_sparse = 0;
+    for (k, &n) in counts.iter().enumerate() {
+        let start_frame = interval_starts[first_sparse.min(interval_starts.len() - 1)];
+        let end_frame = if k + 1 == counts.len() { frames } else { interval_starts[(first_sparse + n).min(interval_starts.len() - 1)] };
+        segments.push(SegmentSpan { class: classes[k], name: spec.classes[classes[k]].clone(), start_frame, end_frame });
+        first_sparse += n;
+    }
+    progress(1.0);
+    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes })
+}
+
+/// The class vector of a block whose poses belong to the given segments.
+fn class_vector(model: &GlocalModel, classes: &[usize], transition: Transition, segments: impl Iterator<Item = usize>) -> Vec<f32> {
+    let segs: Vec<usize> = segments.collect();
+    match transition {
+        Transition::Cut => model.class_vector(classes[segs[0]]),
+        Transition::Blend => {
+            let mut v = vec![0.0; model.class_vector(0).len()];
+            for s in &segs {
+                for (a, b) in v.iter_mut().zip(model.class_vector(classes[*s])) {
+                    *a += b / segs.len() as f32;
+                }
+            }
+            v
+        }
+    }
+}
+
+/// Dense frames at the model's native stride: the linear interpolation of the sparse poses,
+/// refined by LocGen when asked and available.
+fn densify(model: &mut GlocalModel, sparse: &[Vec3], locgen: bool) -> Vec<Vec3> {
+    let spec = &model.spec;
+    let j = spec.layout.joints();
+    let dense = interpolate(sparse, j, spec.stride);
+    if !locgen || !model.has_locgen() {
+        return dense;
+    }
+    let layout = spec.layout.clone();
+    let norm = spec.dense_norm.clone();
+    let w = spec.locgen.window;
+    let frames = dense.len() / j;
+    let windows = frames.div_ceil(w);
+    let refs: Vec<&[Vec3]> = dense.chunks_exact(j).collect();
+    let mut feats = layout.encode(&refs, None);
+    let dim = layout.dim();
+    // Pad to whole windows by repeating the last frame (standing still), then drop the pad.
+    let last = feats[feats.len() - dim..].to_vec();
+    let mut still = last.clone();
+    still[1..4].fill(0.0);
+    while feats.len() < windows * w * dim {
+        feats.extend_from_slice(&still);
+    }
+    norm.normalize(&mut feats);
+    model.locgen(&mut feats, windows);
+    norm.denormalize(&mut feats);
+    feats.truncate(frames * dim);
+    let start: Placement = layout.placement(refs[0]);
+    // The first frame's features carry no displacement, so decoding starts where it stands.
+    layout.decode(&feats, start).0
+}
+
+/// Stretches each sparse interval (native `stride` frames) to `stride * pace` frames at the
+/// same frame rate, by linear interpolation in time. Returns the frames and the output frame
+/// at which each sparse pose falls.
+fn apply_pace(dense: &[Vec3], joints: usize, stride: usize, paces: &[f32]) -> (Vec<Vec3>, Vec<usize>) {
+    let native_frames = dense.len() / joints;
+    let mut times = vec![0.0f64];
+    for p in paces {
+        let last = *times.last().expect("non-empty");
+        times.push(last + stride as f64 * *p as f64);
+    }
+    let total = times.last().copied().unwrap_or(0.0).floor() as usize + 1;
+    let mut out = Vec::with_capacity(total * joints);
+    let mut interval = 0;
+    for f in 0..total {
+        let tf = f as f64;
+        while interval + 1 < paces.len() && times[interval + 1] <= tf {
+            interval += 1;
+        }
+        let local = if paces.is_empty() { 0.0 } else { (tf - times[interval]) / (times[interval + 1] - times[interval]) };
+        let src = ((interval as f64 + local.clamp(0.0, 1.0)) * stride as f64).min((native_frames - 1) as f64);
+        let a = src.floor() as usize;
+        let b = (a + 1).min(native_frames - 1);
+        let w = (src - a as f64) as f32;
+        let (fa, fb) = (&dense[a * joints..(a + 1) * joints], &dense[b * joints..(b + 1) * joints]);
+        out.extend(fa.iter().zip(fb).map(|(p, q)| p.lerp(*q, w)));
+    }
+    let starts = times.iter().map(|t| t.round() as usize).collect();
+    (out, starts)
+}
+
+/// A small deterministic generator of noise in [-1, 1] (xorshift), seeded per take.
+struct Noise(u64);
+
+impl Noise {
+    fn new(seed: u64) -> Self {
+        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 23) as f32 - 1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pace_stretches_time() {
+        let dense: Vec<Vec3> = (0..11).map(|f| Vec3::splat(f as f32)).collect();
+        let (out, starts) = apply_pace(&dense, 1, 5, &[2.0, 2.0]);
+        assert_eq!(out.len(), 21);
+        assert_eq!(starts, vec![0, 10, 20]);
+        assert_eq!(out[10], Vec3::splat(5.0));
+        assert_eq!(out[5], Vec3::splat(2.5));
+        // Fractional: the first interval takes 7.5 frames, the second 2.5.
+        let (frac, starts) = apply_pace(&dense, 1, 5, &[1.5, 0.5]);
+        assert_eq!(frac.len(), 11);
+        assert_eq!(starts, vec![0, 8, 10]);
+        assert!((frac[5].x - 5.0 / 1.5).abs() < 1e-4);
+        assert_eq!(frac[10], Vec3::splat(10.0));
+    }
+}

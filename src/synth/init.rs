@@ -1,0 +1,89 @@
+//! The first sparse poses of a take: from the model's seed bank, or from a motion file on
+//! the model's skeleton.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+
+use super::generate::InitPose;
+use crate::data::bvh::read_bvh_with_unit;
+use crate::data::expmap::{ExpmapFormat, RootEncoding};
+use crate::data::features::Placement;
+use crate::data::npy::motion_from_npy;
+use crate::model::glocal::GlocalModel;
+use crate::motion::Motion;
+
+/// Raw (un-normalised) sparse features of the first block, and where the take starts.
+pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32>, Placement)> {
+    let spec = &model.spec;
+    match init {
+        InitPose::SeedIndex(i) => {
+            let seed = model.seeds.get(*i).with_context(|| format!("seed {i} does not exist; the seed bank has {} seeds", model.seeds.len()))?;
+            Ok((seed.features.clone(), Placement::default()))
+        }
+        InitPose::SeedClass { class, variant } => {
+            let k = spec.class_index(class)?;
+            let of_class: Vec<_> = model.seeds.iter().filter(|s| s.class == k).collect();
+            if of_class.is_empty() {
+                bail!("the seed bank has no seed of class '{class}'");
+            }
+            Ok((of_class[variant % of_class.len()].features.clone(), Placement::default()))
+        }
+        InitPose::File { path, frame } => {
+            let motion = read_on_model_skeleton(model, path)?;
+            let needed = frame + spec.stride * spec.block_len;
+            if motion.frames() <= needed {
+                bail!(
+                    "{}: {} frames at {} fps from frame {frame} are too few: a start needs {} frames ({} sparse poses {} frames apart)",
+                    path.display(), motion.frames(), spec.fps, spec.stride * spec.block_len + 1, spec.block_len, spec.stride
+                );
+            }
+            let start = frame + spec.stride;
+            Ok((spec.layout.encode_motion(&motion, start, spec.stride, spec.block_len), Placement::default()))
+        }
+    }
+}
+
+/// Reads a BVH, NPY or exponential-map file and brings it onto the model's joints and
+/// frame rate; a file of another skeleton is an error that says how they differ.
+pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion> {
+    let spec = &model.spec;
+    let name = path.display().to_string();
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_lowercase();
+    let source = Arc::new(spec.source_skeleton.clone());
+    let m = match ext.as_str() {
+        "bvh" => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+            let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit)?;
+            let diff = m.skeleton.differences(&spec.source_skeleton);
+            if !diff.is_empty() {
+                bail!("{name}: its skeleton does not match the model's ({}): {}", spec.dataset, diff.join("; "));
+            }
+            m
+        }
+        "npy" => {
+            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
+            let model_joints = spec.layout.joints();
+            // An array on the model's own joints needs no subsetting.
+            match motion_from_npy(&bytes, &name, spec.layout.skeleton.clone(), spec.fps) {
+                Ok(m) => return Ok(m),
+                Err(e) if spec.source_skeleton.len() == model_joints => return Err(e.into()),
+                Err(_) => motion_from_npy(&bytes, &name, source.clone(), spec.fps).with_context(|| {
+                    format!("{name}: expected (T, {model_joints}, 3) or (T, {}, 3)", spec.source_skeleton.len())
+                })?,
+            }
+        }
+        "txt" => {
+            let encoding = if spec.dataset == "h36m" { RootEncoding::Incremental } else { RootEncoding::Absolute };
+            let fps = if spec.dataset == "h36m" { 50.0 } else { 120.0 };
+            let format = ExpmapFormat { skeleton: source.clone(), root: encoding, fps, major15: None };
+            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+            format.read(&text, &name)?
+        }
+        _ => bail!("{name}: unsupported file type '{ext}' (use .bvh, .npy or an exponential-map .txt)"),
+    };
+    let mut m = m.resample(spec.fps).subset(&spec.source_joints);
+    m.skeleton = spec.layout.skeleton.clone();
+    Ok(m)
+}

@@ -1,0 +1,129 @@
+//! A timeline of activities: ordered segments, each a class held for a duration at a pace.
+
+use std::fmt;
+use std::str::FromStr;
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+pub const MIN_PACE: f32 = 0.1;
+pub const MAX_PACE: f32 = 10.0;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    pub class: String,
+    pub seconds: f32,
+    /// Overrides the global pace for this segment.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pace: Option<f32>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Timeline {
+    pub segments: Vec<Segment>,
+}
+
+impl Timeline {
+    pub fn seconds(&self) -> f32 {
+        self.segments.iter().map(|s| s.seconds).sum()
+    }
+
+    /// Checks durations and paces, and resolves each class name against `classes`.
+    pub fn validate(&self, classes: &[String], global_pace: f32) -> Result<Vec<usize>> {
+        check_pace(global_pace, "global pace")?;
+        if self.segments.is_empty() {
+            bail!("the timeline is empty: add at least one segment, e.g. \"walk:5\"");
+        }
+        self.segments
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                if !(s.seconds > 0.0 && s.seconds.is_finite()) {
+                    bail!("segment {} ('{}'): duration must be a positive number of seconds, got {}", k + 1, s.class, s.seconds);
+                }
+                if let Some(p) = s.pace {
+                    check_pace(p, &format!("segment {} ('{}') pace", k + 1, s.class))?;
+                }
+                classes
+                    .iter()
+                    .position(|c| c.eq_ignore_ascii_case(&s.class))
+                    .with_context(|| format!("segment {}: unknown class '{}'; valid classes: {}", k + 1, s.class, classes.join(", ")))
+            })
+            .collect()
+    }
+}
+
+fn check_pace(p: f32, what: &str) -> Result<()> {
+    if !(MIN_PACE..=MAX_PACE).contains(&p) {
+        bail!("{what} must be between {MIN_PACE} and {MAX_PACE}, got {p}");
+    }
+    Ok(())
+}
+
+/// `"sit:3,drink:5,walk:10"`; a segment may carry its own pace as `walk:10@1.5`.
+impl FromStr for Timeline {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let mut segments = Vec::new();
+        for (k, part) in s.split(',').map(str::trim).enumerate() {
+            if part.is_empty() {
+                continue;
+            }
+            let (class, rest) = part
+                .split_once(':')
+                .with_context(|| format!("segment {} '{part}': expected CLASS:SECONDS, e.g. walk:5", k + 1))?;
+            let (secs, pace) = match rest.split_once('@') {
+                Some((s, p)) => (s, Some(p.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': pace '{p}' is not a number", k + 1))?)),
+                None => (rest, None),
+            };
+            let seconds = secs.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': duration '{secs}' is not a number", k + 1))?;
+            segments.push(Segment { class: class.trim().to_string(), seconds, pace });
+        }
+        Ok(Timeline { segments })
+    }
+}
+
+impl fmt::Display for Timeline {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parts: Vec<String> = self
+            .segments
+            .iter()
+            .map(|s| match s.pace {
+                Some(p) => format!("{}:{}@{}", s.class, s.seconds, p),
+                None => format!("{}:{}", s.class, s.seconds),
+            })
+            .collect();
+        f.write_str(&parts.join(","))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn classes() -> Vec<String> {
+        ["sitting", "eating", "walking"].map(String::from).to_vec()
+    }
+
+    #[test]
+    fn parses_and_prints() {
+        let t: Timeline = "sitting:3, eating:5@1.5,walking:10".parse().unwrap();
+        assert_eq!(t.segments.len(), 3);
+        assert_eq!(t.segments[1].pace, Some(1.5));
+        assert_eq!(t.to_string(), "sitting:3,eating:5@1.5,walking:10");
+        assert_eq!(t.validate(&classes(), 1.0).unwrap(), vec![0, 1, 2]);
+    }
+
+    #[test]
+    fn bad_timelines_say_what_is_wrong() {
+        let err = |s: &str, pace: f32| format!("{:#}", s.parse::<Timeline>().and_then(|t| t.validate(&classes(), pace).map(|_| ())).unwrap_err());
+        assert!(err("dance:3", 1.0).contains("unknown class 'dance'; valid classes: sitting, eating, walking"));
+        assert!(err("", 1.0).contains("empty"));
+        assert!(err("walking:0", 1.0).contains("positive"));
+        assert!(err("walking:-2", 1.0).contains("positive"));
+        assert!(err("walking:x", 1.0).contains("not a number"));
+        assert!(err("walking", 1.0).contains("CLASS:SECONDS"));
+        assert!(err("walking:3", 11.0).contains("between 0.1 and 10"));
+        assert!(err("walking:3@0.05", 1.0).contains("pace"));
+    }
+}
