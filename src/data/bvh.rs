@@ -156,13 +156,11 @@ impl Reader<'_> {
         // MOTION: Frames, Frame Time, then one line per frame.
         let mut rest = lines.iter().enumerate().skip(motion_line + 1).map(|(i, l)| (i + 1, *l)).filter(|(_, l)| !l.trim().is_empty());
         let (frames_line, frames_text) = self.header_field(rest.next(), "Frames", motion_line + 1)?;
-        let frames: usize = frames_text
-            .parse()
-            .map_err(|_| self.err(frames_line, format!("bad frame count '{}' after Frames:", clip(frames_text))))?;
+        let frames: usize =
+            frames_text.parse().map_err(|_| self.err(frames_line, format!("bad frame count '{}' after Frames:", clip(frames_text))))?;
         let (time_line, time_text) = self.header_field(rest.next(), "Frame Time", frames_line)?;
-        let frame_time: f64 = time_text
-            .parse()
-            .map_err(|_| self.err(time_line, format!("bad frame time '{}' after Frame Time:", clip(time_text))))?;
+        let frame_time: f64 =
+            time_text.parse().map_err(|_| self.err(time_line, format!("bad frame time '{}' after Frame Time:", clip(time_text))))?;
         if !(frame_time.is_finite() && frame_time > 0.0) {
             return Err(self.err(time_line, format!("frame time must be a positive number of seconds, found {}", clip(time_text))));
         }
@@ -190,9 +188,7 @@ impl Reader<'_> {
                 return Err(self.err(line_no, format!("frame {} has {found} values, expected {total}", poses.len() + 1)));
             }
             for (k, tok) in line.split_whitespace().enumerate() {
-                let v: f64 = tok
-                    .parse()
-                    .map_err(|_| self.err(line_no, format!("value {} '{}' is not a number", k + 1, clip(tok))))?;
+                let v: f64 = tok.parse().map_err(|_| self.err(line_no, format!("value {} '{}' is not a number", k + 1, clip(tok))))?;
                 if !v.is_finite() || !(v as f32).is_finite() {
                     return Err(self.err(line_no, format!("value {} '{}' is not finite", k + 1, clip(tok))));
                 }
@@ -201,10 +197,7 @@ impl Reader<'_> {
             poses.push(self.pose(&skeleton, &channels, &values));
         }
         if poses.len() < frames {
-            return Err(self.err(
-                last_line,
-                format!("Frames: says {frames} but only {} frame lines follow (file truncated?)", poses.len()),
-            ));
+            return Err(self.err(last_line, format!("Frames: says {frames} but only {} frame lines follow (file truncated?)", poses.len())));
         }
         if let Some((line_no, _)) = rest.next() {
             return Err(self.err(line_no, format!("more frame lines than the {frames} that Frames: declares")));
@@ -214,7 +207,8 @@ impl Reader<'_> {
             joints: channels
                 .iter()
                 .map(|ch| {
-                    let mut axes: Vec<usize> = ch.iter().filter_map(|c| if let Channel::Rotation(a) = c { Some(*a) } else { None }).collect();
+                    let mut axes: Vec<usize> =
+                        ch.iter().filter_map(|c| if let Channel::Rotation(a) = c { Some(*a) } else { None }).collect();
                     axes.extend((0..3).filter(|a| !axes.contains(a)).collect::<Vec<_>>());
                     let letters = [AXIS_NAMES[axes[0]], AXIS_NAMES[axes[1]], AXIS_NAMES[axes[2]]];
                     JointChannels {
@@ -247,7 +241,12 @@ impl Reader<'_> {
         }
     }
 
-    fn parse_hierarchy(&self, tokens: &[(usize, &str)], motion_line: Option<usize>, line_count: usize) -> Result<Vec<RawJoint>, FormatError> {
+    fn parse_hierarchy(
+        &self,
+        tokens: &[(usize, &str)],
+        motion_line: Option<usize>,
+        line_count: usize,
+    ) -> Result<Vec<RawJoint>, FormatError> {
         let mut joints: Vec<RawJoint> = Vec::new();
         let mut stack: Vec<Block> = Vec::new();
         let mut i = 0;
@@ -306,7 +305,8 @@ impl Reader<'_> {
                         let Some(&(l, t)) = tokens.get(i).filter(|(l, _)| *l == line) else {
                             return Err(self.err(line, format!("OFFSET needs 3 numbers, found {k}")));
                         };
-                        *c = number(t).ok_or_else(|| self.err(l, format!("OFFSET value {} '{}' is not a finite number", k + 1, clip(t))))?;
+                        *c =
+                            number(t).ok_or_else(|| self.err(l, format!("OFFSET value {} '{}' is not a finite number", k + 1, clip(t))))?;
                         i += 1;
                     }
                     let offset = Vec3::from_array(v);
@@ -372,7 +372,10 @@ impl Reader<'_> {
                 _ => {
                     return Err(self.err(
                         line,
-                        format!("unexpected '{}' in the hierarchy (expected ROOT, JOINT, End Site, OFFSET, CHANNELS or a brace)", clip(tok)),
+                        format!(
+                            "unexpected '{}' in the hierarchy (expected ROOT, JOINT, End Site, OFFSET, CHANNELS or a brace)",
+                            clip(tok)
+                        ),
                     ))
                 }
             }
@@ -641,7 +644,8 @@ mod tests {
 
     /// Root ZYX with position, joint `a` ZXY, leaf `b` under it, and `c`: a non-root joint
     /// with position channels (its OFFSET must be replaced). Tabs, CRLF, keyword spacing.
-    const HAND: &str = "HIERARCHY\r\nROOT root\r\n{\r\n\tOFFSET 0 0 0\r\n\tCHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\r\n\
+    const HAND: &str =
+        "HIERARCHY\r\nROOT root\r\n{\r\n\tOFFSET 0 0 0\r\n\tCHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\r\n\
 \tJOINT a\r\n\t{\r\n\t\tOFFSET 0 10 0\r\n\t\tCHANNELS 3 Zrotation Xrotation Yrotation\r\n\
 \t\tJOINT b\r\n\t\t{\r\n\t\t\tOFFSET 0 0 5\r\n\t\t\tCHANNELS 3 Zrotation Xrotation Yrotation\r\n\
 \t\t\tEnd Site\r\n\t\t\t{\r\n\t\t\t\tOFFSET 0 0 1\r\n\t\t\t}\r\n\t\t}\r\n\t}\r\n\
@@ -692,10 +696,7 @@ MOTION\r\nFrames:\t2\r\nFrame Time:\t0.0333333\r\n\
         assert!(close(f[3], Vec3::ZERO), "{:?}", f[3]);
         assert_eq!(s.offsets[3], Vec3::splat(100.0), "the skeleton keeps the OFFSET");
         let orders: Vec<_> = layout.joints.iter().map(|j| (j.rotation_order, j.has_position)).collect();
-        assert_eq!(
-            orders,
-            vec![(EulerOrder::ZYX, true), (EulerOrder::ZXY, false), (EulerOrder::ZXY, false), (EulerOrder::ZXY, true)]
-        );
+        assert_eq!(orders, vec![(EulerOrder::ZYX, true), (EulerOrder::ZXY, false), (EulerOrder::ZXY, false), (EulerOrder::ZXY, true)]);
     }
 
     #[test]
@@ -734,9 +735,7 @@ MOTION\r\nFrames:\t2\r\nFrame Time:\t0.0333333\r\n\
     fn angles_are_continuous_over_full_turns_and_gimbal() {
         // One joint spinning about Y through 720 degrees, and one passing the ZXY gimbal pole
         // (X = 90) so the principal Euler solution would flip.
-        let s = Arc::new(
-            Skeleton::new(vec!["r".into(), "j".into()], vec![None, Some(0)], vec![Vec3::ZERO, Vec3::Y], 0.01).unwrap(),
-        );
+        let s = Arc::new(Skeleton::new(vec!["r".into(), "j".into()], vec![None, Some(0)], vec![Vec3::ZERO, Vec3::Y], 0.01).unwrap());
         let poses: Vec<LocalPose> = (0..=144)
             .map(|t| {
                 let a = t as f32 * 5.0;
@@ -865,9 +864,11 @@ MOTION\r\nFrames:\t2\r\nFrame Time:\t0.0333333\r\n\
         let e = err(&HAND.replace("Zrotation Xrotation Yrotation\r\n\t\tJOINT b", "Zrotation Wrotation Yrotation\r\n\t\tJOINT b"));
         assert_eq!(line_of(&e), 9);
         assert!(e.message.contains("unknown channel 'Wrotation'"), "{e}");
-        let e = err(&HAND.replace("CHANNELS 3 Zrotation Xrotation Yrotation\r\n\t\tJOINT b", "CHANNELS 9 Zrotation Xrotation Yrotation\r\n\t\tJOINT b"));
+        let e = err(&HAND
+            .replace("CHANNELS 3 Zrotation Xrotation Yrotation\r\n\t\tJOINT b", "CHANNELS 9 Zrotation Xrotation Yrotation\r\n\t\tJOINT b"));
         assert!(e.message.contains("bad channel count '9'"), "{e}");
-        let e = err(&HAND.replace("CHANNELS 3 Zrotation Xrotation Yrotation\r\n\t\tJOINT b", "CHANNELS 3 Zrotation Zrotation Yrotation\r\n\t\tJOINT b"));
+        let e = err(&HAND
+            .replace("CHANNELS 3 Zrotation Xrotation Yrotation\r\n\t\tJOINT b", "CHANNELS 3 Zrotation Zrotation Yrotation\r\n\t\tJOINT b"));
         assert!(e.message.contains("twice"), "{e}");
     }
 

@@ -64,7 +64,10 @@ fn read_npy_located(bytes: &[u8], file: &str) -> Result<(NpyArray, usize, usize)
     if bytes.len() < data_start {
         return Err(err(
             bytes.len(),
-            format!("truncated header: it declares {header_len} bytes from byte {header_start}, the file has {}", bytes.len() - header_start),
+            format!(
+                "truncated header: it declares {header_len} bytes from byte {header_start}, the file has {}",
+                bytes.len() - header_start
+            ),
         ));
     }
     let header = &bytes[header_start..data_start];
@@ -82,7 +85,9 @@ fn read_npy_located(bytes: &[u8], file: &str) -> Result<(NpyArray, usize, usize)
         Value::Str(s) => match s.as_str() {
             "<f4" => Dtype::F4,
             "<f8" => Dtype::F8,
-            ">f4" | ">f8" => return Err(err(*descr_at, format!("big-endian data ('{s}') is not supported; save little-endian ('<f4' or '<f8')"))),
+            ">f4" | ">f8" => {
+                return Err(err(*descr_at, format!("big-endian data ('{s}') is not supported; save little-endian ('<f4' or '<f8')")))
+            }
             other => return Err(err(*descr_at, format!("dtype '{}' is not supported (only '<f4' and '<f8')", clip(other)))),
         },
         _ => return Err(err(*descr_at, "structured dtypes are not supported (only '<f4' and '<f8')".into())),
@@ -131,10 +136,7 @@ fn read_npy_located(bytes: &[u8], file: &str) -> Result<(NpyArray, usize, usize)
     let raw = &bytes[data_start..];
     let data = match dtype {
         Dtype::F4 => raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
-        Dtype::F8 => raw
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]) as f32)
-            .collect(),
+        Dtype::F8 => raw.chunks_exact(8).map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]) as f32).collect(),
     };
     Ok((NpyArray { shape, data }, data_start, item))
 }
@@ -565,13 +567,8 @@ mod tests {
 
     fn skeleton(j: usize) -> Arc<Skeleton> {
         Arc::new(
-            Skeleton::new(
-                (0..j).map(|i| format!("j{i}")).collect(),
-                (0..j).map(|i| i.checked_sub(1)).collect(),
-                vec![Vec3::Y; j],
-                0.01,
-            )
-            .unwrap(),
+            Skeleton::new((0..j).map(|i| format!("j{i}")).collect(), (0..j).map(|i| i.checked_sub(1)).collect(), vec![Vec3::Y; j], 0.01)
+                .unwrap(),
         )
     }
 

@@ -107,7 +107,7 @@ fn swing(base: Quat, rest: Vec3, actual: Vec3) -> Quat {
 fn shortest_arc(from: DVec3, to: DVec3) -> DQuat {
     let half = from + to;
     let len = half.length();
-    if !(len > 1e-9) {
+    if len.is_nan() || len <= 1e-9 {
         let axis = from.any_orthonormal_vector();
         return DQuat::from_xyzw(axis.x, axis.y, axis.z, 0.0);
     }
@@ -153,7 +153,7 @@ fn largest_eigenvector(mut a: [[f64; 4]; 4]) -> [f64; 4] {
     let norm: f64 = a.iter().flatten().map(|x| x * x).sum();
     for _sweep in 0..30 {
         let off: f64 = (0..4).flat_map(|p| (0..4).filter(move |&q| q != p).map(move |q| (p, q))).map(|(p, q)| a[p][q] * a[p][q]).sum();
-        if !(off > 1e-30 * norm) {
+        if off.is_nan() || off <= 1e-30 * norm {
             break;
         }
         for p in 0..3 {
@@ -170,11 +170,9 @@ fn largest_eigenvector(mut a: [[f64; 4]; 4]) -> [f64; 4] {
                     row[p] = c * kp - s * kq;
                     row[q] = s * kp + c * kq;
                 }
-                for k in 0..4 {
-                    let (pk, qk) = (a[p][k], a[q][k]);
-                    a[p][k] = c * pk - s * qk;
-                    a[q][k] = s * pk + c * qk;
-                }
+                let (rp, rq) = (a[p], a[q]);
+                a[p] = std::array::from_fn(|k| c * rp[k] - s * rq[k]);
+                a[q] = std::array::from_fn(|k| s * rp[k] + c * rq[k]);
                 for row in v.iter_mut() {
                     let (kp, kq) = (row[p], row[q]);
                     row[p] = c * kp - s * kq;
@@ -211,10 +209,40 @@ mod tests {
     fn body() -> Skeleton {
         let j = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
         Skeleton::new(
-            ["hips", "spine", "chest", "neck", "head", "l_arm", "l_hand", "r_arm", "r_hand", "l_leg", "l_foot", "r_leg", "r_foot", "r_foot_dup"]
-                .map(String::from)
-                .to_vec(),
-            vec![None, Some(0), Some(1), Some(2), Some(3), Some(2), Some(5), Some(2), Some(7), Some(0), Some(9), Some(0), Some(11), Some(12)],
+            [
+                "hips",
+                "spine",
+                "chest",
+                "neck",
+                "head",
+                "l_arm",
+                "l_hand",
+                "r_arm",
+                "r_hand",
+                "l_leg",
+                "l_foot",
+                "r_leg",
+                "r_foot",
+                "r_foot_dup",
+            ]
+            .map(String::from)
+            .to_vec(),
+            vec![
+                None,
+                Some(0),
+                Some(1),
+                Some(2),
+                Some(3),
+                Some(2),
+                Some(5),
+                Some(2),
+                Some(7),
+                Some(0),
+                Some(9),
+                Some(0),
+                Some(11),
+                Some(12),
+            ],
             vec![
                 j(0.0, 90.0, 0.0),
                 j(0.0, 10.0, -1.0),

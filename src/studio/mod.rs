@@ -1,5 +1,7 @@
 //! The desktop studio (egui). Nothing below this module knows egui exists.
 
+pub mod viewport;
+
 use anyhow::Result;
 
 /// Opens the studio window.
