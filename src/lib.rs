@@ -8,6 +8,7 @@
 pub mod data;
 pub mod model;
 pub mod synth;
+pub mod eval;
 pub mod motion;
 pub mod cli;
 pub mod studio;

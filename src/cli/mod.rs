@@ -1,10 +1,10 @@
 //! The `glocal` command line: every subcommand is a thin layer over the library.
 
+mod bench_cmd;
 mod data_cmd;
+mod eval_cmd;
 mod synth_cmd;
 mod train_cmd;
-
-use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -29,23 +29,12 @@ pub enum Command {
     Generate(synth_cmd::GenerateArgs),
     /// Draw a contact sheet (PNG) of a take.
     Render(synth_cmd::RenderArgs),
+    /// Run an evaluation suite and print its table.
+    Eval(eval_cmd::EvalArgs),
     /// Time the engine's parts.
     Bench {
         #[command(subcommand)]
-        command: BenchCommand,
-    },
-}
-
-#[derive(Subcommand, Debug)]
-pub enum BenchCommand {
-    /// Time to load a whole dataset from its archive.
-    Load {
-        #[arg(long)]
-        dataset: String,
-        #[arg(long)]
-        data: Option<PathBuf>,
-        #[arg(long)]
-        json: bool,
+        command: bench_cmd::BenchCommand,
     },
 }
 
@@ -56,8 +45,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::Train(args)) => train_cmd::run(args),
         Some(Command::Generate(args)) => synth_cmd::run_generate(args),
         Some(Command::Render(args)) => synth_cmd::run_render(args),
-        Some(Command::Bench { command }) => match command {
-            BenchCommand::Load { dataset, data, json } => data_cmd::bench_load(&dataset, data.as_deref(), json),
-        },
+        Some(Command::Eval(args)) => eval_cmd::run(args),
+        Some(Command::Bench { command }) => bench_cmd::run(command),
     }
 }

@@ -39,7 +39,8 @@ impl TrainBenchConfig {
     }
 }
 
-/// How long to measure each implementation.
+/// How long to measure: the set-ups are stepped round-robin, so `Seconds(s)` runs about `s`
+/// seconds per set-up and `Steps(n)` runs `n` steps (calls, for inference) of each.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 pub enum Budget {
     /// At least this many seconds (whole steps).
@@ -84,28 +85,9 @@ fn one_hot(b: usize, c: usize, dev: &Device) -> Result<Tensor> {
     Tensor::from_vec(v, (b, c), dev)
 }
 
-/// Run `step` for the budget (after `warmup` untimed calls); returns (steps/s, last value).
-fn measure<F: FnMut() -> Result<f32>>(warmup: usize, budget: Budget, mut step: F) -> Result<(f64, f32)> {
-    let mut last = 0f32;
-    for _ in 0..warmup {
-        last = step()?;
-    }
-    let t0 = Instant::now();
-    let mut n = 0usize;
-    loop {
-        match budget {
-            Budget::Steps(s) if n >= s.max(1) => break,
-            Budget::Seconds(s) if n > 0 && t0.elapsed().as_secs_f64() >= s => break,
-            _ => {}
-        }
-        last = step()?;
-        n += 1;
-    }
-    Ok((n as f64 / t0.elapsed().as_secs_f64(), last))
-}
-
-/// Training steps per second of the block with the fast LSTM and with candle-nn's LSTM (each its
-/// own freshly initialised model and AdamW), measured one after the other in the same call.
+/// Training steps per second of the block (each set-up its own freshly initialised model and
+/// optimiser, same data): fast LSTM + [`FusedAdamW`], fast LSTM + `candle_nn::AdamW`, and
+/// candle-nn's LSTM + `candle_nn::AdamW`, stepped round-robin in the same call.
 pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> {
     let dev = Device::Cpu;
     let (b, t, f, c) = (cfg.batch, cfg.steps_in, cfg.feat, cfg.classes);
@@ -113,19 +95,20 @@ pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> 
     let cond = one_hot(b, c, &dev)?;
     let y = Tensor::randn(0f32, 1.0, (b, t, f), &dev)?;
     let cond = if c > 0 { Some(&cond) } else { None };
-    fn run<O: Optimizer<Config = ParamsAdamW>>(
+    // The three set-ups are stepped round-robin, so that all see the same machine load (this
+    // machine is shared); each is timed on its own steps only.
+    type Step<'a> = Box<dyn FnMut() -> Result<f32> + 'a>;
+    fn setup<'a, O: Optimizer<Config = ParamsAdamW> + 'a>(
         cfg: &TrainBenchConfig,
-        budget: Budget,
         reference: bool,
-        x: &Tensor,
-        cond: Option<&Tensor>,
-        y: &Tensor,
-    ) -> Result<(f64, f32)> {
-        let dev = Device::Cpu;
+        x: &'a Tensor,
+        cond: Option<&'a Tensor>,
+        y: &'a Tensor,
+    ) -> Result<Step<'a>> {
         let vm = VarMap::new();
-        let blk = Seq2SeqBlock::new(cfg.block_config(), VarBuilder::from_varmap(&vm, DType::F32, &dev))?;
+        let blk = Seq2SeqBlock::new(cfg.block_config(), VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu))?;
         let mut opt = O::new(vm.all_vars(), ParamsAdamW { lr: cfg.lr, ..Default::default() })?;
-        measure(cfg.warmup, budget, || {
+        Ok(Box::new(move || {
             let out = if reference {
                 blk.forward_with_reference_lstm(x, cond, true)?
             } else {
@@ -134,11 +117,37 @@ pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> 
             let loss = motion_loss(&out, y)?;
             opt.backward_step(&loss)?;
             loss.to_scalar::<f32>()
-        })
+        }))
     }
-    let (fast, fl) = run::<FusedAdamW>(&cfg, budget, false, &x, cond, &y)?;
-    let (fast_c, _) = run::<AdamW>(&cfg, budget, false, &x, cond, &y)?;
-    let (slow, sl) = run::<AdamW>(&cfg, budget, true, &x, cond, &y)?;
+    let mut steps: Vec<Step> = vec![
+        setup::<FusedAdamW>(&cfg, false, &x, cond, &y)?,
+        setup::<AdamW>(&cfg, false, &x, cond, &y)?,
+        setup::<AdamW>(&cfg, true, &x, cond, &y)?,
+    ];
+    let mut last = [0f32; 3];
+    for _ in 0..cfg.warmup {
+        for (k, s) in steps.iter_mut().enumerate() {
+            last[k] = s()?;
+        }
+    }
+    let mut spent = [0f64; 3];
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    loop {
+        match budget {
+            Budget::Steps(s) if n >= s.max(1) => break,
+            Budget::Seconds(s) if n > 0 && t0.elapsed().as_secs_f64() >= 3.0 * s => break,
+            _ => {}
+        }
+        for (k, s) in steps.iter_mut().enumerate() {
+            let ts = Instant::now();
+            last[k] = s()?;
+            spent[k] += ts.elapsed().as_secs_f64();
+        }
+        n += 1;
+    }
+    let (fast, fast_c, slow) = (n as f64 / spent[0], n as f64 / spent[1], n as f64 / spent[2]);
+    let (fl, sl) = (last[0], last[2]);
     Ok(TrainBench {
         fast_steps_per_s: fast,
         fast_candle_adamw_steps_per_s: fast_c,
@@ -150,7 +159,7 @@ pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> 
     })
 }
 
-/// Milliseconds for one block forward at `batch` (1 in the reference), three ways.
+/// Milliseconds for one block forward at `batch` (1 in the reference), three ways, round-robin.
 pub fn bench_infer(cfg: TrainBenchConfig, batch: usize, budget: Budget) -> Result<InferBench> {
     let dev = Device::Cpu;
     let (t, f, c) = (cfg.steps_in, cfg.feat, cfg.classes);
@@ -159,24 +168,43 @@ pub fn bench_infer(cfg: TrainBenchConfig, batch: usize, budget: Budget) -> Resul
     let x = Tensor::randn(0f32, 1.0, (batch, t, f), &dev)?;
     let cond_t = one_hot(batch, c, &dev)?;
     let cond = if c > 0 { Some(&cond_t) } else { None };
-    let warm = cfg.warmup.max(10);
-    let (fast, _) = measure(warm, budget, || {
-        let y = blk.forward(&x, cond, false)?;
-        Ok(y.dims().len() as f32)
-    })?;
-    let (slow, _) = measure(warm, budget, || {
-        let y = blk.forward_with_reference_lstm(&x, cond, false)?;
-        Ok(y.dims().len() as f32)
-    })?;
     let mut fz = blk.freeze()?;
     let xv = x.flatten_all()?.to_vec1::<f32>()?;
     let cv = cond_t.flatten_all()?.to_vec1::<f32>()?;
     let cvo = if c > 0 { Some(cv.as_slice()) } else { None };
     let mut out = vec![0f32; batch * t * f];
-    let (frozen, _) = measure(warm, budget, || {
-        fz.infer(&xv, cvo, batch, t, &mut out);
-        Ok(out[0])
-    })?;
+    // round-robin over the three paths (same machine load for all), 10 calls per turn
+    let mut spent = [0f64; 3];
+    let mut n = 0usize;
+    let t0 = Instant::now();
+    let warm = cfg.warmup.max(1);
+    let mut turn = 0usize;
+    loop {
+        let timed = turn >= warm;
+        match budget {
+            Budget::Steps(s) if timed && n >= s.max(1) => break,
+            Budget::Seconds(s) if timed && n > 0 && t0.elapsed().as_secs_f64() >= 3.0 * s => break,
+            _ => {}
+        }
+        for k in 0..3 {
+            let ts = Instant::now();
+            for _ in 0..10 {
+                match k {
+                    0 => drop(blk.forward(&x, cond, false)?),
+                    1 => drop(blk.forward_with_reference_lstm(&x, cond, false)?),
+                    _ => fz.infer(&xv, cvo, batch, t, &mut out),
+                }
+            }
+            if timed {
+                spent[k] += ts.elapsed().as_secs_f64();
+            }
+        }
+        if timed {
+            n += 10;
+        }
+        turn += 1;
+    }
+    let (fast, slow, frozen) = (n as f64 / spent[0], n as f64 / spent[1], n as f64 / spent[2]);
     Ok(InferBench {
         fast_ms_per_block: 1e3 / fast,
         candle_nn_ms_per_block: 1e3 / slow,

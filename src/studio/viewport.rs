@@ -1,9 +1,26 @@
 //! The 3D skeleton viewport: a wgpu paint callback inside egui.
-//! (Interface agreed between the studio's parts; the implementation is being written.)
+//!
+//! Bones are instanced 12-sided cylinders and joints instanced icospheres (one subdivision),
+//! lit with lambert + hemisphere ambient, over a ground grid with the root's trajectory,
+//! onion-skin ghosts, and several layers (side by side or overlaid). Everything is drawn in
+//! metres: each take is scaled by its skeleton's `meters_per_unit`.
+//!
+//! Rendering (see `viewport/render.rs`): egui's render pass has no depth buffer by default, so
+//! the scene is drawn during the callback's `prepare` into an offscreen colour + depth image
+//! the size of the view (4x MSAA, resolved), and `paint` copies that image into egui's pass.
 
+mod mesh;
+mod render;
+
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
+use eframe::egui_wgpu::{self, wgpu};
+use glam::{Mat4, Quat, Vec3};
+
 use crate::motion::Motion;
+use render::{Globals, Instance, Resources, SceneCallback, TrailVertex};
+pub use render::HostPass;
 
 /// One take drawn in the viewport.
 #[derive(Clone)]
@@ -11,7 +28,9 @@ pub struct Layer {
     pub motion: Arc<Motion>,
     /// RGB colour of each frame (e.g. its segment's class colour), `motion.frames()` long.
     pub frame_colors: Arc<Vec<[u8; 3]>>,
-    /// Shift in world units, for side-by-side comparison (zero for overlay).
+    /// Shift in world units, for side-by-side comparison (zero for overlay). The viewport's
+    /// world is in metres (every take is scaled by its `meters_per_unit`), so this is metres,
+    /// whatever the take's own unit; e.g. `Vec3::new(1.0, 0.0, 0.0)` puts a take 1 m to the right.
     pub offset: glam::Vec3,
     /// 0..1; a second overlaid take is drawn translucent.
     pub opacity: f32,
@@ -37,16 +56,36 @@ impl Default for ViewSettings {
 /// What to draw this frame.
 pub struct Scene<'a> {
     pub layers: &'a [Layer],
+    /// The frame shown; clamped to each layer's last frame.
     pub frame: usize,
     pub settings: &'a ViewSettings,
 }
 
+/// Vertical field of view.
+const FOV_Y: f32 = 40.0 * std::f32::consts::PI / 180.0;
+const BONE_RADIUS: f32 = 0.022;
+const JOINT_RADIUS: f32 = 0.03;
+const HEAD_RADIUS: f32 = 0.1;
+/// Bones shorter than this (metres, in the rest pose) are not drawn, nor their end joint.
+const MIN_BONE: f32 = 0.005;
+/// Most ghosts drawn on each side of the current frame.
+const MAX_GHOSTS: usize = 32;
+/// Background (sRGB).
+const BACKGROUND: [u8; 3] = [30, 32, 38];
+
 /// Camera state and interaction (orbit: drag, pan: right/middle drag or shift+drag, zoom:
-/// scroll). Create once with [`Viewport::new`]; call [`Viewport::register`] once with the
-/// wgpu render state (eframe's `cc.wgpu_render_state`, or egui_kittest's) to install the
-/// pipeline in the renderer's callback resources; then [`Viewport::ui`] every frame.
+/// scroll, frame the take: double-click). Create once with [`Viewport::new`]; call
+/// [`Viewport::register`] once with the wgpu render state (eframe's `cc.wgpu_render_state`,
+/// or egui_kittest's) to install the pipeline in the renderer's callback resources; then
+/// [`Viewport::ui`] every frame.
 pub struct Viewport {
-    _private: (),
+    id: egui::Id,
+    camera: Camera,
+    /// Frame the scene on the next `ui` (set at start, by double-click, by `frame_all`).
+    reframe: bool,
+    was_following: Option<bool>,
+    layers: Vec<LayerInfo>,
+    trail: Option<TrailCache>,
 }
 
 impl Default for Viewport {
@@ -55,16 +94,480 @@ impl Default for Viewport {
     }
 }
 
-impl Viewport {
-    pub fn new() -> Self {
-        Self { _private: () }
+#[derive(Clone, Copy, Debug)]
+struct Camera {
+    /// Radians about +y; 0 looks from +z towards -z.
+    yaw: f32,
+    /// Radians above the horizon.
+    pitch: f32,
+    distance: f32,
+    /// Orbit centre when not following the root.
+    target: Vec3,
+    /// Orbit centre relative to the followed root point when following.
+    pan: Vec3,
+}
+
+impl Camera {
+    fn back(&self) -> Vec3 {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        Vec3::new(cp * sy, sp, cp * cy)
+    }
+}
+
+/// What the viewport derives once per take (recomputed when a layer's motion changes).
+struct LayerInfo {
+    motion: Arc<Motion>,
+    /// Lowest point of the take, metres.
+    ground: f32,
+    /// Mean height of the joints' centroid above `ground`, metres.
+    centre_height: f32,
+    /// Bounds of the whole take, metres, without the layer's offset.
+    min: Vec3,
+    max: Vec3,
+    root: usize,
+    /// Joints drawn as spheres.
+    joints: Vec<usize>,
+    /// (parent, child) pairs drawn as bones.
+    bones: Vec<(usize, usize)>,
+    /// The head joint and, if it has one, its child towards the top of the head.
+    head: Option<(usize, usize, Option<usize>)>,
+}
+
+impl LayerInfo {
+    fn new(motion: &Arc<Motion>) -> Self {
+        let skeleton = &motion.skeleton;
+        let mpu = skeleton.meters_per_unit;
+        let n = motion.joints();
+        let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for p in motion.positions() {
+            min = min.min(*p * mpu);
+            max = max.max(*p * mpu);
+        }
+        if motion.frames() == 0 || n == 0 {
+            (min, max) = (Vec3::ZERO, Vec3::ZERO);
+        }
+        let ground = min.y;
+        let root = skeleton.parents.iter().position(Option::is_none).unwrap_or(0);
+        let mut centre_sum = 0.0f64;
+        let mut root_sum = 0.0f64;
+        for t in 0..motion.frames() {
+            let frame = motion.frame(t);
+            centre_sum += (frame.iter().map(|p| p.y).sum::<f32>() / n as f32 * mpu - ground) as f64;
+            root_sum += (frame[root].y * mpu - ground) as f64;
+        }
+        let frames = motion.frames().max(1) as f64;
+        let centre_height = (centre_sum / frames) as f32;
+        // A root that stays on the floor (e.g. Bandai's `joint_Root`) is a ground projection,
+        // not part of the body: hide it and its bones.
+        let hide_root = n > 1 && (root_sum / frames) < 0.15;
+        let long = |j: usize| skeleton.offsets.get(j).is_some_and(|o| o.length() * mpu >= MIN_BONE);
+        let hidden = |j: usize| hide_root && j == root;
+        let mut joints = Vec::new();
+        let mut bones = Vec::new();
+        for j in 0..n {
+            match skeleton.parents[j] {
+                None => {
+                    if !hidden(j) {
+                        joints.push(j);
+                    }
+                }
+                Some(p) => {
+                    if !hidden(j) && long(j) {
+                        joints.push(j);
+                        if !hidden(p) {
+                            bones.push((p, j));
+                        }
+                    }
+                }
+            }
+        }
+        let names: Vec<String> = skeleton.names.iter().map(|s| s.to_lowercase()).collect();
+        let head = names
+            .iter()
+            .position(|s| s == "head")
+            .or_else(|| names.iter().position(|s| s.contains("head") && !s.contains("end")))
+            .and_then(|h| {
+                let parent = skeleton.parents[h]?;
+                let child = (0..n).find(|&c| skeleton.parents[c] == Some(h) && long(c));
+                Some((h, parent, child))
+            });
+        Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head }
+    }
+}
+
+struct TrailCache {
+    key: Vec<(usize, usize, [u32; 3])>,
+    ground: u32,
+    version: u64,
+    vertices: Arc<Vec<TrailVertex>>,
+}
+
+fn next_version() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
+}
+
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_rgba(rgb: [u8; 3], lighten: f32, alpha: f32) -> [f32; 4] {
+    let [r, g, b] = rgb.map(|c| {
+        let l = srgb_to_linear(c);
+        l + (1.0 - l) * lighten
+    });
+    [r, g, b, alpha]
+}
+
+/// Instances of one frame, split into the four draw ranges.
+#[derive(Default)]
+struct Solids {
+    bones: Vec<Instance>,
+    joints: Vec<Instance>,
+    /// Translucent ones with their distance from the eye (drawn far to near).
+    blend_bones: Vec<(f32, Instance)>,
+    blend_joints: Vec<(f32, Instance)>,
+}
+
+impl Solids {
+    fn push(&mut self, bone: bool, translucent: bool, eye: Vec3, centre: Vec3, instance: Instance) {
+        match (bone, translucent) {
+            (true, false) => self.bones.push(instance),
+            (false, false) => self.joints.push(instance),
+            (true, true) => self.blend_bones.push((eye.distance(centre), instance)),
+            (false, true) => self.blend_joints.push((eye.distance(centre), instance)),
+        }
     }
 
-    pub fn register(_render_state: &eframe::egui_wgpu::RenderState) {}
+    fn finish(mut self) -> (Vec<Instance>, [u32; 4]) {
+        let far_first = |a: &(f32, Instance), b: &(f32, Instance)| b.0.total_cmp(&a.0);
+        self.blend_bones.sort_by(far_first);
+        self.blend_joints.sort_by(far_first);
+        let counts = [self.bones.len(), self.joints.len(), self.blend_bones.len(), self.blend_joints.len()].map(|c| c as u32);
+        let mut all = self.bones;
+        all.append(&mut self.joints);
+        all.extend(self.blend_bones.into_iter().map(|b| b.1));
+        all.extend(self.blend_joints.into_iter().map(|b| b.1));
+        (all, counts)
+    }
+}
+
+fn sphere(centre: Vec3, radius: f32, color: [f32; 4]) -> Instance {
+    let model = Mat4::from_scale_rotation_translation(Vec3::splat(radius), Quat::IDENTITY, centre);
+    Instance { model: model.to_cols_array_2d(), color }
+}
+
+fn cylinder(a: Vec3, b: Vec3, radius: f32, color: [f32; 4]) -> Option<Instance> {
+    let d = b - a;
+    let len = d.length();
+    if len < 1e-6 {
+        return None;
+    }
+    let rotation = Quat::from_rotation_arc(Vec3::Y, d / len);
+    let model = Mat4::from_scale_rotation_translation(Vec3::new(radius, len, radius), rotation, a);
+    Some(Instance { model: model.to_cols_array_2d(), color })
+}
+
+impl Viewport {
+    pub fn new() -> Self {
+        static NEXT_ID: AtomicU64 = AtomicU64::new(0);
+        Self {
+            id: egui::Id::unique(("glocal_viewport", NEXT_ID.fetch_add(1, Ordering::Relaxed))),
+            camera: Camera { yaw: 0.6, pitch: 0.3, distance: 4.0, target: Vec3::new(0.0, 0.9, 0.0), pan: Vec3::ZERO },
+            reframe: true,
+            was_following: None,
+            layers: Vec::new(),
+            trail: None,
+        }
+    }
+
+    /// Installs the pipelines for an egui render pass with eframe's default setup (no MSAA,
+    /// no depth buffer), which is also egui_kittest's.
+    pub fn register(render_state: &egui_wgpu::RenderState) {
+        Self::register_with(render_state, HostPass::default());
+    }
+
+    /// Installs the pipelines for an egui render pass set up as `host` says (if the app turns
+    /// on eframe's `multisampling` or `depth_buffer`).
+    pub fn register_with(render_state: &egui_wgpu::RenderState, host: HostPass) {
+        let resources = Resources::new(&render_state.device, &render_state.queue, render_state.target_format, host);
+        render_state.renderer.write().callback_resources.insert(resources);
+    }
+
+    /// Frames the whole scene on the next [`Viewport::ui`] (like a double-click).
+    pub fn frame_all(&mut self) {
+        self.reframe = true;
+    }
 
     /// Fills the available space with the 3D view.
-    pub fn ui(&mut self, ui: &mut egui::Ui, _scene: &Scene) -> egui::Response {
+    pub fn ui(&mut self, ui: &mut egui::Ui, scene: &Scene) -> egui::Response {
         let size = ui.available_size();
-        ui.allocate_response(size, egui::Sense::click_and_drag())
+        let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
+        self.update_layers(scene.layers);
+        let settings = scene.settings;
+
+        // Follow-root toggles keep the view where it is.
+        let follow_point = self.follow_point(scene);
+        match (self.was_following, settings.follow_root) {
+            (Some(true), false) => self.camera.target = follow_point + self.camera.pan,
+            (Some(false), true) => self.camera.pan = Vec3::ZERO,
+            _ => {}
+        }
+        self.was_following = Some(settings.follow_root);
+
+        self.handle_input(ui, &response, rect);
+        if response.double_clicked() {
+            self.reframe = true;
+        }
+        if self.reframe && !self.layers.is_empty() {
+            self.frame_scene(scene, follow_point);
+            self.reframe = false;
+        }
+
+        let target = if settings.follow_root { follow_point + self.camera.pan } else { self.camera.target };
+        if !ui.is_rect_visible(rect) || rect.width() < 1.0 || rect.height() < 1.0 {
+            return response;
+        }
+        let ppp = ui.ctx().pixels_per_point();
+        let size_px = [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
+        let callback = self.build(scene, target, size_px, rect.aspect_ratio());
+        ui.painter().add(egui_wgpu::Callback::new_paint_callback(rect, callback));
+        response
+    }
+
+    fn update_layers(&mut self, layers: &[Layer]) {
+        let same = self.layers.len() == layers.len() && self.layers.iter().zip(layers).all(|(a, b)| Arc::ptr_eq(&a.motion, &b.motion));
+        if !same {
+            let mut old = std::mem::take(&mut self.layers);
+            self.layers = layers
+                .iter()
+                .map(|l| match old.iter().position(|i| Arc::ptr_eq(&i.motion, &l.motion)) {
+                    Some(k) => old.swap_remove(k),
+                    None => LayerInfo::new(&l.motion),
+                })
+                .collect();
+        }
+    }
+
+    fn ground(&self) -> f32 {
+        let g = self.layers.iter().filter(|i| i.motion.frames() > 0).map(|i| i.ground).fold(f32::INFINITY, f32::min);
+        if g.is_finite() {
+            g
+        } else {
+            0.0
+        }
+    }
+
+    /// The followed point: the layers' mean root ground position at the current frame, at the
+    /// mean height of their bodies.
+    fn follow_point(&self, scene: &Scene) -> Vec3 {
+        let mut sum = Vec3::ZERO;
+        let mut height = 0.0;
+        let mut n = 0.0;
+        for (layer, info) in scene.layers.iter().zip(&self.layers) {
+            let m = &layer.motion;
+            if m.frames() == 0 || m.joints() == 0 {
+                continue;
+            }
+            let p = m.frame(scene.frame.min(m.frames() - 1))[info.root] * m.skeleton.meters_per_unit + layer.offset;
+            sum += Vec3::new(p.x, 0.0, p.z);
+            height += info.centre_height;
+            n += 1.0;
+        }
+        if n == 0.0 {
+            return self.camera.target;
+        }
+        let ground = self.ground();
+        Vec3::new(sum.x / n, ground + height / n, sum.z / n)
+    }
+
+    fn handle_input(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        let cam = &mut self.camera;
+        let shift = ui.input(|i| i.modifiers.shift);
+        let delta = response.drag_delta();
+        let primary = response.dragged_by(egui::PointerButton::Primary);
+        let pan = response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) || (primary && shift);
+        if pan {
+            // Move the target so the point under the cursor follows it.
+            let units_per_point = 2.0 * cam.distance * (FOV_Y / 2.0).tan() / rect.height().max(1.0);
+            let back = cam.back();
+            let right = Vec3::Y.cross(back).normalize_or_zero();
+            let up = back.cross(right);
+            let shift = (-right * delta.x + up * delta.y) * units_per_point;
+            cam.target += shift;
+            cam.pan += shift;
+        } else if primary {
+            cam.yaw -= delta.x * 0.008;
+            cam.pitch = (cam.pitch + delta.y * 0.008).clamp(-1.45, 1.45);
+        }
+        if response.hovered() {
+            let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta.y, i.zoom_delta()));
+            let factor = (-scroll * 0.002).exp() / zoom.max(1e-3);
+            cam.distance = (cam.distance * factor).clamp(0.2, 500.0);
+        }
+        if pan || primary {
+            ui.ctx().request_repaint();
+        }
+    }
+
+    /// Fits the view: with follow-root, around the current poses; else the whole take.
+    fn frame_scene(&mut self, scene: &Scene, follow_point: Vec3) {
+        let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for (layer, info) in scene.layers.iter().zip(&self.layers) {
+            let m = &layer.motion;
+            if m.frames() == 0 {
+                continue;
+            }
+            if scene.settings.follow_root {
+                let mpu = m.skeleton.meters_per_unit;
+                for p in m.frame(scene.frame.min(m.frames() - 1)) {
+                    min = min.min(*p * mpu + layer.offset);
+                    max = max.max(*p * mpu + layer.offset);
+                }
+            } else {
+                min = min.min(info.min + layer.offset);
+                max = max.max(info.max + layer.offset);
+            }
+        }
+        if !min.is_finite() || !max.is_finite() {
+            return;
+        }
+        let centre = (min + max) / 2.0;
+        let radius = ((max - min).length() / 2.0).max(0.5);
+        self.camera.distance = (radius / (FOV_Y / 2.0).sin() * 1.05).clamp(0.2, 500.0);
+        self.camera.target = centre;
+        self.camera.pan = if scene.settings.follow_root { Vec3::new(0.0, centre.y - follow_point.y, 0.0) } else { Vec3::ZERO };
+    }
+
+    fn trail_vertices(&mut self, scene: &Scene) -> (u64, Arc<Vec<TrailVertex>>) {
+        let ground = self.ground();
+        let key: Vec<_> = scene
+            .layers
+            .iter()
+            .map(|l| (Arc::as_ptr(&l.motion) as usize, Arc::as_ptr(&l.frame_colors) as usize, l.offset.to_array().map(f32::to_bits)))
+            .collect();
+        if let Some(cache) = &self.trail {
+            if cache.key == key && cache.ground == ground.to_bits() {
+                return (cache.version, cache.vertices.clone());
+            }
+        }
+        let mut vertices = Vec::new();
+        for (layer, info) in scene.layers.iter().zip(&self.layers) {
+            let m = &layer.motion;
+            let mpu = m.skeleton.meters_per_unit;
+            let last = m.frames().saturating_sub(1) as f32;
+            let vertex = |t: usize| {
+                let p = m.frame(t)[info.root] * mpu + layer.offset;
+                let [r, g, b] = layer.frame_colors.get(t).copied().unwrap_or([200, 200, 200]);
+                TrailVertex { position: [p.x, ground, p.z], frame: t as f32, last_frame: last, color: [r, g, b, 255] }
+            };
+            for t in 1..m.frames() {
+                vertices.push(vertex(t - 1));
+                vertices.push(vertex(t));
+            }
+        }
+        let cache = TrailCache { key, ground: ground.to_bits(), version: next_version(), vertices: Arc::new(vertices) };
+        let out = (cache.version, cache.vertices.clone());
+        self.trail = Some(cache);
+        out
+    }
+
+    fn build(&mut self, scene: &Scene, target: Vec3, size_px: [u32; 2], aspect: f32) -> SceneCallback {
+        let settings = scene.settings;
+        let cam = self.camera;
+        let back = cam.back();
+        let eye = target + back * cam.distance;
+        let view = Mat4::look_at_rh(eye, target, Vec3::Y);
+        let near = (cam.distance * 0.01).clamp(0.005, 1.0);
+        let far = cam.distance * 4.0 + 200.0;
+        let proj = Mat4::perspective_rh(FOV_Y, aspect.max(1e-3), near, far);
+        let right = Vec3::Y.cross(back).normalize_or_zero();
+        let light = (back * 0.55 + Vec3::Y * 0.75 - right * 0.35).normalize();
+
+        let ground = self.ground();
+        // Grid spacing grows with the view distance: 0.5 m up close.
+        let spacing = 0.5 * 10f32.powf((cam.distance / 12.0).log10().max(0.0).floor());
+        let half_lines = 30.0f32;
+        let major = 2.0;
+        let snap = spacing * major;
+        let extent = half_lines * spacing;
+        let globals = Globals {
+            view_proj: (proj * view).to_cols_array_2d(),
+            eye: eye.extend(1.0).to_array(),
+            light_dir: light.extend(0.0).to_array(),
+            grid: [(target.x / snap).round() * snap, ground, (target.z / snap).round() * snap, spacing],
+            grid2: [half_lines, extent * 0.35, extent, major],
+            trail: [scene.frame as f32, (settings.ghosts * settings.ghost_step.max(1)).max(30) as f32, 0.004, 0.0],
+        };
+
+        let mut solids = Solids::default();
+        for (layer, info) in scene.layers.iter().zip(&self.layers) {
+            let m = &layer.motion;
+            if m.frames() == 0 || m.joints() == 0 {
+                continue;
+            }
+            let current = scene.frame.min(m.frames() - 1);
+            let opacity = layer.opacity.clamp(0.0, 1.0);
+            let step = settings.ghost_step.max(1);
+            let ghosts = settings.ghosts.min(MAX_GHOSTS);
+            let mut poses = vec![(current, opacity, 0.0)];
+            for k in 1..=ghosts {
+                let alpha = opacity * 0.5 * (1.0 - k as f32 / (ghosts + 1) as f32);
+                if let Some(t) = current.checked_sub(k * step) {
+                    poses.push((t, alpha, 0.35));
+                }
+                if current + k * step < m.frames() {
+                    poses.push((current + k * step, alpha, 0.35));
+                }
+            }
+            let mpu = m.skeleton.meters_per_unit;
+            for (t, alpha, lighten) in poses {
+                if alpha <= 0.01 {
+                    continue;
+                }
+                let translucent = alpha < 0.999;
+                let rgb = layer.frame_colors.get(t).copied().unwrap_or([200, 200, 200]);
+                let bone_color = linear_rgba(rgb, lighten, alpha);
+                let joint_color = linear_rgba(rgb, 0.45 + lighten * 0.5, alpha);
+                let p = |j: usize| m.frame(t)[j] * mpu + layer.offset;
+                for &(a, b) in &info.bones {
+                    let (pa, pb) = (p(a), p(b));
+                    if let Some(inst) = cylinder(pa, pb, BONE_RADIUS, bone_color) {
+                        solids.push(true, translucent, eye, (pa + pb) / 2.0, inst);
+                    }
+                }
+                for &j in &info.joints {
+                    let c = p(j);
+                    solids.push(false, translucent, eye, c, sphere(c, JOINT_RADIUS, joint_color));
+                }
+                if let Some((h, parent, child)) = info.head {
+                    let (ph, pp) = (p(h), p(parent));
+                    let centre = match child {
+                        Some(c) => (ph + p(c)) / 2.0,
+                        None => ph + (ph - pp).normalize_or_zero() * HEAD_RADIUS * 0.7,
+                    };
+                    solids.push(false, translucent, eye, centre, sphere(centre, HEAD_RADIUS, bone_color));
+                }
+            }
+        }
+        let (instances, counts) = solids.finish();
+        let trail = settings.trail.then(|| self.trail_vertices(scene));
+        let [r, g, b] = BACKGROUND.map(|c| srgb_to_linear(c) as f64);
+        SceneCallback {
+            view: self.id,
+            size_px,
+            clear: wgpu::Color { r, g, b, a: 1.0 },
+            globals,
+            instances,
+            counts,
+            grid_vertices: if settings.grid { (2 * half_lines as u32 + 1) * 2 * 2 } else { 0 },
+            trail,
+        }
     }
 }

@@ -1,0 +1,131 @@
+//! `glocal bench ...`: speed measurements. Every comparison runs both sides in the same
+//! process, one after the other, so the ratio holds on a noisy shared machine.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Result;
+use clap::Subcommand;
+use serde::Serialize;
+
+use crate::model::bench::{bench_infer, bench_train, Budget, TrainBenchConfig};
+use crate::model::glocal::GlocalModel;
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Time to load a whole dataset from its archive.
+    Load {
+        #[arg(long)]
+        dataset: String,
+        #[arg(long)]
+        data: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// GloGen training steps per second, fast LSTM against candle-nn's (the PyTorch reference's shapes).
+    Train {
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        #[arg(long)]
+        json: bool,
+    },
+    /// One GloGen block at batch 1 on the generation path.
+    Infer {
+        #[arg(long, default_value_t = 3.0)]
+        seconds: f64,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Time to generate 10 s, 60 s and 600 s of dense motion with a shipped model.
+    Generate {
+        #[arg(long, default_value = "models/h36m")]
+        model: PathBuf,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn run(command: BenchCommand) -> Result<()> {
+    match command {
+        BenchCommand::Load { dataset, data, json } => super::data_cmd::bench_load(&dataset, data.as_deref(), json),
+        BenchCommand::Train { seconds, json } => {
+            let r = bench_train(TrainBenchConfig::default(), Budget::Seconds(seconds))?;
+            print(&r, json, || {
+                format!(
+                    "fast LSTM {:.1} steps/s, candle-nn LSTM {:.1} steps/s ({:.1}x)",
+                    r.fast_steps_per_s, r.candle_nn_steps_per_s, r.speedup
+                )
+            })
+        }
+        BenchCommand::Infer { seconds, json } => {
+            let r = bench_infer(TrainBenchConfig::default(), 1, Budget::Seconds(seconds))?;
+            print(&r, json, || {
+                format!(
+                    "one block (batch 1, t = {}): generation path {:.3} ms, candle tensors {:.3} ms, candle-nn {:.3} ms",
+                    r.steps_in, r.frozen_ms_per_block, r.fast_ms_per_block, r.candle_nn_ms_per_block
+                )
+            })
+        }
+        BenchCommand::Generate { model, repeats, json } => {
+            let r = bench_generate(&model, repeats)?;
+            print(&r, json, || {
+                r.runs
+                    .iter()
+                    .map(|x| format!("{:>4} s of motion: {:.1} ms ({:.3} ms per second of motion)", x.seconds, x.ms, x.ms / x.seconds as f64))
+                    .collect::<Vec<_>>()
+                    .join("\n")
+            })
+        }
+    }
+}
+
+fn print<T: Serialize>(value: &T, json: bool, text: impl FnOnce() -> String) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string(value)?);
+    } else {
+        println!("{}", text());
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+pub struct GenerateRun {
+    pub seconds: f32,
+    pub frames: usize,
+    /// Best of the repeats, milliseconds.
+    pub ms: f64,
+}
+
+#[derive(Serialize)]
+pub struct GenerateBench {
+    pub model: String,
+    pub locgen: bool,
+    pub runs: Vec<GenerateRun>,
+}
+
+/// Best-of-`repeats` wall time of whole takes (GloGen + LocGen + pace + bone projection)
+/// cycling through the model's classes in 10 s segments.
+pub fn bench_generate(dir: &Path, repeats: usize) -> Result<GenerateBench> {
+    let mut model = GlocalModel::load(dir)?;
+    let classes = model.spec.classes.clone();
+    let mut runs = Vec::new();
+    for seconds in [10.0f32, 60.0, 600.0] {
+        let segments = (0..(seconds / 10.0) as usize)
+            .map(|k| Segment { class: classes[k % classes.len()].clone(), seconds: 10.0, pace: None })
+            .collect();
+        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), ..Default::default() };
+        let mut best = f64::INFINITY;
+        let mut frames = 0;
+        for _ in 0..repeats.max(1) {
+            let start = Instant::now();
+            let take = generate(&mut model, &opts, &mut |_| true)?;
+            best = best.min(start.elapsed().as_secs_f64() * 1e3);
+            frames = take.motion.frames();
+        }
+        runs.push(GenerateRun { seconds, frames, ms: best });
+    }
+    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), runs })
+}

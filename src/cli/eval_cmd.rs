@@ -1,0 +1,56 @@
+//! `glocal eval --suite NAME`: runs one evaluation suite (or `all`), prints its markdown
+//! table and writes its numbers as JSON.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+
+use crate::data::archive::DataRoot;
+use crate::eval::{run_suite, SuiteOptions, SUITES};
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, or all.
+    #[arg(long)]
+    suite: String,
+    /// Write the suite's numbers here as JSON (for `all`: one file per suite, NAME inserted
+    /// before the extension).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Train the baselines and the suite's own GloGen variants when they are not cached.
+    #[arg(long)]
+    train_baselines: bool,
+    /// The model folder to evaluate (default: models/<dataset>).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Where trained baselines and classifiers are cached (default: target/eval-cache).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+}
+
+pub fn run(args: EvalArgs) -> Result<()> {
+    let mut opts = SuiteOptions { data: DataRoot::resolve(args.data.as_deref()), train_baselines: args.train_baselines, model: args.model, ..Default::default() };
+    if let Some(c) = args.cache {
+        opts.cache = c;
+    }
+    let names: Vec<&str> = if args.suite == "all" { SUITES.to_vec() } else { vec![args.suite.as_str()] };
+    for name in &names {
+        let report = run_suite(name, &opts, &mut |m| eprintln!("{m}"))?;
+        println!("## {}\n\n{}", report.name, report.markdown);
+        println!("(suite took {:.0} s)\n", report.json["seconds"].as_f64().unwrap_or(0.0));
+        if let Some(path) = &args.json {
+            let path = if names.len() > 1 {
+                let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("eval");
+                path.with_file_name(format!("{stem}-{name}.json"))
+            } else {
+                path.clone()
+            };
+            std::fs::write(&path, serde_json::to_string_pretty(&report.json)?)?;
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,12 @@
+//! The evaluation suite: the paper's measures (MMD, Euclidean distance per frame), the
+//! Action2Motion measures (FID, accuracy, diversity, multimodality) through an action
+//! classifier trained here, baselines trained by this crate on the same splits, and the
+//! suites that print the paper's tables (`glocal eval --suite NAME`).
+
+pub mod baselines;
+pub mod classifier;
+pub mod metrics;
+pub mod rollout;
+pub mod suites;
+
+pub use suites::{run_suite, SuiteOptions, SuiteReport, SUITES};

@@ -1,0 +1,615 @@
+//! The evaluation suites behind `glocal eval --suite NAME`. Each returns a markdown table
+//! (printed) and the same numbers as JSON. Everything a suite trains is cached under the
+//! evaluation cache (`target/eval-cache`, or `$GLOCAL_EVAL_CACHE`).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use glam::Vec3;
+use serde_json::{json, Value};
+
+use super::baselines::{ArConfig, ArKind, ArModel};
+use super::classifier::{cache_dir, real_windows, Classifier, ClassifierConfig};
+use super::metrics::{self, HORIZONS_MS};
+use super::rollout::{densify, glogen_forecast};
+use crate::data::archive::DataRoot;
+use crate::data::expmap::front_view_2d;
+use crate::data::registry::{self, Dataset, Split};
+use crate::model::corpus::Corpus;
+use crate::model::glocal::GlocalModel;
+use crate::model::spec::{LossKind, ModelSpec};
+use crate::model::train::{train, Stage, TrainOptions};
+use crate::motion::Motion;
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
+
+pub const SUITES: [&str; 6] = ["cmu-euclid", "h36m-mmd", "h36m", "bandai", "locgen", "long-term"];
+
+#[derive(Clone, Debug)]
+pub struct SuiteOptions {
+    pub data: DataRoot,
+    /// Train the baselines (and the suite's own GloGen variants) when they are not cached.
+    pub train_baselines: bool,
+    /// The shipped model to evaluate (default `models/<dataset>`).
+    pub model: Option<PathBuf>,
+    pub cache: PathBuf,
+}
+
+impl Default for SuiteOptions {
+    fn default() -> Self {
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir() }
+    }
+}
+
+pub struct SuiteReport {
+    pub name: String,
+    pub markdown: String,
+    pub json: Value,
+}
+
+pub fn run_suite(name: &str, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<SuiteReport> {
+    let start = Instant::now();
+    let (markdown, mut json) = match name {
+        "cmu-euclid" => cmu_euclid(opts, log)?,
+        "h36m-mmd" => h36m_mmd(opts, log)?,
+        "h36m" => class_generation(Dataset::H36m, opts, log)?,
+        "bandai" => class_generation(Dataset::Bandai, opts, log)?,
+        "locgen" => locgen_suite(opts, log)?,
+        "long-term" => long_term(opts, log)?,
+        _ => bail!("unknown suite '{name}'; valid: {}", SUITES.join(", ")),
+    };
+    json["suite"] = json!(name);
+    json["seconds"] = json!(start.elapsed().as_secs_f64());
+    Ok(SuiteReport { name: name.to_string(), markdown, json })
+}
+
+fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {
+    opts.model.clone().unwrap_or_else(|| {
+        let here = PathBuf::from("models").join(dataset.name());
+        if here.exists() {
+            here
+        } else {
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(dataset.name())
+        }
+    })
+}
+
+fn f(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "n/a".into()
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// cmu-euclid
+
+/// GloGen variants the CMU suite trains: (folder suffix, label, loss, class prior).
+const GLOGEN_VARIANTS: [(&str, &str, LossKind, bool); 4] = [
+    ("", "GloGen (L_J + L_MF)", LossKind::JointFlow, true),
+    ("-lj", "GloGen, L_J only", LossKind::Joint, true),
+    ("-lmf", "GloGen, L_MF only", LossKind::Flow, true),
+    ("-noclass", "GloGen, no class prior", LossKind::JointFlow, false),
+];
+const CMU_STRIDE: usize = 2;
+const CMU_GLOGEN_STEPS: usize = 1200;
+const CMU_CONTEXT: usize = 21;
+const CMU_HORIZON: usize = 20;
+const CMU_WINDOWS_PER_CLASS: usize = 64;
+
+fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, suffix: &str, loss: LossKind, use_class: bool, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
+    let dir = opts.cache.join(format!("glogen-{}{suffix}", dataset.name()));
+    let done = ModelSpec::read(&dir).ok().and_then(|s| s.glogen_training).is_some_and(|r| r.steps >= CMU_GLOGEN_STEPS);
+    if done {
+        return Ok(dir);
+    }
+    if !opts.train_baselines {
+        bail!("{} is not trained yet; run with --train-baselines", dir.display());
+    }
+    log(&format!("training GloGen{suffix} on {dataset} into {} ({CMU_GLOGEN_STEPS} steps)", dir.display()));
+    let mut t = TrainOptions::new(dataset, Stage::Glogen, dir.clone());
+    t.data = opts.data.clone();
+    t.steps = CMU_GLOGEN_STEPS;
+    t.stride = CMU_STRIDE;
+    t.block_len = 10;
+    t.hidden = 128;
+    t.batch = 32;
+    t.loss = loss;
+    t.use_class = use_class;
+    // The paper's GloGen: class at the encoder input only, no class dropout, one block.
+    t.class_in_decoder = false;
+    t.class_dropout = 0.0;
+    t.rollout_blocks = 1;
+    t.resume = true;
+    t.eval_every = 400;
+    t.checkpoint_every = 400;
+    let started = Instant::now();
+    train(&t, &mut |p| {
+        if let Some(v) = p.val_error {
+            eprintln!("  step {}: loss {:.4}, validation error {v:.3} ({:.0} s)", p.step, p.loss, started.elapsed().as_secs_f32());
+        }
+    }, &AtomicBool::new(false))?;
+    Ok(dir)
+}
+
+fn baseline(opts: &SuiteOptions, corpus: &Corpus, norm: &crate::data::features::Normalizer, kind: ArKind, log: &mut dyn FnMut(&str)) -> Result<ArModel> {
+    let cfg = ArConfig::new(kind, CMU_CONTEXT, CMU_HORIZON);
+    let name = corpus.dataset.name();
+    if let Some(m) = ArModel::load_cached(&opts.cache, name, &cfg, corpus.layout.dim())? {
+        return Ok(m);
+    }
+    if !opts.train_baselines {
+        bail!("baseline {} on {name} is not trained yet; run with --train-baselines", kind.name());
+    }
+    log(&format!("training {} on {name} ({} steps)", kind.name(), cfg.steps));
+    let m = ArModel::train(corpus, norm, &cfg, log)?;
+    m.save(&opts.cache)?;
+    Ok(m)
+}
+
+fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+    let sets = [(Dataset::CmuExpmap, vec![("walking", "Walking")]), (Dataset::CmuDance, vec![("indian", "Indian Dance"), ("martial", "Martial Arts")])];
+    let published: [(&str, [(&str, [f64; 8]); 4]); 3] = [
+        ("Walking", [
+            ("acLSTM", [1.05, 1.77, 2.20, 2.46, 2.66, 2.79, 2.99, 3.24]),
+            ("Scheduled sampling", [0.42, 0.56, 0.71, 0.83, 0.93, 0.99, 1.02, 1.05]),
+            ("Seq2Seq", [0.09, 0.13, 0.24, 0.42, 0.74, 1.22, 1.85, 2.79]),
+            ("GlocalNet (GloGen)", [0.36, 0.47, 0.52, 0.60, 0.62, 0.65, 0.71, 0.82]),
+        ]),
+        ("Indian Dance", [
+            ("acLSTM", [0.685, 0.99, 1.22, 1.53, 1.89, 2.08, 2.27, 2.55]),
+            ("Scheduled sampling", [1.54, 2.24, 2.49, 2.52, 2.65, 2.90, 2.94, 3.12]),
+            ("Seq2Seq", [0.49, 0.79, 1.48, 2.95, 5.41, 8.88, 13.29, 18.73]),
+            ("GlocalNet (GloGen)", [0.50, 0.56, 0.64, 0.68, 0.69, 0.69, 0.79, 0.84]),
+        ]),
+        ("Martial Arts", [
+            ("acLSTM", [0.52, 0.74, 0.95, 1.14, 1.35, 1.56, 1.73, 1.88]),
+            ("Scheduled sampling", [0.63, 0.86, 0.91, 0.98, 1.07, 1.12, 1.20, 1.28]),
+            ("Seq2Seq", [0.28, 0.43, 0.87, 1.57, 2.53, 3.89, 5.83, 8.62]),
+            ("GlocalNet (GloGen)", [0.40, 0.43, 0.47, 0.52, 0.55, 0.59, 0.67, 0.71]),
+        ]),
+    ];
+    let head = format!("| method | {} |\n|---|{}\n", HORIZONS_MS.map(|h| format!("{h} ms")).join(" | "), "---|".repeat(8));
+    let mut md = String::new();
+    let mut out = Vec::new();
+    for (dataset, classes) in sets {
+        let mut glogens = Vec::new();
+        for (suffix, label, loss, use_class) in GLOGEN_VARIANTS {
+            glogens.push((label, GlocalModel::load(&cmu_glogen(opts, dataset, suffix, loss, use_class, log)?)?));
+        }
+        let corpus = Corpus::load(dataset, &opts.data, CMU_STRIDE, 3)?;
+        let (_, dense_norm) = corpus.normalizers();
+        let mut bases = Vec::new();
+        for kind in ArKind::ALL {
+            bases.push(baseline(opts, &corpus, &dense_norm, kind, log)?);
+        }
+        let layout = &corpus.layout;
+        let j = layout.joints();
+        let fps = corpus.fps;
+        for (class_name, title) in classes {
+            let class = corpus.classes.iter().position(|c| c == class_name).with_context(|| format!("{dataset} has no class {class_name}"))?;
+            // Test windows: t0 is the last observed frame.
+            let mut starts = Vec::new();
+            for (ti, t) in corpus.test.iter().enumerate().filter(|(_, t)| t.class == class) {
+                let n = t.motion.frames();
+                if n > CMU_CONTEXT + CMU_HORIZON + 1 {
+                    starts.extend((CMU_CONTEXT..n - CMU_HORIZON - 1).step_by(5).map(|t0| (ti, t0)));
+                }
+            }
+            let step = (starts.len() as f64 / CMU_WINDOWS_PER_CLASS as f64).max(1.0);
+            let starts: Vec<(usize, usize)> = (0..).map(|k| (k as f64 * step) as usize).take_while(|&i| i < starts.len()).map(|i| starts[i]).collect();
+            if starts.is_empty() {
+                bail!("{dataset} {class_name}: no test window");
+            }
+            let truths: Vec<Vec<Vec3>> = starts.iter().map(|&(ti, t0)| (0..=CMU_HORIZON).flat_map(|k| corpus.test[ti].motion.frame(t0 + k).to_vec()).collect()).collect();
+            let mut rows: Vec<(String, [f64; 8])> = Vec::new();
+            let mean_rows = |preds: &[Vec<Vec3>], pred_fps: f32| -> [f64; 8] {
+                let mut acc = [0.0; 8];
+                for (p, t) in preds.iter().zip(&truths) {
+                    let e = metrics::horizon_errors(p, t, j, pred_fps, fps);
+                    for k in 0..8 {
+                        acc[k] += e[k] / preds.len() as f64;
+                    }
+                }
+                acc
+            };
+            let zero: Vec<Vec<Vec3>> = starts.iter().map(|&(ti, t0)| corpus.test[ti].motion.frame(t0).to_vec()).collect();
+            rows.push(("Zero-velocity".into(), mean_rows(&zero, fps)));
+            let observed: Vec<Vec<f32>> = starts.iter().map(|&(ti, t0)| layout.encode_motion(&corpus.test[ti].motion, t0 + 1 - CMU_CONTEXT, 1, CMU_CONTEXT)).collect();
+            for b in &bases {
+                let feats = b.predict(&observed, CMU_HORIZON)?;
+                let preds: Vec<Vec<Vec3>> = feats
+                    .iter()
+                    .zip(&starts)
+                    .map(|(fe, &(ti, t0))| {
+                        let m = &corpus.test[ti].motion;
+                        let mut p = m.frame(t0).to_vec();
+                        p.extend(layout.decode(fe, layout.placement(m.frame(t0))).0);
+                        p
+                    })
+                    .collect();
+                rows.push((b.record.config.kind.label().to_string(), mean_rows(&preds, fps)));
+            }
+            for (label, model) in glogens.iter_mut() {
+                let k = model.spec.classes.iter().position(|c| c == class_name).unwrap_or(0);
+                let mut preds = Vec::new();
+                for &(ti, t0) in &starts {
+                    let m = &corpus.test[ti].motion;
+                    let mut p = m.frame(t0).to_vec();
+                    p.extend(glogen_forecast(model, m, t0, k, 1)?);
+                    preds.push(p);
+                }
+                rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
+            }
+            let unit = corpus.layout.skeleton.meters_per_unit;
+            md.push_str(&format!(
+                "\n**{title}** ({dataset}, class `{class_name}`, {} test windows; mean joint distance in skeleton units of {unit} m, world positions including the root's path)\n\n{head}",
+                starts.len()
+            ));
+            for (label, r) in &rows {
+                md.push_str(&format!("| {label} | {} |\n", r.map(|v| f(v, 3)).join(" | ")));
+            }
+            if let Some((_, pubrows)) = published.iter().find(|(t, _)| *t == title) {
+                for (label, r) in pubrows {
+                    md.push_str(&format!("| *paper: {label}* | {} |\n", r.map(|v| f(v, 2)).join(" | ")));
+                }
+            }
+            out.push(json!({
+                "motion": title, "dataset": dataset.name(), "class": class_name, "windows": starts.len(),
+                "unit_meters": unit,
+                "rows": rows.iter().map(|(l, r)| json!({"method": l, "errors": r})).collect::<Vec<_>>(),
+            }));
+        }
+    }
+    let intro = format!(
+        "Euclidean distance per frame at 80..640 ms (30 fps data, linear interpolation between frames; GloGen predicts sparse poses {CMU_STRIDE} frames apart from {} observed sparse poses, the baselines dense frames from {CMU_CONTEXT} observed frames). The paper's rows are in the paper's (unstated) units and are not directly comparable.\n",
+        10
+    );
+    Ok((intro + &md, json!({"horizons_ms": HORIZONS_MS, "tables": out})))
+}
+
+// ---------------------------------------------------------------------------------------
+// h36m-mmd
+
+const MMD_WINDOWS_PER_CLASS: usize = 64;
+
+fn every_nth(m: &Motion, n: usize) -> Motion {
+    let positions: Vec<Vec3> = (0..m.frames()).step_by(n).flat_map(|t| m.frame(t).to_vec()).collect();
+    Motion::from_positions(m.skeleton.clone(), m.fps / n as f32, positions)
+}
+
+/// 2D front view of frames (on the model's skeleton) at the 15 major joints, in meters.
+fn view2d(skeleton: &std::sync::Arc<crate::motion::Skeleton>, frames: Vec<Vec3>, joints: &[usize], hips: (usize, usize), unit: f32) -> Vec<f32> {
+    let m = Motion::from_positions(skeleton.clone(), 1.0, frames);
+    front_view_2d(&m, joints, hips.0, hips.1).into_iter().flat_map(|p| [p[0] * unit, p[1] * unit]).collect()
+}
+
+fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+    let dir = model_dir(opts, Dataset::H36m);
+    let mut model = GlocalModel::load(&dir)?;
+    let spec = model.spec.clone();
+    let format = registry::expmap_format(Dataset::H36m, &opts.data)?;
+    let major15 = format.major15.clone().context("h36m-skeleton.json has no major15")?;
+    let model_joints: Vec<usize> = major15
+        .iter()
+        .map(|s| spec.source_joints.iter().position(|j| j == s).with_context(|| format!("major15 joint {s} is not among the model's joints")))
+        .collect::<Result<_>>()?;
+    let names = &spec.source_skeleton.names;
+    let find = |n: &str| names.iter().position(|x| x == n).and_then(|s| spec.source_joints.iter().position(|j| *j == s));
+    let hips = (find("LeftUpLeg").context("no LeftUpLeg")?, find("RightUpLeg").context("no RightUpLeg")?);
+    log("h36m-mmd: loading h36m");
+    let loaded = registry::load(Dataset::H36m, &opts.data)?;
+    let unit = spec.source_skeleton.meters_per_unit;
+    let skel = spec.layout.skeleton.clone();
+    let (s, t) = (spec.stride, spec.block_len);
+    let (n_in, n_out) = (10usize, 50usize);
+    let dt16 = 3.0 / 50.0;
+    let blocks = ((n_out as f32 * dt16 * spec.fps / s as f32) / t as f32).ceil() as usize;
+    let k = spec.classes.len();
+    let mut per_class: Vec<Value> = Vec::new();
+    let methods = ["GlocalNet (GloGen + LocGen, shipped model)", "GloGen + interpolation", "Zero-velocity"];
+    let mut sums = vec![(0.0f64, 0.0f64); methods.len() + 1];
+    for class in 0..k {
+        let name = &spec.classes[class];
+        let src_class = loaded.class_index(name).with_context(|| format!("h36m has no class {name}"))?;
+        let mut real = Vec::new();
+        let mut gens: Vec<Vec<Vec<f32>>> = vec![Vec::new(); methods.len()];
+        let mut windows = Vec::new();
+        for clip in loaded.split(Split::Test).filter(|c| c.class == src_class) {
+            let mut m50 = clip.motion.subset(&spec.source_joints);
+            m50.skeleton = skel.clone();
+            let m25 = every_nth(&m50, 2);
+            let m16 = every_nth(&m50, 3);
+            // Window w: 16-fps frames w..w+60; the last observed one (w + 9) is 50-fps frame
+            // 3(w + 9), a 25-fps frame when w + 9 is even.
+            let mut w = 1;
+            while w + n_in + n_out <= m16.frames() {
+                let t0 = 3 * (w + n_in - 1) / 2;
+                if t0 >= t * s + s && t0 < m25.frames() {
+                    windows.push((m25.clone(), m16.clone(), w, t0));
+                }
+                w += 10;
+            }
+        }
+        let step = (windows.len() as f64 / MMD_WINDOWS_PER_CLASS as f64).max(1.0);
+        let picked: Vec<usize> = (0..).map(|i| (i as f64 * step) as usize).take_while(|&i| i < windows.len()).collect();
+        for &i in &picked {
+            let (m25, m16, w, t0) = &windows[i];
+            let truth: Vec<Vec3> = (0..n_out).flat_map(|k| m16.frame(w + n_in + k).to_vec()).collect();
+            real.push(view2d(&skel, truth, &model_joints, hips, unit));
+            let observed = m25.frame(*t0).to_vec();
+            let sparse = glogen_forecast(&mut model, m25, *t0, class, blocks)?;
+            for (mi, locgen) in [(0, true), (1, false)] {
+                let dense = densify(&mut model, &observed, &sparse, locgen);
+                let frames: Vec<Vec3> = (1..=n_out).flat_map(|k| metrics::pose_at(&dense, skel.len(), spec.fps, k as f32 * dt16)).collect();
+                gens[mi].push(view2d(&skel, frames, &model_joints, hips, unit));
+            }
+            let still: Vec<Vec3> = (0..n_out).flat_map(|_| observed.clone()).collect();
+            gens[2].push(view2d(&skel, still, &model_joints, hips, unit));
+        }
+        if real.len() < 4 {
+            bail!("h36m {name}: only {} test windows", real.len());
+        }
+        // Reference: two disjoint halves of the real windows (interleaved).
+        let (ra, rb): (Vec<_>, Vec<_>) = real.iter().cloned().enumerate().partition(|(i, _)| i % 2 == 0);
+        let ra: Vec<Vec<f32>> = ra.into_iter().map(|x| x.1).collect();
+        let rb: Vec<Vec<f32>> = rb.into_iter().map(|x| x.1).take(ra.len()).collect();
+        let ra: Vec<Vec<f32>> = ra.into_iter().take(rb.len()).collect();
+        let mut row = json!({"class": name, "windows": real.len()});
+        for (mi, label) in methods.iter().enumerate() {
+            let (a, sq) = metrics::mmd_avg_seq(&real, &gens[mi], 30);
+            sums[mi].0 += a / k as f64;
+            sums[mi].1 += sq / k as f64;
+            row[*label] = json!({"mmd_avg": a, "mmd_seq": sq});
+        }
+        let (a, sq) = metrics::mmd_avg_seq(&ra, &rb, 30);
+        sums[methods.len()].0 += a / k as f64;
+        sums[methods.len()].1 += sq / k as f64;
+        row["real vs real (two halves of S11)"] = json!({"mmd_avg": a, "mmd_seq": sq});
+        log(&format!("h36m-mmd {name}: {} windows", real.len()));
+        per_class.push(row);
+    }
+    let mut md = String::from(
+        "Human3.6M, 2D front view of the 15 major joints (meters, root-relative), 16.7 fps (every third 50-fps frame), 50 predicted frames per test window of subject S11, up to 64 windows per class, 10 classes. MMD is the unbiased estimate of MMD² (Gaussian kernel, maximum over bandwidths 1e-4..1e9), per class then averaged. Our model observes the 2 s before the first predicted frame (10 sparse poses at 5 Hz, its own block), not the 10 frames at 16 fps of the published protocol: the published rows are printed for reference and are not directly comparable.\n\n| method | MMD_avg | MMD_seq |\n|---|---|---|\n",
+    );
+    let mut summary = Vec::new();
+    for (mi, label) in methods.iter().chain(std::iter::once(&"Real vs real (two halves of S11, reference)")).enumerate() {
+        md.push_str(&format!("| {label} | {} | {} |\n", f(sums[mi].0, 3), f(sums[mi].1, 3)));
+        summary.push(json!({"method": label, "mmd_avg": sums[mi].0, "mmd_seq": sums[mi].1}));
+    }
+    for (label, a, sq) in [("SA-GCN (published)", 0.146, 0.134), ("GlocalNet (published)", 0.103, 0.102)] {
+        md.push_str(&format!("| *{label}, not directly comparable* | {a:.3} | {sq:.3} |\n"));
+    }
+    Ok((md, json!({"model": dir, "summary": summary, "per_class": per_class})))
+}
+
+// ---------------------------------------------------------------------------------------
+// h36m / bandai: class-conditioned generation
+
+const GEN_VARIANTS: usize = 16;
+const GEN_NOISE_SEEDS: [u64; 2] = [1, 2];
+const REAL_PER_CLASS: usize = 64;
+
+fn take_for(model: &mut GlocalModel, class: usize, init_class: usize, variant: usize, seed: u64, extra_s: f32, frames: usize) -> Result<(Motion, usize)> {
+    let spec = model.spec.clone();
+    let seed_frames = spec.block_len * spec.stride;
+    let lead = seed_frames + (extra_s * spec.fps).round() as usize;
+    let seconds = (lead + frames + 2 * spec.stride) as f32 / spec.fps;
+    let opts = GenerateOptions {
+        timeline: Timeline { segments: vec![Segment { class: spec.classes[class].clone(), seconds, pace: None }] },
+        init: InitPose::SeedClass { class: spec.classes[init_class].clone(), variant },
+        seed,
+        variation: 0.05,
+        ..Default::default()
+    };
+    let g = generate(model, &opts, &mut |_| true)?;
+    if g.motion.frames() < lead + frames {
+        bail!("generated take too short: {} frames", g.motion.frames());
+    }
+    Ok((g.motion, lead))
+}
+
+fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+    let dir = model_dir(opts, dataset);
+    let mut model = GlocalModel::load(&dir)?;
+    let spec = model.spec.clone();
+    log(&format!("{dataset}: loading data"));
+    let corpus = Corpus::load(dataset, &opts.data, spec.stride, 3)?;
+    if corpus.classes != spec.classes {
+        bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
+    }
+    let cfg = ClassifierConfig::default();
+    let clf = Classifier::load_or_train(&corpus, &cfg, &opts.cache, &format!("classifier-{dataset}"), log)?;
+    let k = spec.classes.len();
+    let frames = cfg.frames;
+    let (test_labels, test_clips): (Vec<usize>, Vec<Vec<f32>>) = real_windows(&corpus.layout, &corpus.test, k, frames, frames / 2, REAL_PER_CLASS).into_iter().unzip();
+    let (_, train_clips): (Vec<usize>, Vec<Vec<f32>>) = real_windows(&corpus.layout, &corpus.train, k, frames, frames / 2, REAL_PER_CLASS).into_iter().unzip();
+    let test_f = clf.features(&test_clips)?;
+    let train_f = clf.features(&train_clips)?;
+    let test_pred = clf.predict(&test_clips)?;
+    let stats = |feats: &[Vec<f32>], labels: &[usize], pred: &[usize]| -> (f64, f64, f64, f64) {
+        (metrics::fid(feats, &test_f), metrics::accuracy(pred, labels), metrics::diversity(feats, 200, 3), metrics::multimodality(feats, labels, k, 20, 4))
+    };
+    let real = stats(&test_f, &test_labels, &test_pred);
+    let real_fid_train = metrics::fid(&train_f, &test_f);
+    log(&format!("{dataset}: generating"));
+    let (mut gen_clips, mut gen_labels, mut ctl_clips, mut ctl_labels) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for class in 0..k {
+        for v in 0..GEN_VARIANTS {
+            for seed in GEN_NOISE_SEEDS {
+                let (m, lead) = take_for(&mut model, class, class, v, seed, 0.0, frames)?;
+                gen_clips.push(clf.clip(&m, lead));
+                gen_labels.push(class);
+            }
+            // Class control: start from another class's seed, 2 s of transition.
+            let other = (class + 1 + v % (k - 1)) % k;
+            let (m, lead) = take_for(&mut model, class, other, v, 1, 2.0, frames)?;
+            ctl_clips.push(clf.clip(&m, lead));
+            ctl_labels.push(class);
+        }
+    }
+    let gen_f = clf.features(&gen_clips)?;
+    let gen_pred = clf.predict(&gen_clips)?;
+    let gen = stats(&gen_f, &gen_labels, &gen_pred);
+    let ctl_f = clf.features(&ctl_clips)?;
+    let ctl_pred = clf.predict(&ctl_clips)?;
+    let ctl = stats(&ctl_f, &ctl_labels, &ctl_pred);
+    let per_class_acc: Vec<(String, f64, f64)> = (0..k)
+        .map(|c| {
+            let acc = |p: &[usize], l: &[usize]| {
+                let idx: Vec<usize> = (0..l.len()).filter(|&i| l[i] == c).collect();
+                idx.iter().filter(|&&i| p[i] == c).count() as f64 / idx.len().max(1) as f64
+            };
+            (spec.classes[c].clone(), acc(&gen_pred, &gen_labels), acc(&ctl_pred, &ctl_labels))
+        })
+        .collect();
+    let mut md = format!(
+        "{dataset}: classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Generated: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the 2 s seed); class control: {} clips started from another class's seed, scored after a 2 s transition.\n\n| samples | FID | accuracy | diversity | multimodality |\n|---|---|---|---|---|\n",
+        cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
+        gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), ctl_clips.len()
+    );
+    for (label, s) in [("Real test split (reference; FID = train vs test)", (real_fid_train, real.1, real.2, real.3)), ("GlocalNet, class-conditioned", gen), ("GlocalNet, class control (other class's seed)", ctl)] {
+        md.push_str(&format!("| {label} | {} | {} | {} | {} |\n", f(s.0, 2), f(s.1, 3), f(s.2, 2), f(s.3, 2)));
+    }
+    md.push_str("\n| class | accuracy (conditioned) | accuracy (class control) |\n|---|---|---|\n");
+    for (c, a, b) in &per_class_acc {
+        md.push_str(&format!("| {c} | {} | {} |\n", f(*a, 2), f(*b, 2)));
+    }
+    let row = |s: (f64, f64, f64, f64)| json!({"fid": s.0, "accuracy": s.1, "diversity": s.2, "multimodality": s.3});
+    Ok((md, json!({
+        "model": dir, "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
+        "real_test": row((real_fid_train, real.1, real.2, real.3)), "generated": row(gen), "class_control": row(ctl),
+        "per_class_accuracy": per_class_acc.iter().map(|(c, a, b)| json!({"class": c, "conditioned": a, "class_control": b})).collect::<Vec<_>>(),
+        "samples": {"generated": gen_clips.len(), "class_control": ctl_clips.len(), "real_test": test_clips.len(), "real_train": train_clips.len()},
+    })))
+}
+
+// ---------------------------------------------------------------------------------------
+// locgen
+
+fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+    let mut md = String::from("Dense frames rebuilt from the true sparse keyframes of the real test split (h36m, subject S11): plain linear interpolation against LocGen. Mean joint distance over all frames of each window and over the frames between keyframes only, in mm.\n\n| model | windows | interpolation (all) | LocGen (all) | interpolation (between keys) | LocGen (between keys) |\n|---|---|---|---|---|---|\n");
+    let mut rows = Vec::new();
+    let mut dirs = vec![model_dir(opts, Dataset::H36m)];
+    let paper = Path::new("models/h36m-paper");
+    if opts.model.is_none() && paper.join("locgen.safetensors").exists() {
+        dirs.push(paper.to_path_buf());
+    }
+    let mut corpus_cache: Option<Corpus> = None;
+    for dir in dirs {
+        let mut model = GlocalModel::load(&dir)?;
+        if !model.has_locgen() {
+            md.push_str(&format!("| {} | no LocGen | | | | |\n", dir.display()));
+            continue;
+        }
+        let spec = model.spec.clone();
+        if corpus_cache.as_ref().is_none_or(|c| c.stride != spec.stride) {
+            log("locgen: loading h36m");
+            corpus_cache = Some(Corpus::load(Dataset::H36m, &opts.data, spec.stride, 3)?);
+        }
+        let corpus = corpus_cache.as_ref().expect("loaded");
+        let (s, w, layout) = (spec.stride, spec.locgen.window, &spec.layout);
+        let dim = layout.dim();
+        let j = layout.joints();
+        let mut feats = Vec::new();
+        let mut meta = Vec::new();
+        for t in &corpus.test {
+            let m = &t.motion;
+            let mut frame = s;
+            while frame + w + s + 1 < m.frames() && meta.len() < 4000 {
+                let interp = crate::model::corpus::interpolated_window(m, frame, w, s);
+                let refs: Vec<&[Vec3]> = interp.chunks_exact(j).collect();
+                feats.extend(layout.encode(&refs, Some(m.frame(frame - 1))));
+                meta.push((m, frame, interp));
+                frame += 2 * w;
+            }
+        }
+        spec.dense_norm.normalize(&mut feats);
+        model.locgen(&mut feats, meta.len());
+        spec.dense_norm.denormalize(&mut feats);
+        let (mut ia, mut la, mut ib, mut lb, mut na, mut nb) = (0.0, 0.0, 0.0, 0.0, 0usize, 0usize);
+        for (i, (m, frame, interp)) in meta.iter().enumerate() {
+            let (pos, _) = layout.decode(&feats[i * w * dim..(i + 1) * w * dim], layout.placement(m.frame(frame - 1)));
+            for k in 0..w {
+                let truth = m.frame(frame + k);
+                let ei = metrics::pose_error(&interp[k * j..(k + 1) * j], truth);
+                let el = metrics::pose_error(&pos[k * j..(k + 1) * j], truth);
+                ia += ei;
+                la += el;
+                na += 1;
+                if k % s != 0 {
+                    ib += ei;
+                    lb += el;
+                    nb += 1;
+                }
+            }
+        }
+        let mm = spec.source_skeleton.meters_per_unit as f64 * 1000.0;
+        let r = [ia / na as f64 * mm, la / na as f64 * mm, ib / nb.max(1) as f64 * mm, lb / nb.max(1) as f64 * mm];
+        md.push_str(&format!("| {} | {} | {} | {} | {} | {} |\n", dir.display(), meta.len(), f(r[0], 1), f(r[1], 1), f(r[2], 1), f(r[3], 1)));
+        rows.push(json!({"model": dir, "windows": meta.len(), "interp_all_mm": r[0], "locgen_all_mm": r[1], "interp_between_mm": r[2], "locgen_between_mm": r[3]}));
+    }
+    md.push_str("\n*Paper (NTU RGB+D 3D, GloGen outputs, its own units): LocGen 0.172 vs interpolation 0.177; not comparable.*\n");
+    Ok((md, json!({"rows": rows})))
+}
+
+// ---------------------------------------------------------------------------------------
+// long-term
+
+fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+    let mut md = String::from("Each class generated for 120 s from its first seed (noise seed 1), judged per 10 s window: mean joint speed over the class's real mean speed (training split), relative bone-length error (after the shipped bone projection, and of the raw network output without it), and whether every value is finite. The 60 s columns are the first six windows of the same take.\n");
+    let mut out = Vec::new();
+    let datasets: Vec<Dataset> = match &opts.model {
+        Some(p) => vec![ModelSpec::read(p)?.dataset.parse()?],
+        None => vec![Dataset::H36m, Dataset::Bandai],
+    };
+    for dataset in datasets {
+        let dir = model_dir(opts, dataset);
+        if !dir.join("glogen.safetensors").exists() {
+            md.push_str(&format!("\n{}: no model.\n", dir.display()));
+            continue;
+        }
+        let mut model = GlocalModel::load(&dir)?;
+        let spec = model.spec.clone();
+        log(&format!("long-term: {}", dir.display()));
+        md.push_str(&format!("\n**{}** ({}; LocGen: {})\n\n| class | speed ratio 0-10 s | 50-60 s | 110-120 s | min / max over 120 s | bone error (projected, max) | bone error (raw, mean / max) | finite |\n|---|---|---|---|---|---|---|---|\n", dir.display(), dataset, model.has_locgen()));
+        let rest = spec.layout.skeleton.rest_bone_lengths();
+        let min_bone = 0.02 * rest.iter().cloned().fold(0.0, f32::max);
+        for class in 0..spec.classes.len() {
+            let mut stats = Vec::new();
+            for project in [true, false] {
+                let o = GenerateOptions {
+                    timeline: Timeline { segments: vec![Segment { class: spec.classes[class].clone(), seconds: 120.0, pace: None }] },
+                    init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: 0 },
+                    seed: 1,
+                    variation: 0.05,
+                    project_bones: project,
+                    ..Default::default()
+                };
+                match generate(&mut model, &o, &mut |_| true) {
+                    Ok(g) => stats.push(metrics::window_stats(&g.motion, 10.0, spec.class_speed[class], min_bone)),
+                    Err(e) => {
+                        log(&format!("{} {}: generation failed: {e:#}", dataset, spec.classes[class]));
+                        stats.push(Vec::new());
+                    }
+                }
+            }
+            let (p, raw) = (&stats[0], &stats[1]);
+            let sr = |i: usize| p.get(i).map_or(f64::NAN, |w| w.speed_ratio as f64);
+            let min = p.iter().map(|w| w.speed_ratio).fold(f32::INFINITY, f32::min);
+            let max = p.iter().map(|w| w.speed_ratio).fold(0.0, f32::max);
+            let bmax = p.iter().map(|w| w.bone_error).fold(0.0, f32::max);
+            let rmean = raw.iter().map(|w| w.bone_error).sum::<f32>() / raw.len().max(1) as f32;
+            let rmax = raw.iter().map(|w| w.bone_error).fold(0.0, f32::max);
+            let finite = !p.is_empty() && p.iter().chain(raw.iter()).all(|w| w.finite && w.speed_ratio.is_finite());
+            md.push_str(&format!(
+                "| {} | {} | {} | {} | {} / {} | {} | {} / {} | {} |\n",
+                spec.classes[class], f(sr(0), 2), f(sr(5), 2), f(sr(11), 2), f(min as f64, 2), f(max as f64, 2), f(bmax as f64, 4), f(rmean as f64, 3), f(rmax as f64, 3), if finite { "yes" } else { "NO" }
+            ));
+            out.push(json!({"dataset": dataset.name(), "class": spec.classes[class], "windows_projected": p, "windows_raw": raw, "finite": finite}));
+        }
+    }
+    Ok((md, json!({"classes": out})))
+}

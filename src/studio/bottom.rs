@@ -1,0 +1,130 @@
+//! The bottom panel: transport (play, step, loop, speed), the timeline, and the selected
+//! segment's settings.
+
+use egui::{Button, RichText, Slider};
+
+use super::app::StudioApp;
+use super::project::LoopMode;
+use super::timeline::{self, class_index, color32, timeline_ui, Input, MIN_SECONDS};
+use crate::synth::render::class_color;
+use crate::synth::timeline::{MAX_PACE, MIN_PACE};
+
+impl StudioApp {
+    pub(super) fn bottom_panel(&mut self, ui: &mut egui::Ui) {
+        ui.add_space(4.0);
+        self.transport_row(ui);
+        ui.add_space(2.0);
+        let classes = self.classes().to_vec();
+        let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
+        let spans = self.take.as_ref().filter(|t| t.options.timeline == self.doc.timeline).map(|t| t.segments.clone());
+        let input = Input {
+            timeline: &self.doc.timeline,
+            classes: &classes,
+            spans: spans.as_deref(),
+            frames,
+            fps,
+            frame: self.playback.frame(),
+            selection: self.playback.selection,
+            selected: self.selected,
+        };
+        let actions = timeline_ui(ui, &mut self.timeline_state, &input);
+        self.apply_timeline(actions);
+        ui.add_space(2.0);
+        self.segment_row(ui, &classes);
+        ui.add_space(4.0);
+    }
+
+    fn transport_row(&mut self, ui: &mut egui::Ui) {
+        let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
+        ui.horizontal(|ui| {
+            let play = if self.playback.playing { "⏸ Pause" } else { "▶ Play" };
+            if ui.add_enabled(frames > 1, Button::new(play).min_size(egui::vec2(76.0, 0.0))).on_hover_text("Space").clicked() {
+                self.playback.toggle(frames, &self.doc.playback);
+            }
+            if ui.add_enabled(frames > 1, Button::new("◀")).on_hover_text("Previous frame (←)").clicked() {
+                self.playback.step(-1, frames);
+            }
+            if ui.add_enabled(frames > 1, Button::new("▶")).on_hover_text("Next frame (→)").clicked() {
+                self.playback.step(1, frames);
+            }
+            let f = self.playback.frame();
+            ui.label(RichText::new(format!("{:>5} / {}  {:>6.2} s", f, frames.saturating_sub(1), f as f32 / fps)).monospace());
+            ui.separator();
+            ui.label("Loop");
+            let lm = &mut self.doc.playback.loop_mode;
+            ui.selectable_value(lm, LoopMode::Off, "Off");
+            ui.selectable_value(lm, LoopMode::All, "All");
+            ui.add_enabled_ui(self.playback.selection.is_some(), |ui| ui.selectable_value(lm, LoopMode::Selection, "Range"))
+                .inner
+                .on_disabled_hover_text("Shift-drag on the ruler to select a range");
+            ui.separator();
+            ui.add(Slider::new(&mut self.doc.playback.speed, 0.1..=4.0).logarithmic(true).text("speed"));
+            ui.separator();
+            if ui.button("➕ Add segment").clicked() {
+                self.add_segment();
+            }
+            let classes = self.classes().to_vec();
+            if !classes.is_empty() {
+                let k = self.fields.new_class.min(classes.len() - 1);
+                egui::ComboBox::from_id_salt("new_class").selected_text(&classes[k]).width(110.0).show_ui(ui, |ui| {
+                    for (i, c) in classes.iter().enumerate() {
+                        ui.selectable_value(&mut self.fields.new_class, i, c);
+                    }
+                });
+            }
+            if let Some((a, b)) = self.playback.selection {
+                ui.separator();
+                ui.label(format!("Range {a}–{b}"));
+                if ui.small_button("✕").on_hover_text("Clear the range").clicked() {
+                    self.playback.selection = None;
+                }
+            }
+            if let Some((_, p)) = self.pending {
+                ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                    if ui.button("Cancel").clicked() {
+                        self.cancel();
+                    }
+                    ui.add(egui::ProgressBar::new(p).desired_width(120.0).text("generating"));
+                });
+            }
+        });
+    }
+
+    fn segment_row(&mut self, ui: &mut egui::Ui, classes: &[String]) {
+        ui.horizontal(|ui| {
+            let Some(k) = self.selected.filter(|&k| k < self.doc.timeline.segments.len()) else {
+                ui.label(RichText::new("Select a segment to edit it · drag blocks to reorder, their right edge to resize · right-click for more").weak());
+                return;
+            };
+            let n = self.doc.timeline.segments.len();
+            let seg = &mut self.doc.timeline.segments[k];
+            let (r, _) = ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
+            let color = class_index(classes, &seg.class).map_or(egui::Color32::GRAY, |c| color32(class_color(c)));
+            ui.painter().circle_filled(r.center(), 6.0, color);
+            ui.label(RichText::new(format!("Segment {}", k + 1)).strong());
+            egui::ComboBox::from_id_salt("segment_class").selected_text(&seg.class).width(120.0).show_ui(ui, |ui| {
+                for c in classes {
+                    ui.selectable_value(&mut seg.class, c.clone(), c);
+                }
+            });
+            ui.add(egui::DragValue::new(&mut seg.seconds).range(MIN_SECONDS..=600.0).speed(0.05).suffix(" s").fixed_decimals(1));
+            let mut own = seg.pace.is_some();
+            if ui.checkbox(&mut own, "own pace").changed() {
+                seg.pace = own.then_some(self.doc.pace);
+            }
+            if let Some(p) = seg.pace.as_mut() {
+                ui.add(Slider::new(p, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true));
+            }
+            ui.separator();
+            if ui.add_enabled(k > 0, Button::new("⏴ Earlier")).clicked() {
+                self.apply_timeline(vec![timeline::Action::BeginEdit, timeline::Action::Move { from: k, to: k - 1 }]);
+            }
+            if ui.add_enabled(k + 1 < n, Button::new("Later ⏵")).clicked() {
+                self.apply_timeline(vec![timeline::Action::BeginEdit, timeline::Action::Move { from: k, to: k + 1 }]);
+            }
+            if ui.button("🗑 Delete").clicked() {
+                self.delete_segment(k);
+            }
+        });
+    }
+}

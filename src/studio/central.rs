@@ -1,0 +1,55 @@
+//! The central area: the 3D viewport with an overlay (frame, segment, status) and the
+//! message toasts.
+
+use egui::{Align2, Color32, FontId, RichText};
+
+use super::app::StudioApp;
+use super::viewport::{Layer, Scene};
+
+impl StudioApp {
+    pub(super) fn central(&mut self, ui: &mut egui::Ui) {
+        let rect = ui.available_rect_before_wrap();
+        let mut layers = Vec::new();
+        if let Some(t) = &self.take {
+            layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0 });
+            if self.compare {
+                if let Some(p) = &self.previous {
+                    layers.push(Layer { motion: p.motion.clone(), frame_colors: p.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 0.35 });
+                }
+            }
+        }
+        let frame = self.playback.frame();
+        let scene = Scene { layers: &layers, frame, settings: &self.doc.view };
+        self.viewport.ui(ui, &scene);
+
+        // Overlay: where we are, and what the worker is doing.
+        let painter = ui.painter_at(rect);
+        let text_color = Color32::from_gray(225);
+        if let Some(t) = &self.take {
+            let seg = t.segments.iter().find(|s| frame >= s.start_frame && frame < s.end_frame.max(s.start_frame + 1));
+            let label = format!(
+                "frame {frame} / {}   {:.2} s   {}",
+                t.motion.frames().saturating_sub(1),
+                frame as f32 / t.motion.fps,
+                seg.map_or("", |s| s.name.as_str())
+            );
+            painter.text(rect.left_top() + egui::vec2(12.0, 10.0), Align2::LEFT_TOP, label, FontId::monospace(13.0), text_color);
+        } else {
+            let msg = if self.model_loading.is_some() {
+                "Loading the model…"
+            } else if self.pending.is_some() {
+                "Generating…"
+            } else if self.model.is_none() {
+                "No model loaded: choose one in the Model section or the File menu"
+            } else {
+                "Nothing generated yet"
+            };
+            painter.text(rect.center(), Align2::CENTER_CENTER, msg, FontId::proportional(18.0), text_color);
+        }
+        if let Some((_, p)) = self.pending {
+            let r = egui::Rect::from_min_size(rect.left_bottom() + egui::vec2(12.0, -30.0), egui::vec2(220.0, 18.0));
+            ui.put(r, egui::ProgressBar::new(p).text(RichText::new(format!("generating {:.0}%", p * 100.0)).small()));
+        }
+        self.messages.show(ui, rect);
+    }
+}

@@ -1,0 +1,259 @@
+//! The timeline widget: a time ruler with the playback cursor and the selected range, and
+//! the timeline's segments as coloured, labelled blocks. It edits nothing itself: it
+//! returns [`Action`]s for the app to apply.
+//!
+//! Mouse: click or drag on the ruler scrubs, shift-drag on it selects a range; click a
+//! block to select it, double-click to select its frames, drag its right edge to resize,
+//! drag its body to reorder; right-click for class, duplicate and delete.
+
+use egui::{pos2, vec2, Align2, Color32, CursorIcon, FontId, Rect, Sense, Stroke, StrokeKind};
+
+use crate::synth::render::class_color;
+use crate::synth::{SegmentSpan, Timeline};
+
+/// The shortest segment the timeline allows, in seconds.
+pub const MIN_SECONDS: f32 = 0.4;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    Select(Option<usize>),
+    /// The start of a drag that edits (for undo: one step per drag).
+    BeginEdit,
+    Resize { index: usize, seconds: f32 },
+    Move { from: usize, to: usize },
+    SetClass { index: usize, class: String },
+    Duplicate(usize),
+    Delete(usize),
+    Seek(usize),
+    SetSelection(Option<(usize, usize)>),
+}
+
+pub struct Input<'a> {
+    pub timeline: &'a Timeline,
+    pub classes: &'a [String],
+    /// The generated take's segments, when it matches the timeline.
+    pub spans: Option<&'a [SegmentSpan]>,
+    pub frames: usize,
+    pub fps: f32,
+    pub frame: usize,
+    pub selection: Option<(usize, usize)>,
+    pub selected: Option<usize>,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Drag {
+    Resize { index: usize, start_seconds: f32, start_x: f32 },
+    Move { index: usize },
+    Scrub,
+    Range { anchor: usize },
+}
+
+/// What the widget remembers between frames.
+#[derive(Default)]
+pub struct TimelineState {
+    drag: Option<Drag>,
+    /// Pixels per second, held while a drag edits durations so the blocks don't rescale.
+    frozen_scale: Option<f32>,
+}
+
+pub fn class_index(classes: &[String], name: &str) -> Option<usize> {
+    classes.iter().position(|c| c.eq_ignore_ascii_case(name))
+}
+
+pub fn color32(rgb: [u8; 3]) -> Color32 {
+    Color32::from_rgb(rgb[0], rgb[1], rgb[2])
+}
+
+/// Draws the timeline in the available width; returns what the user did.
+pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) -> Vec<Action> {
+    let mut actions = Vec::new();
+    let width = ui.available_width().max(100.0);
+    let (ruler_h, lane_h) = (20.0, 44.0);
+    let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 6.0), Sense::hover());
+    let ruler = Rect::from_min_size(outer.min, vec2(width, ruler_h));
+    let lane = Rect::from_min_size(pos2(outer.left(), ruler.bottom() + 2.0), vec2(width, lane_h));
+    let total = input.timeline.seconds().max(1.0);
+    let scale = state.frozen_scale.unwrap_or((width - 8.0) / total);
+    let x_of = |t: f32| outer.left() + t * scale;
+    let fps = input.fps.max(1.0);
+    let frame_at = |x: f32| (((x - outer.left()) / scale).max(0.0) * fps).round() as usize;
+    let painter = ui.painter_at(outer.expand(2.0));
+    let visuals = ui.visuals().clone();
+
+    // Ruler.
+    painter.rect_filled(ruler, 3.0, visuals.extreme_bg_color);
+    let step = [0.5f32, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0].into_iter().find(|s| s * scale >= 48.0).unwrap_or(120.0);
+    let mut t = 0.0;
+    while x_of(t) <= outer.right() {
+        let x = x_of(t);
+        painter.line_segment([pos2(x, ruler.bottom() - 6.0), pos2(x, ruler.bottom())], Stroke::new(1.0, visuals.weak_text_color()));
+        painter.text(pos2(x + 3.0, ruler.center().y - 2.0), Align2::LEFT_CENTER, format!("{t}s"), FontId::proportional(11.0), visuals.weak_text_color());
+        t += step;
+    }
+    let ruler_resp = ui.interact(ruler, ui.scope_id().with("ruler"), Sense::click_and_drag()).on_hover_cursor(CursorIcon::Text);
+    let ruler_resp = ruler_resp.on_hover_text("Click or drag to scrub; shift-drag to select a range");
+    if let Some(pos) = ruler_resp.interact_pointer_pos() {
+        let f = frame_at(pos.x).min(input.frames.saturating_sub(1));
+        if ruler_resp.drag_started() || ruler_resp.clicked() {
+            if ui.input(|i| i.modifiers.shift) {
+                state.drag = Some(Drag::Range { anchor: f });
+            } else {
+                state.drag = Some(Drag::Scrub);
+            }
+        }
+        match state.drag {
+            Some(Drag::Range { anchor }) => {
+                let (a, b) = (anchor.min(f), anchor.max(f) + 1);
+                actions.push(Action::SetSelection((b > a + 1).then_some((a, b))));
+            }
+            _ => actions.push(Action::Seek(f)),
+        }
+    }
+
+    // Segments.
+    painter.rect_filled(lane, 3.0, visuals.faint_bg_color);
+    let mut starts = Vec::with_capacity(input.timeline.segments.len());
+    let mut acc = 0.0;
+    for s in &input.timeline.segments {
+        starts.push(acc);
+        acc += s.seconds;
+    }
+    let dragging_move = match state.drag {
+        Some(Drag::Move { index }) => Some(index),
+        _ => None,
+    };
+    let pointer = ui.input(|i| i.pointer.interact_pos());
+    for (k, seg) in input.timeline.segments.iter().enumerate() {
+        let (x0, x1) = (x_of(starts[k]), x_of(starts[k] + seg.seconds));
+        let rect = Rect::from_min_max(pos2(x0 + 1.0, lane.top() + 2.0), pos2(x1 - 1.0, lane.bottom() - 2.0));
+        let known = class_index(input.classes, &seg.class);
+        let fill = known.map_or(Color32::from_gray(90), |c| color32(class_color(c)));
+        let label = match seg.pace {
+            Some(p) => format!("{} · {:.1}s · pace {p:.2}", seg.class, seg.seconds),
+            None => format!("{} · {:.1}s", seg.class, seg.seconds),
+        };
+        let id = ui.scope_id().with(("segment", k));
+        let resp = ui.interact(rect, id, Sense::click_and_drag());
+        resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, format!("Segment {}: {}", k + 1, seg.class)));
+        let selected = input.selected == Some(k);
+        let faded = if dragging_move == Some(k) { fill.gamma_multiply(0.35) } else { fill };
+        painter.rect_filled(rect, 4.0, faded);
+        let stroke = if selected {
+            Stroke::new(2.0, Color32::WHITE)
+        } else if known.is_none() {
+            Stroke::new(2.0, Color32::from_rgb(230, 60, 60))
+        } else {
+            Stroke::new(1.0, fill.gamma_multiply(0.6))
+        };
+        painter.rect_stroke(rect, 4.0, stroke, StrokeKind::Inside);
+        let text_painter = painter.with_clip_rect(rect.shrink(3.0));
+        text_painter.text(rect.left_center() + vec2(6.0, 0.0), Align2::LEFT_CENTER, &label, FontId::proportional(13.0), Color32::WHITE);
+        let resp = resp.on_hover_text(format!("{label}\nDrag to reorder, drag the right edge to resize, right-click for more"));
+        if resp.clicked() {
+            actions.push(Action::Select(Some(k)));
+        }
+        if resp.double_clicked() {
+            if let Some(s) = input.spans.and_then(|s| s.get(k)) {
+                actions.push(Action::SetSelection(Some((s.start_frame, s.end_frame))));
+            }
+        }
+        if resp.drag_started() {
+            state.drag = Some(Drag::Move { index: k });
+            actions.push(Action::Select(Some(k)));
+        }
+        resp.context_menu(|ui| {
+            ui.menu_button("Class", |ui| {
+                for c in input.classes {
+                    if ui.selectable_label(seg.class.eq_ignore_ascii_case(c), c).clicked() {
+                        actions.push(Action::SetClass { index: k, class: c.clone() });
+                        ui.close();
+                    }
+                }
+            });
+            if ui.button("Duplicate").clicked() {
+                actions.push(Action::Duplicate(k));
+                ui.close();
+            }
+            if ui.button("Delete").clicked() {
+                actions.push(Action::Delete(k));
+                ui.close();
+            }
+        });
+        // The resize handle over the right edge, on top of the block.
+        let handle = Rect::from_min_max(pos2(x1 - 6.0, lane.top()), pos2(x1 + 3.0, lane.bottom()));
+        let h = ui.interact(handle, id.with("edge"), Sense::drag()).on_hover_cursor(CursorIcon::ResizeHorizontal);
+        if h.drag_started() {
+            let x = h.interact_pointer_pos().map_or(x1, |p| p.x);
+            state.drag = Some(Drag::Resize { index: k, start_seconds: seg.seconds, start_x: x });
+            state.frozen_scale = Some(scale);
+            actions.push(Action::BeginEdit);
+            actions.push(Action::Select(Some(k)));
+        }
+        if h.hovered() || matches!(state.drag, Some(Drag::Resize { index, .. }) if index == k) {
+            painter.line_segment([pos2(x1 - 2.0, lane.top() + 6.0), pos2(x1 - 2.0, lane.bottom() - 6.0)], Stroke::new(2.0, Color32::WHITE));
+        }
+    }
+
+    // Drags under way.
+    let released = ui.input(|i| !i.pointer.any_down());
+    match state.drag {
+        Some(Drag::Resize { index, start_seconds, start_x }) => {
+            if let Some(p) = pointer {
+                let seconds = ((start_seconds + (p.x - start_x) / scale) * 10.0).round() / 10.0;
+                let seconds = seconds.max(MIN_SECONDS);
+                if input.timeline.segments.get(index).is_some_and(|s| (s.seconds - seconds).abs() > 1e-4) {
+                    actions.push(Action::Resize { index, seconds });
+                }
+            }
+        }
+        Some(Drag::Move { index }) => {
+            if let Some(p) = pointer {
+                // Where it would land: after every other block whose centre is left of the pointer.
+                let to = (0..input.timeline.segments.len())
+                    .filter(|&j| j != index)
+                    .filter(|&j| x_of(starts[j] + input.timeline.segments[j].seconds / 2.0) < p.x)
+                    .count();
+                let slot_x = if to == 0 { x_of(0.0) } else {
+                    let others: Vec<usize> = (0..input.timeline.segments.len()).filter(|&j| j != index).collect();
+                    let j = others[to - 1];
+                    x_of(starts[j] + input.timeline.segments[j].seconds)
+                };
+                painter.line_segment([pos2(slot_x, lane.top()), pos2(slot_x, lane.bottom())], Stroke::new(3.0, Color32::WHITE));
+                if released {
+                    if to != index {
+                        actions.push(Action::BeginEdit);
+                        actions.push(Action::Move { from: index, to });
+                    }
+                }
+            }
+        }
+        _ => {}
+    }
+    if released {
+        state.drag = None;
+        state.frozen_scale = None;
+    }
+
+    // Clicks on the empty lane clear the segment selection.
+    let end_x = x_of(acc);
+    if end_x < lane.right() - 4.0 {
+        let empty = Rect::from_min_max(pos2(end_x + 4.0, lane.top()), lane.max);
+        if ui.interact(empty, ui.scope_id().with("empty"), Sense::click()).clicked() {
+            actions.push(Action::Select(None));
+        }
+    }
+
+    // Selected range and cursor over everything.
+    if let Some((a, b)) = input.selection {
+        let r = Rect::from_min_max(pos2(x_of(a as f32 / fps), ruler.top()), pos2(x_of(b as f32 / fps), lane.bottom()));
+        painter.rect_filled(r, 0.0, Color32::from_rgba_unmultiplied(120, 180, 255, 40));
+        painter.rect_stroke(r, 0.0, Stroke::new(1.0, Color32::from_rgb(120, 180, 255)), StrokeKind::Inside);
+    }
+    if input.frames > 0 {
+        let x = x_of(input.frame as f32 / fps);
+        let c = Color32::from_rgb(255, 90, 60);
+        painter.line_segment([pos2(x, ruler.top()), pos2(x, lane.bottom())], Stroke::new(2.0, c));
+        painter.add(egui::Shape::convex_polygon(vec![pos2(x - 5.0, ruler.top()), pos2(x + 5.0, ruler.top()), pos2(x, ruler.top() + 7.0)], c, Stroke::NONE));
+    }
+    actions
+}

@@ -1,0 +1,153 @@
+//! The evaluation measures on real data and on cases with known answers: MMD, FID and its
+//! matrix square root, the horizon errors of the CMU table, and the action classifier.
+//!
+//! The Human3.6M clips come from the dataset archive (`GLOCAL_DATA` or `../shared/data`);
+//! these tests fail, rather than skip, when it is missing.
+
+use std::sync::OnceLock;
+
+use glam::Vec3;
+use glocal::data::archive::DataRoot;
+use glocal::data::registry::Dataset;
+use glocal::eval::classifier::{real_windows, Classifier, ClassifierConfig};
+use glocal::eval::metrics::{self, fid, horizon_errors, mmd2, mmd_avg_seq, sqrtm_symmetric, symmetric_eigen};
+use glocal::model::corpus::Corpus;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+fn h36m() -> &'static Corpus {
+    static CORPUS: OnceLock<Corpus> = OnceLock::new();
+    CORPUS.get_or_init(|| Corpus::load(Dataset::H36m, &DataRoot::resolve(None), 5, 3).expect("the h36m archive is readable"))
+}
+
+/// Root-relative poses (meters) of `frames`-frame windows of one class of the test split.
+fn class_sequences(class: &str, frames: usize, count: usize) -> Vec<Vec<f32>> {
+    let c = h36m();
+    let k = c.classes.iter().position(|x| x == class).expect("class exists");
+    let mut out = Vec::new();
+    for t in c.test.iter().filter(|t| t.class == k) {
+        let m = &t.motion;
+        let mut s = 0;
+        while s + frames <= m.frames() && out.len() < count {
+            let seq: Vec<f32> = (s..s + frames)
+                .flat_map(|f| {
+                    let fr = m.frame(f);
+                    fr.iter().flat_map(move |p| ((*p - fr[0]) * 0.001).to_array()).collect::<Vec<_>>()
+                })
+                .collect();
+            out.push(seq);
+            s += frames;
+        }
+    }
+    assert!(out.len() >= 8, "{class}: too few windows ({})", out.len());
+    out
+}
+
+fn rows(v: &[Vec<f32>]) -> Vec<&[f32]> {
+    v.iter().map(|x| x.as_slice()).collect()
+}
+
+#[test]
+fn mmd_is_near_zero_within_a_class_and_positive_between_classes() {
+    let walking = class_sequences("walking", 10, 40);
+    let sitting = class_sequences("sitting", 10, 40);
+    let n = walking.len().min(sitting.len());
+    let (w, s) = (&walking[..n], &sitting[..n]);
+    let frame_dim = w[0].len() / 10;
+    // A set against itself: the unbiased estimate is within 2/n of zero by construction.
+    let (self_avg, self_seq) = mmd_avg_seq(w, w, frame_dim);
+    assert!(self_avg.abs() <= 2.0 / n as f64 + 1e-9 && self_seq.abs() <= 2.0 / n as f64 + 1e-9, "self MMD {self_avg} {self_seq}");
+    // Two halves of one class are close; two classes are far apart.
+    let half = n / 2;
+    let within = mmd2(&rows(&w[..half]), &rows(&w[half..2 * half]));
+    let between = mmd2(&rows(&w[..half]), &rows(&s[..half]));
+    let (avg, seq) = mmd_avg_seq(w, s, frame_dim);
+    assert!(between > 0.2, "walking vs sitting MMD {between}");
+    assert!(between > 3.0 * within.max(0.0), "between {between}, within {within}");
+    assert!(avg > 0.2 && seq > 0.2, "walking vs sitting MMD_avg {avg}, MMD_seq {seq}");
+    assert!(avg <= 2.0 + 1e-9 && seq <= 2.0 + 1e-9);
+}
+
+#[test]
+fn jacobi_eigen_and_square_root_are_exact() {
+    let mut rng = StdRng::seed_from_u64(3);
+    let d = 12;
+    let b: Vec<f64> = (0..d * d).map(|_| rng.random_range(-1.0..1.0)).collect();
+    // A = B Bᵀ is symmetric positive semi-definite.
+    let a: Vec<f64> = (0..d * d).map(|ij| (0..d).map(|k| b[(ij / d) * d + k] * b[(ij % d) * d + k]).sum()).collect();
+    let (w, v) = symmetric_eigen(&a, d);
+    for c in 0..d {
+        for i in 0..d {
+            let av: f64 = (0..d).map(|k| a[i * d + k] * v[k * d + c]).sum();
+            assert!((av - w[c] * v[i * d + c]).abs() < 1e-9, "A v != λ v");
+        }
+    }
+    let r = sqrtm_symmetric(&a, d);
+    for i in 0..d {
+        for j in 0..d {
+            let rr: f64 = (0..d).map(|k| r[i * d + k] * r[k * d + j]).sum();
+            assert!((rr - a[i * d + j]).abs() < 1e-8, "sqrt(A)² != A at {i},{j}");
+        }
+    }
+}
+
+#[test]
+fn fid_of_identical_sets_is_zero_and_a_shift_costs_its_square() {
+    let mut rng = StdRng::seed_from_u64(5);
+    let x: Vec<Vec<f32>> = (0..300).map(|_| (0..16).map(|_| rng.random_range(-1.0f32..1.0)).collect()).collect();
+    assert!(fid(&x, &x) < 1e-6, "FID(x, x) = {}", fid(&x, &x));
+    let shifted: Vec<Vec<f32>> = x.iter().map(|r| r.iter().map(|v| v + 0.5).collect()).collect();
+    let expected = 16.0 * 0.25;
+    assert!((fid(&x, &shifted) - expected).abs() < 1e-3, "FID under a shift: {}", fid(&x, &shifted));
+    // Scaling by 2: Σ₂ = 4Σ₁, so the trace term is tr(Σ₁ + 4Σ₁ − 4Σ₁) = tr(Σ₁).
+    let scaled: Vec<Vec<f32>> = x.iter().map(|r| r.iter().map(|v| 2.0 * v).collect()).collect();
+    let (_, cov) = metrics::mean_cov(&x);
+    let tr: f64 = (0..16).map(|i| cov[i * 16 + i]).sum();
+    let (m, _) = metrics::mean_cov(&x);
+    let mean_term: f64 = m.iter().map(|v| v * v).sum();
+    assert!((fid(&x, &scaled) - (tr + mean_term)).abs() < 1e-6 * tr.max(1.0), "FID under scaling");
+}
+
+#[test]
+fn horizon_errors_on_a_known_motion() {
+    // One joint moving 1 unit per frame along x at 30 fps, frame 0 the last observed pose.
+    let truth: Vec<Vec3> = (0..=20).map(|f| Vec3::new(f as f32, 0.0, 0.0)).collect();
+    let still = vec![Vec3::ZERO];
+    let e = horizon_errors(&still, &truth, 1, 30.0, 30.0);
+    for (k, ms) in metrics::HORIZONS_MS.iter().enumerate() {
+        assert!((e[k] - *ms as f64 * 0.03).abs() < 1e-4, "zero-velocity at {ms} ms: {}", e[k]);
+    }
+    // The same motion sampled every second frame (15 fps), as GloGen's sparse poses are.
+    let sparse: Vec<Vec3> = (0..=10).map(|k| Vec3::new(2.0 * k as f32, 0.0, 0.0)).collect();
+    assert!(horizon_errors(&sparse, &truth, 1, 15.0, 30.0).iter().all(|v| *v < 1e-4));
+    // Two joints, one off by 3 units: the mean over joints is 1.5.
+    let a = [Vec3::ZERO, Vec3::ZERO];
+    let b = [Vec3::ZERO, Vec3::new(0.0, 3.0, 4.0) * 0.6];
+    assert!((metrics::pose_error(&a, &b) - 1.5).abs() < 1e-6);
+}
+
+#[test]
+fn diversity_and_multimodality_follow_their_definitions() {
+    // Two classes, each a single point: multimodality 0, diversity half the pairs cross.
+    let f: Vec<Vec<f32>> = (0..100).map(|i| vec![if i % 2 == 0 { 0.0 } else { 2.0 }]).collect();
+    let labels: Vec<usize> = (0..100).map(|i| i % 2).collect();
+    assert_eq!(metrics::multimodality(&f, &labels, 2, 20, 1), 0.0);
+    let d = metrics::diversity(&f, 100, 1);
+    assert!(d > 0.5 && d < 1.5, "diversity {d}");
+    assert_eq!(metrics::accuracy(&[0, 1, 1, 0], &[0, 1, 0, 0]), 0.75);
+}
+
+#[test]
+fn a_small_classifier_beats_chance_on_the_h36m_test_split() {
+    let corpus = h36m();
+    let cfg = ClassifierConfig { hidden: 48, frames: 30, steps: 300, batch: 16, lr: 3e-3, seed: 1 };
+    let clf = Classifier::train(corpus, &cfg, &mut |m| eprintln!("{m}")).expect("training runs");
+    let chance = 1.0 / corpus.classes.len() as f64;
+    assert!(clf.record.test_windows >= 100, "{} test windows", clf.record.test_windows);
+    assert!(clf.record.test_accuracy > 2.0 * chance, "test accuracy {} vs chance {chance}", clf.record.test_accuracy);
+    // Its features feed FID: the real test windows against themselves give 0.
+    let (_, clips): (Vec<usize>, Vec<Vec<f32>>) = real_windows(&corpus.layout, &corpus.test, corpus.classes.len(), cfg.frames, cfg.frames, 20).into_iter().unzip();
+    let feats = clf.features(&clips).unwrap();
+    assert_eq!(feats[0].len(), cfg.hidden);
+    assert!(fid(&feats, &feats) < 1e-6);
+}

@@ -1,0 +1,167 @@
+//! Synthesis with the shipped models: long takes that stay alive, pace, export round trips
+//! and clear errors on bad input.
+
+use std::path::Path;
+
+use glocal::data::bvh::read_bvh_with_unit;
+use glocal::model::corpus::mean_joint_speed;
+use glocal::model::glocal::GlocalModel;
+use glocal::synth::export::export;
+use glocal::synth::{generate, GenerateOptions, InitPose};
+
+fn model(name: &str) -> GlocalModel {
+    GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"))
+}
+
+fn opts(timeline: &str) -> GenerateOptions {
+    GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }
+}
+
+fn error_of(model: &mut GlocalModel, o: &GenerateOptions) -> String {
+    match generate(model, o, &mut |_| true) {
+        Ok(_) => panic!("expected an error"),
+        Err(e) => format!("{e:#}"),
+    }
+}
+
+/// Two minutes over every class: finite, bone lengths kept, and no 10 s window frozen or
+/// exploding against the real speed of its class.
+#[test]
+fn two_minutes_stay_alive() {
+    for name in ["h36m", "bandai"] {
+        let mut m = model(name);
+        let classes = m.spec.classes.clone();
+        let timeline: Vec<String> = (0..12).map(|k| format!("{}:10", classes[k % classes.len()])).collect();
+        let take = generate(&mut m, &opts(&timeline.join(",")), &mut |_| true).unwrap();
+        let motion = &take.motion;
+        assert!(motion.positions().iter().all(|p| p.is_finite()), "{name}: NaN");
+        assert!((motion.seconds() - 120.0).abs() < 1.0, "{name}: {} s", motion.seconds());
+        let bone_error = motion.bone_length_error(1e-3 / motion.skeleton.meters_per_unit);
+        assert!(bone_error < 0.02, "{name}: bone-length error {bone_error}");
+        for s in &take.segments {
+            let window = motion.slice(s.start_frame, s.end_frame);
+            let ratio = mean_joint_speed(&window) / m.spec.class_speed[s.class];
+            eprintln!("{name} {}: {ratio:.2}", s.name);
+            assert!((0.3..3.0).contains(&ratio), "{name} {}: speed {ratio:.2}x the real class speed", s.name);
+        }
+    }
+}
+
+#[test]
+fn pace_stretches_the_same_poses() {
+    let mut m = model("h36m");
+    let base = generate(&mut m, &opts("walking:4"), &mut |_| true).unwrap();
+    let mut slow = opts("walking:4");
+    slow.pace = 2.0;
+    let slow = generate(&mut m, &slow, &mut |_| true).unwrap();
+    // Same duration asked, so half the sparse poses spread over the same frames.
+    assert!((slow.motion.frames() as i64 - base.motion.frames() as i64).abs() <= 10);
+    let mut half = opts("walking:2@2.0");
+    half.locgen = false;
+    let mut plain = opts("walking:1");
+    plain.locgen = false;
+    let (half, plain) = (generate(&mut m, &half, &mut |_| true).unwrap(), generate(&mut m, &plain, &mut |_| true).unwrap());
+    // walking:2 at pace 2 shows the poses of walking:1 at pace 1, each frame twice as long.
+    let (a, b) = (half.motion.frame(20)[3], plain.motion.frame(10)[3]);
+    assert!(a.distance(b) < 1e-2 * (1.0 / m.spec.layout.skeleton.meters_per_unit), "{a} vs {b}");
+    let mut frac = opts("walking:3");
+    frac.pace = 1.37;
+    assert!(generate(&mut m, &frac, &mut |_| true).is_ok());
+}
+
+#[test]
+fn bvh_round_trip_within_a_centimetre() {
+    let mut m = model("h36m");
+    let take = generate(&mut m, &opts("walking:3,sitting:3"), &mut |_| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("take.bvh");
+    export(&take.motion, &take.segments, &path).unwrap();
+    let unit = take.motion.skeleton.meters_per_unit;
+    let back = read_bvh_with_unit(&std::fs::read_to_string(&path).unwrap(), "take.bvh", unit).unwrap();
+    assert_eq!(back.frames(), take.motion.frames());
+    assert!((back.fps - take.motion.fps).abs() < 1e-3);
+    let err: f32 = back.positions().iter().zip(take.motion.positions()).map(|(a, b)| a.distance(*b)).sum::<f32>()
+        / back.positions().len() as f32;
+    assert!(err * unit < 0.01, "mean joint error {} m", err * unit);
+    for ext in ["json", "npy"] {
+        let p = dir.path().join(format!("take.{ext}"));
+        export(&take.motion, &take.segments, &p).unwrap();
+        let (again, segments) = glocal::synth::export::read_take(&p, Some(&m.dir)).unwrap();
+        assert_eq!(again.frames(), take.motion.frames());
+        assert!(again.positions().iter().zip(take.motion.positions()).all(|(a, b)| a.distance(*b) < 1e-3));
+        if ext == "json" {
+            assert_eq!(segments, take.segments);
+        }
+    }
+}
+
+#[test]
+fn class_and_seed_choose_the_take() {
+    let mut m = model("h36m");
+    let walk = generate(&mut m, &opts("walking:4"), &mut |_| true).unwrap();
+    let sit = generate(&mut m, &opts("sitting:4"), &mut |_| true).unwrap();
+    assert_ne!(walk.motion.positions(), sit.motion.positions());
+    let mut a = opts("walking:4");
+    a.seed = 7;
+    a.variation = 0.05;
+    let mut b = a.clone();
+    b.seed = 8;
+    let (ta, ta2, tb) = (
+        generate(&mut m, &a, &mut |_| true).unwrap(),
+        generate(&mut m, &a, &mut |_| true).unwrap(),
+        generate(&mut m, &b, &mut |_| true).unwrap(),
+    );
+    assert_eq!(ta.motion.positions(), ta2.motion.positions(), "same seed, same take");
+    assert_ne!(ta.motion.positions(), tb.motion.positions(), "another seed, another take");
+    let mut seeded = opts("eating:3");
+    seeded.init = InitPose::SeedClass { class: "walking".into(), variant: 2 };
+    assert!(generate(&mut m, &seeded, &mut |_| true).is_ok());
+}
+
+#[test]
+fn bad_input_is_named() {
+    let mut m = model("h36m");
+    let e = error_of(&mut m, &opts("dancing:3"));
+    assert!(e.contains("unknown class 'dancing'") && e.contains("walking"), "{e}");
+    assert!(error_of(&mut m, &GenerateOptions::default()).contains("empty"));
+    assert!(error_of(&mut m, &opts("walking:-1")).contains("positive"));
+    let mut fast = opts("walking:3");
+    fast.pace = 20.0;
+    assert!(error_of(&mut m, &fast).contains("between 0.1 and 10"));
+    let mut seed = opts("walking:3");
+    seed.init = InitPose::SeedIndex(100_000);
+    assert!(error_of(&mut m, &seed).contains("seed 100000 does not exist"));
+
+    // Another skeleton: a Bandai take offered to the h36m model.
+    let mut bandai = model("bandai");
+    let take = generate(&mut bandai, &opts("walk:3"), &mut |_| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let other = dir.path().join("bandai.bvh");
+    export(&take.motion, &[], &other).unwrap();
+    let mut wrong = opts("walking:3");
+    wrong.init = InitPose::File { path: other, frame: 0 };
+    let e = error_of(&mut m, &wrong);
+    assert!(e.contains("does not match the model's"), "{e}");
+
+    // An unwritable path leaves nothing behind; a model folder with a missing file says which.
+    let take = generate(&mut m, &opts("walking:2"), &mut |_| true).unwrap();
+    let e = format!("{:#}", export(&take.motion, &take.segments, Path::new("/nonexistent-dir/take.bvh")).unwrap_err());
+    assert!(e.contains("/nonexistent-dir"), "{e}");
+    let e = format!("{:#}", export(&take.motion, &take.segments, &dir.path().join("take.txt")).unwrap_err());
+    assert!(e.contains(".bvh, .json or .npy"), "{e}");
+    let broken = dir.path().join("broken-model");
+    std::fs::create_dir(&broken).unwrap();
+    std::fs::copy(m.dir.join("model.json"), broken.join("model.json")).unwrap();
+    let e = format!("{:#}", GlocalModel::load(&broken).err().unwrap());
+    assert!(e.contains("glogen.safetensors"), "{e}");
+    std::fs::write(broken.join("glogen.safetensors"), b"not a tensor file").unwrap();
+    let e = format!("{:#}", GlocalModel::load(&broken).err().unwrap());
+    assert!(e.contains("not a safetensors file"), "{e}");
+}
+
+#[test]
+fn cancel_stops_generation() {
+    let mut m = model("h36m");
+    let e = generate(&mut m, &opts("walking:60"), &mut |f| f < 0.2).err().unwrap();
+    assert!(format!("{e:#}").contains("cancelled"));
+}
