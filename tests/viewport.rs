@@ -1,0 +1,225 @@
+//! The 3D viewport rendered headless through egui_kittest's wgpu renderer (lavapipe on a
+//! machine without a GPU), with a real Bandai take: snapshots, checks that the figure is
+//! drawn in its colour at the centre, that frames and camera moves change the image, and a
+//! frame-time measurement at 1280x800 with ghosts on.
+//!
+//! Run with `cargo test --release --test viewport`; `UPDATE_SNAPSHOTS=true` rewrites the
+//! images under tests/snapshots/.
+
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
+
+use egui_kittest::wgpu::{create_render_state, default_wgpu_setup, WgpuTestRenderer};
+use egui_kittest::{Harness, SnapshotOptions};
+use glocal::data::archive::DataRoot;
+use glocal::data::registry::{self, Dataset};
+use glocal::motion::Motion;
+use glocal::studio::viewport::{Layer, Scene, ViewSettings, Viewport};
+use image::RgbaImage;
+
+/// Orange for the first half of the take, blue for the second (like two class segments).
+const ORANGE: [u8; 3] = [235, 130, 40];
+const BLUE: [u8; 3] = [60, 140, 235];
+
+/// A walking take from the Bandai archive, loaded once per test process.
+fn walk() -> Arc<Motion> {
+    static WALK: OnceLock<Arc<Motion>> = OnceLock::new();
+    WALK.get_or_init(|| {
+        let clips = registry::load(Dataset::Bandai, &DataRoot::resolve(None)).unwrap_or_else(|e| panic!("cannot load bandai: {e:#}"));
+        let clip = clips
+            .clips
+            .iter()
+            .find(|c| c.file.contains("walk_normal"))
+            .or_else(|| clips.clips.iter().find(|c| c.file.contains("walk")))
+            .expect("bandai has a walking take");
+        assert!(clip.motion.frames() > 120, "{} is too short", clip.file);
+        Arc::new(clip.motion.clone())
+    })
+    .clone()
+}
+
+fn layer(motion: Arc<Motion>, colors: [[u8; 3]; 2], offset: glam::Vec3, opacity: f32) -> Layer {
+    let n = motion.frames();
+    let frame_colors = (0..n).map(|t| if t < n / 2 { colors[0] } else { colors[1] }).collect();
+    Layer { motion, frame_colors: Arc::new(frame_colors), offset, opacity }
+}
+
+struct State {
+    viewport: Viewport,
+    layers: Vec<Layer>,
+    frame: usize,
+    settings: ViewSettings,
+}
+
+fn harness(size: egui::Vec2, layers: Vec<Layer>, settings: ViewSettings) -> Harness<'static, State> {
+    let render_state = create_render_state(default_wgpu_setup(), eframe::egui_wgpu::RendererOptions::PREDICTABLE);
+    Viewport::register(&render_state);
+    let state = State { viewport: Viewport::new(), layers, frame: 30, settings };
+    Harness::builder().with_size(size).renderer(WgpuTestRenderer::from_render_state(render_state)).build_ui_state(
+        |ui, s: &mut State| {
+            let scene = Scene { layers: &s.layers, frame: s.frame, settings: &s.settings };
+            s.viewport.ui(ui, &scene);
+        },
+        state,
+    )
+}
+
+fn render(h: &mut Harness<'_, State>) -> RgbaImage {
+    h.run();
+    h.render().expect("render")
+}
+
+/// Pixels in the central `fraction` of the image (by width and height) that `pred` accepts.
+fn count_centre(img: &RgbaImage, fraction: f32, pred: impl Fn([u8; 3]) -> bool) -> usize {
+    let (w, h) = img.dimensions();
+    let (x0, x1) = (((1.0 - fraction) / 2.0 * w as f32) as u32, ((1.0 + fraction) / 2.0 * w as f32) as u32);
+    let (y0, y1) = (((1.0 - fraction) / 2.0 * h as f32) as u32, ((1.0 + fraction) / 2.0 * h as f32) as u32);
+    let mut n = 0;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let p = img.get_pixel(x, y).0;
+            n += pred([p[0], p[1], p[2]]) as usize;
+        }
+    }
+    n
+}
+
+/// Shaded orange: clearly more red than green, more green than blue.
+fn orange(p: [u8; 3]) -> bool {
+    let [r, g, b] = p.map(i32::from);
+    r > 90 && r > g + 35 && g > b + 20
+}
+
+/// Shaded blue.
+fn blue(p: [u8; 3]) -> bool {
+    let [r, g, b] = p.map(i32::from);
+    b > 110 && b > r + 60 && b > g + 25
+}
+
+fn differing(a: &RgbaImage, b: &RgbaImage) -> usize {
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.pixels().zip(b.pixels()).filter(|(p, q)| p.0.iter().zip(q.0.iter()).any(|(x, y)| x.abs_diff(*y) > 24)).count()
+}
+
+fn snapshot_options() -> SnapshotOptions {
+    // Tolerate small rasterisation differences between driver versions.
+    SnapshotOptions::default().threshold(1.5).max_failed_pixels(400)
+}
+
+#[test]
+fn viewport_draws_the_skeleton_and_moves_with_frames() {
+    let walk = walk();
+    let mut h = harness(egui::vec2(640.0, 400.0), vec![layer(walk.clone(), [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)], ViewSettings::default());
+    let first = render(&mut h);
+    h.snapshot_options("viewport_skeleton", &snapshot_options());
+
+    let figure = count_centre(&first, 0.5, orange);
+    assert!(figure > 1500, "only {figure} bone-coloured pixels in the centre of the view");
+    let background = count_centre(&first, 1.0, |p| p.iter().zip([30u8, 32, 38]).all(|(a, b)| a.abs_diff(b) <= 2));
+    assert!(background > 640 * 400 / 4, "the background is not drawn ({background} pixels)");
+
+    // A later frame of the same take: a different pose, now in the second segment's colour.
+    h.state_mut().frame = walk.frames() * 3 / 4;
+    let later = render(&mut h);
+    let changed = differing(&first, &later);
+    assert!(changed > 1500, "frames 30 and {} render alike ({changed} pixels differ)", walk.frames() * 3 / 4);
+    let blue_figure = count_centre(&later, 0.5, blue);
+    assert!(blue_figure > 1500, "the second segment's colour is not used ({blue_figure} blue pixels)");
+    assert!(count_centre(&later, 0.5, orange) < blue_figure / 3, "frame colour not taken from the current frame");
+
+    // Without ghosts, trail and grid the image loses pixels but keeps the figure.
+    h.state_mut().settings = ViewSettings { ghosts: 0, trail: false, grid: false, ..ViewSettings::default() };
+    let bare = render(&mut h);
+    assert!(differing(&later, &bare) > 500, "ghosts/trail/grid draw nothing");
+    assert!(count_centre(&bare, 0.5, blue) > 1000);
+}
+
+#[test]
+fn viewport_layers_side_by_side_and_overlaid() {
+    let walk = walk();
+    let settings = ViewSettings { ghosts: 2, ghost_step: 8, ..ViewSettings::default() };
+    let layers = vec![
+        layer(walk.clone(), [ORANGE, ORANGE], glam::Vec3::new(-0.6, 0.0, 0.0), 1.0),
+        layer(walk.clone(), [BLUE, BLUE], glam::Vec3::new(0.6, 0.0, 0.0), 1.0),
+    ];
+    let mut h = harness(egui::vec2(640.0, 400.0), layers, settings);
+    let img = render(&mut h);
+    h.snapshot_options("viewport_layers", &snapshot_options());
+    // Side by side: one figure each side of the centre line.
+    let (w, hgt) = img.dimensions();
+    let side = |x0: u32, x1: u32, pred: fn([u8; 3]) -> bool| {
+        (0..hgt).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| pred(img.get_pixel(x, y).0[..3].try_into().unwrap())).count()
+    };
+    let (orange_left, orange_right) = (side(0, w / 2, orange), side(w / 2, w, orange));
+    let (blue_left, blue_right) = (side(0, w / 2, blue), side(w / 2, w, blue));
+    assert!(orange_left > 800 && blue_right > 800, "figures missing: orange left {orange_left}, blue right {blue_right}");
+    assert!(orange_left > 3 * orange_right && blue_right > 3 * blue_left, "layers not side by side");
+
+    // Overlay: the second take translucent over the first.
+    for l in &mut h.state_mut().layers {
+        l.offset = glam::Vec3::ZERO;
+    }
+    h.state_mut().layers[1].opacity = 0.4;
+    h.state_mut().viewport.frame_all();
+    let overlay = render(&mut h);
+    h.snapshot_options("viewport_overlay", &snapshot_options());
+    assert!(count_centre(&overlay, 0.5, orange) > 500, "the opaque take is hidden by the translucent one");
+}
+
+#[test]
+fn viewport_camera_follows_drag_and_scroll() {
+    let mut h = harness(egui::vec2(480.0, 320.0), vec![layer(walk(), [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)], ViewSettings::default());
+    let before = render(&mut h);
+
+    // Orbit: drag across the view.
+    h.drag_at(egui::pos2(200.0, 160.0));
+    h.run();
+    for x in [220.0, 260.0, 300.0] {
+        h.hover_at(egui::pos2(x, 170.0));
+        h.run();
+    }
+    h.drop_at(egui::pos2(300.0, 170.0));
+    let orbited = render(&mut h);
+    assert!(differing(&before, &orbited) > 1000, "dragging did not orbit the camera");
+
+    // Zoom in: the figure gets bigger.
+    let size_before = count_centre(&orbited, 1.0, orange);
+    h.hover_at(egui::pos2(240.0, 160.0));
+    h.event(egui::Event::MouseWheel { unit: egui::MouseWheelUnit::Point, delta: egui::vec2(0.0, 300.0), phase: egui::TouchPhase::Move, modifiers: Default::default(), source: egui::MouseWheelSource::Wheel });
+    let zoomed = render(&mut h);
+    let size_after = count_centre(&zoomed, 1.0, orange);
+    assert!(size_after as f32 > size_before as f32 * 1.3, "scrolling did not zoom in: {size_before} -> {size_after} figure pixels");
+
+    // Double-click frames the take again: back to the first view's size.
+    h.state_mut().settings.follow_root = true;
+    h.event(egui::Event::PointerButton { pos: egui::pos2(240.0, 160.0), button: egui::PointerButton::Primary, pressed: true, modifiers: Default::default() });
+    h.event(egui::Event::PointerButton { pos: egui::pos2(240.0, 160.0), button: egui::PointerButton::Primary, pressed: false, modifiers: Default::default() });
+    h.event(egui::Event::PointerButton { pos: egui::pos2(240.0, 160.0), button: egui::PointerButton::Primary, pressed: true, modifiers: Default::default() });
+    h.event(egui::Event::PointerButton { pos: egui::pos2(240.0, 160.0), button: egui::PointerButton::Primary, pressed: false, modifiers: Default::default() });
+    let framed = render(&mut h);
+    let size_framed = count_centre(&framed, 1.0, orange);
+    assert!((size_framed as f32) < size_after as f32 * 0.8, "double-click did not re-frame: {size_after} -> {size_framed}");
+}
+
+/// The full studio size with ghosts on: time the whole frame (egui pass, scene, blit and the
+/// read-back kittest does) and print it; the bound is loose because the CPU is shared.
+#[test]
+fn viewport_frame_time_at_1280x800() {
+    let walk = walk();
+    let settings = ViewSettings { ghosts: 4, ghost_step: 4, ..ViewSettings::default() };
+    let layers = vec![
+        layer(walk.clone(), [ORANGE, BLUE], glam::Vec3::new(-0.5, 0.0, 0.0), 1.0),
+        layer(walk.clone(), [BLUE, ORANGE], glam::Vec3::new(0.5, 0.0, 0.0), 0.6),
+    ];
+    let mut h = harness(egui::vec2(1280.0, 800.0), layers, settings);
+    render(&mut h);
+    let n = 20;
+    let start = Instant::now();
+    for k in 0..n {
+        h.state_mut().frame = 10 + k * 3;
+        render(&mut h);
+    }
+    let per_frame = start.elapsed().as_secs_f64() * 1000.0 / n as f64;
+    println!("viewport 1280x800, 2 layers, 4+4 ghosts, trail, grid: {per_frame:.1} ms a frame (incl. kittest read-back)");
+    assert!(per_frame < 250.0, "{per_frame:.1} ms a frame");
+}
