@@ -1,66 +1,60 @@
-//! AdamW over candle `Var`s with its moments in plain f32 buffers, so that a checkpoint can
-//! hold the optimiser state and a resumed run continues exactly where it stopped.
+//! AdamW (decoupled weight decay, the same update as PyTorch's and candle-nn's) computed in
+//! one pass per parameter on f32 buffers, split over two threads, instead of a dozen candle
+//! ops per parameter. Its moments are named, so a checkpoint can hold them and a resumed run
+//! continues exactly where it stopped.
 
 use std::collections::HashMap;
 
-use candle_core::{backprop::GradStore, Result, Tensor, Var};
+use candle_core::{backprop::GradStore, bail, DType, Result, Tensor, Var};
+use candle_nn::{Optimizer, ParamsAdamW};
+
+use super::lstm::with_f32;
+
+struct Param {
+    name: String,
+    var: Var,
+    m: Vec<f32>,
+    v: Vec<f32>,
+}
 
 pub struct AdamW {
-    vars: Vec<(String, Var)>,
-    pub m: HashMap<String, Vec<f32>>,
-    pub v: HashMap<String, Vec<f32>>,
+    params: Vec<Param>,
+    config: ParamsAdamW,
     pub step: usize,
-    pub lr: f32,
-    beta1: f32,
-    beta2: f32,
+}
+
+struct Coefficients {
+    lr: f32,
+    decay: f32,
+    b1: f32,
+    b2: f32,
+    bias1: f32,
+    bias2: f32,
     eps: f32,
-    weight_decay: f32,
 }
 
 impl AdamW {
-    /// `vars` by name; sorted so that the order never depends on a hash map.
-    pub fn new(mut vars: Vec<(String, Var)>, lr: f32) -> Self {
-        vars.sort_by(|a, b| a.0.cmp(&b.0));
-        Self { vars, m: HashMap::new(), v: HashMap::new(), step: 0, lr, beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.01 }
-    }
-
-    pub fn backward_step(&mut self, loss: &Tensor) -> Result<()> {
-        let grads = loss.backward()?;
-        self.apply(&grads)
-    }
-
-    fn apply(&mut self, grads: &GradStore) -> Result<()> {
-        self.step += 1;
-        let t = self.step as i32;
-        let (b1, b2) = (self.beta1, self.beta2);
-        let bc1 = 1.0 - b1.powi(t);
-        let bc2 = 1.0 - b2.powi(t);
-        for (name, var) in &self.vars {
-            let Some(g) = grads.get(var.as_tensor()) else { continue };
-            let g = g.flatten_all()?.to_vec1::<f32>()?;
-            let mut w = var.as_tensor().flatten_all()?.to_vec1::<f32>()?;
-            let m = self.m.entry(name.clone()).or_insert_with(|| vec![0.0; w.len()]);
-            let v = self.v.entry(name.clone()).or_insert_with(|| vec![0.0; w.len()]);
-            let decay = 1.0 - self.lr * self.weight_decay;
-            for k in 0..w.len() {
-                m[k] = b1 * m[k] + (1.0 - b1) * g[k];
-                v[k] = b2 * v[k] + (1.0 - b2) * g[k] * g[k];
-                let update = (m[k] / bc1) / ((v[k] / bc2).sqrt() + self.eps);
-                w[k] = w[k] * decay - self.lr * update;
+    /// Variables by name (order-independent: they are sorted by size, then name).
+    pub fn named(vars: Vec<(String, Var)>, config: ParamsAdamW) -> Result<Self> {
+        let mut params = Vec::with_capacity(vars.len());
+        for (name, var) in vars {
+            if var.dtype() != DType::F32 || !var.device().is_cpu() {
+                bail!("AdamW: only f32 CPU variables are supported ({name})");
             }
-            var.set(&Tensor::from_vec(w, var.shape(), var.device())?)?;
+            let n = var.elem_count();
+            params.push(Param { name, var, m: vec![0.0; n], v: vec![0.0; n] });
         }
-        Ok(())
+        // Largest first, for a balanced split over two threads; names break ties.
+        params.sort_by(|a, b| b.var.elem_count().cmp(&a.var.elem_count()).then_with(|| a.name.cmp(&b.name)));
+        Ok(Self { params, config, step: 0 })
     }
 
     /// The moments as named tensors, for a checkpoint.
     pub fn state_tensors(&self) -> Result<Vec<(String, Tensor)>> {
         let mut out = Vec::new();
-        for (name, var) in &self.vars {
-            if let (Some(m), Some(v)) = (self.m.get(name), self.v.get(name)) {
-                out.push((format!("m.{name}"), Tensor::from_slice(m, var.shape(), var.device())?));
-                out.push((format!("v.{name}"), Tensor::from_slice(v, var.shape(), var.device())?));
-            }
+        for p in &self.params {
+            out.push((format!("m.{}", p.name), Tensor::from_slice(&p.m, p.var.shape(), p.var.device())?));
+            out.push((format!("v.{}", p.name), Tensor::from_slice(&p.v, p.var.shape(), p.var.device())?));
         }
         Ok(out)
     }
@@ -68,12 +62,84 @@ impl AdamW {
     /// Restores moments saved by [`Self::state_tensors`].
     pub fn load_state(&mut self, tensors: &HashMap<String, Tensor>, step: usize) -> Result<()> {
         self.step = step;
-        for (name, _) in &self.vars {
-            if let (Some(m), Some(v)) = (tensors.get(&format!("m.{name}")), tensors.get(&format!("v.{name}"))) {
-                self.m.insert(name.clone(), m.flatten_all()?.to_vec1()?);
-                self.v.insert(name.clone(), v.flatten_all()?.to_vec1()?);
+        for p in &mut self.params {
+            match (tensors.get(&format!("m.{}", p.name)), tensors.get(&format!("v.{}", p.name))) {
+                (Some(m), Some(v)) => {
+                    p.m = m.flatten_all()?.to_vec1()?;
+                    p.v = v.flatten_all()?.to_vec1()?;
+                }
+                _ => bail!("training state has no moments for {}", p.name),
             }
         }
         Ok(())
+    }
+
+    fn update(c: &Coefficients, p: &mut Param, grads: &GradStore) -> Result<()> {
+        let Some(g) = grads.get(p.var.as_tensor()) else { return Ok(()) };
+        let next = with_f32(p.var.as_tensor(), |theta| {
+            with_f32(g, |g| {
+                let mut out = vec![0f32; theta.len()];
+                for k in 0..theta.len() {
+                    let m = p.m[k] * c.b1 + g[k] * (1.0 - c.b1);
+                    let v = p.v[k] * c.b2 + g[k] * g[k] * (1.0 - c.b2);
+                    p.m[k] = m;
+                    p.v[k] = v;
+                    out[k] = theta[k] * c.decay - c.lr * (m * c.bias1) / ((v * c.bias2).sqrt() + c.eps);
+                }
+                out
+            })
+        })??;
+        p.var.set(&Tensor::from_vec(next, p.var.shape(), p.var.device())?)
+    }
+}
+
+impl Optimizer for AdamW {
+    type Config = ParamsAdamW;
+
+    fn new(vars: Vec<Var>, config: ParamsAdamW) -> Result<Self> {
+        Self::named(vars.into_iter().enumerate().map(|(i, v)| (format!("p{i:04}"), v)).collect(), config)
+    }
+
+    fn step(&mut self, grads: &GradStore) -> Result<()> {
+        self.step += 1;
+        let p = &self.config;
+        let t = self.step as i32;
+        let c = Coefficients {
+            lr: p.lr as f32,
+            decay: (1.0 - p.lr * p.weight_decay) as f32,
+            b1: p.beta1 as f32,
+            b2: p.beta2 as f32,
+            bias1: (1.0 / (1.0 - p.beta1.powi(t))) as f32,
+            bias2: (1.0 / (1.0 - p.beta2.powi(t))) as f32,
+            eps: p.eps as f32,
+        };
+        // Greedy split into two groups of similar size, one per core.
+        let (mut a, mut b): (Vec<&mut Param>, Vec<&mut Param>) = (Vec::new(), Vec::new());
+        let (mut na, mut nb) = (0usize, 0usize);
+        for param in self.params.iter_mut() {
+            let n = param.var.elem_count();
+            if na <= nb {
+                na += n;
+                a.push(param);
+            } else {
+                nb += n;
+                b.push(param);
+            }
+        }
+        let run = |group: Vec<&mut Param>| -> Result<()> { group.into_iter().try_for_each(|p| Self::update(&c, p, grads)) };
+        std::thread::scope(|s| {
+            let hb = s.spawn(|| run(b));
+            let ra = run(a);
+            let rb = hb.join().expect("AdamW thread panicked");
+            ra.and(rb)
+        })
+    }
+
+    fn learning_rate(&self) -> f64 {
+        self.config.lr
+    }
+
+    fn set_learning_rate(&mut self, lr: f64) {
+        self.config.lr = lr
     }
 }

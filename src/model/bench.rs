@@ -1,7 +1,8 @@
 //! Benchmarks of the seq2seq block: the fast fused LSTM against candle-nn's LSTM, with exactly the
 //! shapes, loss and optimiser of `/work/shared/bench/torch_reference.py` (input 80 + 12 class,
 //! hidden 200 per direction, 10 steps, batch 64, MSE + motion-flow MSE, AdamW lr 2e-3, dropout 0.25).
-use super::block::{motion_loss, BlockConfig, FusedAdamW, Seq2SeqBlock};
+use super::adamw::AdamW as ProjectAdamW;
+use super::block::{motion_loss, BlockConfig, Seq2SeqBlock};
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
 use serde::{Deserialize, Serialize};
@@ -51,7 +52,7 @@ pub enum Budget {
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrainBench {
-    /// Fast LSTM + [`FusedAdamW`] (the project's training setup).
+    /// Fast LSTM + [`ProjectAdamW`] (the project's training setup).
     pub fast_steps_per_s: f64,
     /// Fast LSTM + `candle_nn::AdamW` (isolates the LSTM's share of the gain).
     pub fast_candle_adamw_steps_per_s: f64,
@@ -86,7 +87,7 @@ fn one_hot(b: usize, c: usize, dev: &Device) -> Result<Tensor> {
 }
 
 /// Training steps per second of the block (each set-up its own freshly initialised model and
-/// optimiser, same data): fast LSTM + [`FusedAdamW`], fast LSTM + `candle_nn::AdamW`, and
+/// optimiser, same data): fast LSTM + [`ProjectAdamW`], fast LSTM + `candle_nn::AdamW`, and
 /// candle-nn's LSTM + `candle_nn::AdamW`, stepped round-robin in the same call.
 pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> {
     let dev = Device::Cpu;
@@ -120,7 +121,7 @@ pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> 
         }))
     }
     let mut steps: Vec<Step> = vec![
-        setup::<FusedAdamW>(&cfg, false, &x, cond, &y)?,
+        setup::<ProjectAdamW>(&cfg, false, &x, cond, &y)?,
         setup::<AdamW>(&cfg, false, &x, cond, &y)?,
         setup::<AdamW>(&cfg, true, &x, cond, &y)?,
     ];

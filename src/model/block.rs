@@ -7,8 +7,8 @@
 //! `weight_ih_l0`, `weight_hh_l0`, `bias_ih_l0`, `bias_hh_l0` and the same with `_reverse`), and
 //! `head.weight [out_dim, 2H]`, `head.bias [out_dim]`.
 use super::lstm::{with_f32, BiLstm, CpuBiLstm, Scratch};
-use candle_core::{backprop::GradStore, bail, CpuStorage, CustomOp1, DType, Device, Layout, Result, Shape, Tensor, Var};
-use candle_nn::{Optimizer, ParamsAdamW, VarBuilder};
+use candle_core::{bail, CpuStorage, CustomOp1, DType, Device, Layout, Result, Shape, Tensor};
+use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 
@@ -219,6 +219,22 @@ impl CustomOp1 for DropoutOp {
     }
 }
 
+thread_local! {
+    static DROPOUT_RNG: std::cell::RefCell<Option<rand::rngs::StdRng>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Makes this thread's dropout masks a function of `seed` (training calls it every step so
+/// that a run, and a resumed run, is deterministic). Unseeded threads draw fresh masks.
+pub fn seed_dropout(seed: u64) {
+    use rand::SeedableRng;
+    DROPOUT_RNG.with(|r| *r.borrow_mut() = Some(rand::rngs::StdRng::seed_from_u64(seed)));
+}
+
+fn next_dropout_seed() -> u64 {
+    use rand::Rng;
+    DROPOUT_RNG.with(|r| r.borrow_mut().as_mut().map_or_else(rand::random::<u64>, |rng| rng.random()))
+}
+
 /// Training-time inverted dropout of an f32 CPU tensor (one fused op; falls back to candle-nn's
 /// dropout for other devices or dtypes).
 pub fn dropout(x: &Tensor, p: f32) -> Result<Tensor> {
@@ -232,121 +248,7 @@ pub fn dropout(x: &Tensor, p: f32) -> Result<Tensor> {
         return candle_nn::ops::dropout(x, p);
     }
     let x = x.contiguous()?;
-    x.apply_op1(DropoutOp { p, seed: rand::random::<u64>(), mask: Mutex::new(None) })
-}
-
-// ---------------------------------------------------------------------------------------------
-// Fused AdamW
-
-/// AdamW with the same update as `candle_nn::AdamW` (and PyTorch's, decoupled weight decay),
-/// computed in one pass per parameter on f32 buffers, over two threads, instead of ~12 candle ops
-/// per parameter. Implements `candle_nn::Optimizer`.
-pub struct FusedAdamW {
-    vars: Vec<(Var, Vec<f32>, Vec<f32>)>,
-    params: ParamsAdamW,
-    step_t: usize,
-}
-
-struct AdamCoef {
-    lr: f32,
-    decay: f32,
-    b1: f32,
-    b2: f32,
-    sm: f32,
-    sv: f32,
-    eps: f32,
-}
-
-fn adamw_update(c: &AdamCoef, theta: &[f32], g: &[f32], m: &mut [f32], v: &mut [f32]) -> Vec<f32> {
-    let n = theta.len();
-    let (g, m, v) = (&g[..n], &mut m[..n], &mut v[..n]);
-    let mut out = vec![0f32; n];
-    for k in 0..n {
-        let gk = g[k];
-        let mk = m[k] * c.b1 + gk * (1.0 - c.b1);
-        let vk = v[k] * c.b2 + gk * gk * (1.0 - c.b2);
-        m[k] = mk;
-        v[k] = vk;
-        let upd = (mk * c.sm) / ((vk * c.sv).sqrt() + c.eps);
-        out[k] = theta[k] * c.decay - upd * c.lr;
-    }
-    out
-}
-
-impl FusedAdamW {
-    fn update_var(c: &AdamCoef, var: &Var, m: &mut [f32], v: &mut [f32], grads: &GradStore) -> Result<()> {
-        let g = match grads.get(var.as_tensor()) {
-            Some(g) => g,
-            None => return Ok(()),
-        };
-        let next = with_f32(var.as_tensor(), |theta| with_f32(g, |g| adamw_update(c, theta, g, m, v)))??;
-        var.set(&Tensor::from_vec(next, var.shape(), var.device())?)
-    }
-}
-
-impl Optimizer for FusedAdamW {
-    type Config = ParamsAdamW;
-
-    fn new(vars: Vec<Var>, params: ParamsAdamW) -> Result<Self> {
-        let mut out = Vec::new();
-        for var in vars {
-            if var.dtype() != DType::F32 || !var.device().is_cpu() {
-                bail!("FusedAdamW: only f32 CPU variables are supported");
-            }
-            let n = var.elem_count();
-            out.push((var, vec![0f32; n], vec![0f32; n]));
-        }
-        // largest first, for a balanced split over two threads
-        out.sort_by_key(|(v, _, _)| std::cmp::Reverse(v.elem_count()));
-        Ok(Self { vars: out, params, step_t: 0 })
-    }
-
-    fn step(&mut self, grads: &GradStore) -> Result<()> {
-        self.step_t += 1;
-        let p = &self.params;
-        let c = AdamCoef {
-            lr: p.lr as f32,
-            decay: (1.0 - p.lr * p.weight_decay) as f32,
-            b1: p.beta1 as f32,
-            b2: p.beta2 as f32,
-            sm: (1.0 / (1.0 - p.beta1.powi(self.step_t as i32))) as f32,
-            sv: (1.0 / (1.0 - p.beta2.powi(self.step_t as i32))) as f32,
-            eps: p.eps as f32,
-        };
-        // greedy split into two groups of similar size
-        let (mut a, mut b): (Vec<_>, Vec<_>) = (Vec::new(), Vec::new());
-        let (mut na, mut nb) = (0usize, 0usize);
-        for item in self.vars.iter_mut() {
-            let n = item.0.elem_count();
-            if na <= nb {
-                na += n;
-                a.push(item);
-            } else {
-                nb += n;
-                b.push(item);
-            }
-        }
-        let run = |group: Vec<&mut (Var, Vec<f32>, Vec<f32>)>| -> Result<()> {
-            for (var, m, v) in group {
-                Self::update_var(&c, var, m, v, grads)?;
-            }
-            Ok(())
-        };
-        std::thread::scope(|s| {
-            let hb = s.spawn(|| run(b));
-            let ra = run(a);
-            let rb = hb.join().expect("adamw thread panicked");
-            ra.and(rb)
-        })
-    }
-
-    fn learning_rate(&self) -> f64 {
-        self.params.lr
-    }
-
-    fn set_learning_rate(&mut self, lr: f64) {
-        self.params.lr = lr
-    }
+    x.apply_op1(DropoutOp { p, seed: next_dropout_seed(), mask: Mutex::new(None) })
 }
 
 /// A [`Seq2SeqBlock`] frozen into plain f32 buffers: no autograd, no candle tensors, reusable
@@ -541,14 +443,14 @@ mod tests {
     }
 
     #[test]
-    fn fused_adamw_matches_candle_adamw() {
+    fn project_adamw_matches_candle_adamw() {
         use candle_nn::AdamW;
         let dev = Device::Cpu;
         let init = Tensor::randn(0f32, 1.0, (13, 7), &dev).unwrap();
         let (va, vb) = (Var::from_tensor(&init).unwrap(), Var::from_tensor(&init).unwrap());
         let p = ParamsAdamW { lr: 2e-3, ..Default::default() };
         let mut oa = AdamW::new(vec![va.clone()], p.clone()).unwrap();
-        let mut ob = FusedAdamW::new(vec![vb.clone()], p).unwrap();
+        let mut ob = crate::model::adamw::AdamW::new(vec![vb.clone()], p).unwrap();
         let target = Tensor::randn(0f32, 1.0, (13, 7), &dev).unwrap();
         for _ in 0..20 {
             oa.backward_step(&(va.as_tensor() - &target).unwrap().sqr().unwrap().sum_all().unwrap()).unwrap();

@@ -11,13 +11,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
+use candle_nn::{Optimizer, ParamsAdamW, VarBuilder, VarMap};
 use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::adamw::AdamW;
-use super::block::{BlockConfig, Seq2SeqBlock};
+use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{interpolated_window, sample_window, Corpus, Track};
 use super::glocal::{load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
 use super::spec::{GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
@@ -124,7 +124,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
     seeded_init(&varmap, opts.seed)?;
     let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
-    let mut opt = AdamW::new(named, opts.lr);
+    let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
     let weights_path = opts.out.join(opts.stage.file());
     let state_path = opts.out.join(format!("{}{TRAIN_STATE_SUFFIX}", opts.stage.file().trim_end_matches(".safetensors")));
     let mut record = StageRecord { seed: opts.seed, ..Default::default() };
@@ -147,7 +147,9 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let seconds_before = record.seconds;
     let first = opt.step;
     while opt.step < opts.steps && !cancel.load(Ordering::Relaxed) {
-        let mut rng = StdRng::seed_from_u64(opts.seed ^ (opt.step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let step_seed = opts.seed ^ (opt.step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let mut rng = StdRng::seed_from_u64(step_seed);
+        seed_dropout(step_seed.rotate_left(17));
         let loss = trainer.loss(&block, &mut rng)?;
         let last_loss = loss.to_scalar::<f32>()?;
         if !last_loss.is_finite() {

@@ -37,14 +37,14 @@ impl StudioApp {
     fn transport_row(&mut self, ui: &mut egui::Ui) {
         let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
         ui.horizontal(|ui| {
-            let play = if self.playback.playing { "⏸ Pause" } else { "▶ Play" };
+            let play = if self.playback.playing { "Pause" } else { "Play" };
             if ui.add_enabled(frames > 1, Button::new(play).min_size(egui::vec2(76.0, 0.0))).on_hover_text("Space").clicked() {
                 self.playback.toggle(frames, &self.doc.playback);
             }
-            if ui.add_enabled(frames > 1, Button::new("◀")).on_hover_text("Previous frame (←)").clicked() {
+            if ui.add_enabled(frames > 1, Button::new(" < ")).on_hover_text("Previous frame (Left arrow)").clicked() {
                 self.playback.step(-1, frames);
             }
-            if ui.add_enabled(frames > 1, Button::new("▶")).on_hover_text("Next frame (→)").clicked() {
+            if ui.add_enabled(frames > 1, Button::new(" > ")).on_hover_text("Next frame (Right arrow)").clicked() {
                 self.playback.step(1, frames);
             }
             let f = self.playback.frame();
@@ -60,7 +60,7 @@ impl StudioApp {
             ui.separator();
             ui.add(Slider::new(&mut self.doc.playback.speed, 0.1..=4.0).logarithmic(true).text("speed"));
             ui.separator();
-            if ui.button("➕ Add segment").clicked() {
+            if ui.button("+ Add segment").clicked() {
                 self.add_segment();
             }
             let classes = self.classes().to_vec();
@@ -75,7 +75,7 @@ impl StudioApp {
             if let Some((a, b)) = self.playback.selection {
                 ui.separator();
                 ui.label(format!("Range {a}–{b}"));
-                if ui.small_button("✕").on_hover_text("Clear the range").clicked() {
+                if ui.small_button("x").on_hover_text("Clear the range").clicked() {
                     self.playback.selection = None;
                 }
             }
@@ -116,13 +116,13 @@ impl StudioApp {
                 ui.add(Slider::new(p, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true));
             }
             ui.separator();
-            if ui.add_enabled(k > 0, Button::new("⏴ Earlier")).clicked() {
+            if ui.add_enabled(k > 0, Button::new("Move earlier")).clicked() {
                 self.apply_timeline(vec![timeline::Action::BeginEdit, timeline::Action::Move { from: k, to: k - 1 }]);
             }
-            if ui.add_enabled(k + 1 < n, Button::new("Later ⏵")).clicked() {
+            if ui.add_enabled(k + 1 < n, Button::new("Move later")).clicked() {
                 self.apply_timeline(vec![timeline::Action::BeginEdit, timeline::Action::Move { from: k, to: k + 1 }]);
             }
-            if ui.button("🗑 Delete").clicked() {
+            if ui.button("Delete").clicked() {
                 self.delete_segment(k);
             }
         });

@@ -113,7 +113,7 @@ impl StudioApp {
                 egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
                     for (k, what) in [
                         ("Space", "play / pause"),
-                        ("← / →", "step one frame"),
+                        ("Left / Right", "step one frame"),
                         ("Home / End", "first / last frame"),
                         ("Ctrl+Z", "undo"),
                         ("Ctrl+Shift+Z, Ctrl+Y", "redo"),

@@ -86,10 +86,10 @@ impl Messages {
                     };
                     egui::Frame::new().fill(fill).stroke((1.0, stroke)).corner_radius(6.0).inner_margin(8.0).show(ui, |ui| {
                         ui.horizontal(|ui| {
-                            let icon = if m.level == Level::Error { "⚠" } else { "ℹ" };
+                            let icon = if m.level == Level::Error { "!" } else { "i" };
                             ui.label(RichText::new(icon).color(stroke).strong());
                             ui.add(egui::Label::new(RichText::new(&m.text).color(Color32::WHITE)).wrap());
-                            if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
+                            if ui.small_button("x").on_hover_text("Dismiss").clicked() {
                                 dismiss = Some(k);
                             }
                         });

@@ -28,7 +28,7 @@ impl StudioApp {
         section(ui, "Model", |ui| self.model_section(ui));
         section(ui, "Initial pose", |ui| self.init_section(ui));
         section(ui, "Generation", |ui| self.generation_section(ui));
-        section(ui, "Export", |ui| self.export_section(ui));
+        section(ui, "Export take", |ui| self.export_section(ui));
         section(ui, "Project", |ui| self.project_section(ui));
     }
 

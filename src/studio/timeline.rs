@@ -91,6 +91,7 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
         t += step;
     }
     let ruler_resp = ui.interact(ruler, ui.scope_id().with("ruler"), Sense::click_and_drag()).on_hover_cursor(CursorIcon::Text);
+    ruler_resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, "Timeline ruler"));
     let ruler_resp = ruler_resp.on_hover_text("Click or drag to scrub; shift-drag to select a range");
     if let Some(pos) = ruler_resp.interact_pointer_pos() {
         let f = frame_at(pos.x).min(input.frames.saturating_sub(1));

@@ -7,7 +7,7 @@
 //!
 //! Rendering (see `viewport/render.rs`): egui's render pass has no depth buffer by default, so
 //! the scene is drawn during the callback's `prepare` into an offscreen colour + depth image
-//! the size of the view (4x MSAA, resolved), and `paint` copies that image into egui's pass.
+//! the size of the view (4x MSAA on GPUs, none on software rasterisers), and `paint` copies that image into egui's pass.
 
 mod mesh;
 mod render;
@@ -125,6 +125,7 @@ struct LayerInfo {
     /// Bounds of the whole take, metres, without the layer's offset.
     min: Vec3,
     max: Vec3,
+    /// The joint whose ground projection is the take's trajectory.
     root: usize,
     /// Joints drawn as spheres.
     joints: Vec<usize>,
@@ -139,30 +140,20 @@ impl LayerInfo {
         let skeleton = &motion.skeleton;
         let mpu = skeleton.meters_per_unit;
         let n = motion.joints();
-        let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for p in motion.positions() {
-            min = min.min(*p * mpu);
-            max = max.max(*p * mpu);
+        let frames = motion.frames();
+        let mut ground = motion.positions().iter().map(|p| p.y * mpu).fold(f32::INFINITY, f32::min);
+        if !ground.is_finite() {
+            ground = 0.0;
         }
-        if motion.frames() == 0 || n == 0 {
-            (min, max) = (Vec3::ZERO, Vec3::ZERO);
-        }
-        let ground = min.y;
-        let root = skeleton.parents.iter().position(Option::is_none).unwrap_or(0);
-        let mut centre_sum = 0.0f64;
-        let mut root_sum = 0.0f64;
-        for t in 0..motion.frames() {
-            let frame = motion.frame(t);
-            centre_sum += (frame.iter().map(|p| p.y).sum::<f32>() / n as f32 * mpu - ground) as f64;
-            root_sum += (frame[root].y * mpu - ground) as f64;
-        }
-        let frames = motion.frames().max(1) as f64;
-        let centre_height = (centre_sum / frames) as f32;
-        // A root that stays on the floor (e.g. Bandai's `joint_Root`) is a ground projection,
-        // not part of the body: hide it and its bones.
-        let hide_root = n > 1 && (root_sum / frames) < 0.15;
+        let first_root = skeleton.parents.iter().position(Option::is_none).unwrap_or(0);
+        // A root that stays on the floor (e.g. Bandai's `joint_Root`, fixed at the origin while
+        // the hips carry the motion) is not part of the body: hide it and its bones, and take
+        // the trajectory from its first child.
+        let root_height = (0..frames).map(|t| (motion.frame(t)[first_root].y * mpu - ground) as f64).sum::<f64>() / frames.max(1) as f64;
+        let hide_root = n > 1 && root_height < 0.15;
+        let root = if hide_root { (0..n).find(|&c| skeleton.parents[c] == Some(first_root)).unwrap_or(first_root) } else { first_root };
         let long = |j: usize| skeleton.offsets.get(j).is_some_and(|o| o.length() * mpu >= MIN_BONE);
-        let hidden = |j: usize| hide_root && j == root;
+        let hidden = |j: usize| hide_root && j == first_root;
         let mut joints = Vec::new();
         let mut bones = Vec::new();
         for j in 0..n {
@@ -182,6 +173,23 @@ impl LayerInfo {
                 }
             }
         }
+        let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let mut centre_sum = 0.0f64;
+        for t in 0..frames {
+            let frame = motion.frame(t);
+            let mut sum = 0.0;
+            for &j in &joints {
+                let p = frame[j] * mpu;
+                min = min.min(p);
+                max = max.max(p);
+                sum += p.y;
+            }
+            centre_sum += (sum / joints.len().max(1) as f32 - ground) as f64;
+        }
+        if !min.is_finite() || !max.is_finite() {
+            (min, max) = (Vec3::ZERO, Vec3::ZERO);
+        }
+        let centre_height = (centre_sum / frames.max(1) as f64) as f32;
         let names: Vec<String> = skeleton.names.iter().map(|s| s.to_lowercase()).collect();
         let head = names
             .iter()
@@ -296,7 +304,7 @@ impl Viewport {
     /// Installs the pipelines for an egui render pass set up as `host` says (if the app turns
     /// on eframe's `multisampling` or `depth_buffer`).
     pub fn register_with(render_state: &egui_wgpu::RenderState, host: HostPass) {
-        let resources = Resources::new(&render_state.device, &render_state.queue, render_state.target_format, host);
+        let resources = Resources::new(&render_state.adapter, &render_state.device, &render_state.queue, render_state.target_format, host);
         render_state.renderer.write().callback_resources.insert(resources);
     }
 
@@ -411,9 +419,6 @@ impl Viewport {
             let factor = (-scroll * 0.002).exp() / zoom.max(1e-3);
             cam.distance = (cam.distance * factor).clamp(0.2, 500.0);
         }
-        if pan || primary {
-            ui.ctx().request_repaint();
-        }
     }
 
     /// Fits the view: with follow-root, around the current poses; else the whole take.
@@ -426,9 +431,11 @@ impl Viewport {
             }
             if scene.settings.follow_root {
                 let mpu = m.skeleton.meters_per_unit;
-                for p in m.frame(scene.frame.min(m.frames() - 1)) {
-                    min = min.min(*p * mpu + layer.offset);
-                    max = max.max(*p * mpu + layer.offset);
+                let frame = m.frame(scene.frame.min(m.frames() - 1));
+                for &j in &info.joints {
+                    let p = frame[j] * mpu + layer.offset;
+                    min = min.min(p);
+                    max = max.max(p);
                 }
             } else {
                 min = min.min(info.min + layer.offset);
@@ -493,7 +500,7 @@ impl Viewport {
         let ground = self.ground();
         // Grid spacing grows with the view distance: 0.5 m up close.
         let spacing = 0.5 * 10f32.powf((cam.distance / 12.0).log10().max(0.0).floor());
-        let half_lines = 30.0f32;
+        let half_lines = 24.0f32;
         let major = 2.0;
         let snap = spacing * major;
         let extent = half_lines * spacing;
@@ -502,7 +509,7 @@ impl Viewport {
             eye: eye.extend(1.0).to_array(),
             light_dir: light.extend(0.0).to_array(),
             grid: [(target.x / snap).round() * snap, ground, (target.z / snap).round() * snap, spacing],
-            grid2: [half_lines, extent * 0.35, extent, major],
+            grid2: [half_lines, extent * 0.2, extent * 0.9, major],
             trail: [scene.frame as f32, (settings.ghosts * settings.ghost_step.max(1)).max(30) as f32, 0.004, 0.0],
         };
 
@@ -558,7 +565,8 @@ impl Viewport {
         }
         let (instances, counts) = solids.finish();
         let trail = settings.trail.then(|| self.trail_vertices(scene));
-        let [r, g, b] = BACKGROUND.map(|c| srgb_to_linear(c) as f64);
+        // The offscreen image holds sRGB-encoded values.
+        let [r, g, b] = BACKGROUND.map(|c| c as f64 / 255.0);
         SceneCallback {
             view: self.id,
             size_px,

@@ -1,7 +1,10 @@
 // Glocal Studio skeleton viewport.
 //
-// Scene passes render into an offscreen colour (Rgba8UnormSrgb, so values here are linear)
-// plus depth target; the blit pass copies that texture into egui's render pass.
+// Scene passes render into an offscreen colour (Rgba8Unorm) plus depth target; the blit pass
+// copies that texture into egui's render pass. Colours are shaded in linear RGB and written
+// gamma-encoded (sRGB), like egui's own output on its preferred non-sRGB framebuffers, so the
+// copy is a plain load; blending of translucent parts happens on the encoded values, as in
+// egui.
 
 struct Globals {
     view_proj: mat4x4<f32>,
@@ -74,11 +77,10 @@ fn fs_solid(in: SolidOut) -> @location(0) vec4<f32> {
     // Hemisphere ambient: brighter from the sky than from the floor.
     let ambient = mix(0.18, 0.38, n.y * 0.5 + 0.5);
     // A soft rim keeps the silhouette readable against the dark background.
-    let rim = pow(1.0 - max(dot(n, to_eye), 0.0), 3.0) * 0.25;
-    let half_vec = normalize(l + to_eye);
-    let spec = pow(max(dot(n, half_vec), 0.0), 32.0) * 0.15;
-    let rgb = in.color.rgb * (ambient + 0.75 * diffuse) + vec3<f32>(rim + spec);
-    return vec4<f32>(rgb, in.color.a);
+    let edge = 1.0 - max(dot(n, to_eye), 0.0);
+    let rim = edge * edge * edge * 0.25;
+    let rgb = in.color.rgb * (ambient + 0.75 * diffuse) + vec3<f32>(rim);
+    return vec4<f32>(linear_to_srgb(rgb), in.color.a);
 }
 
 // ---- Ground grid: line list generated from the vertex index ----
@@ -112,12 +114,12 @@ fn vs_grid(@builtin(vertex_index) index: u32) -> LineOut {
     let world_k = round((select(p.x, p.z, along_x)) / s);
     let is_major = abs(world_k - major * round(world_k / major)) < 0.5;
     let is_axis = abs(world_k) < 0.5;
-    var color = vec4<f32>(0.32, 0.34, 0.38, 0.35);
+    var color = vec4<f32>(0.30, 0.32, 0.36, 0.22);
     if is_major {
-        color = vec4<f32>(0.42, 0.44, 0.50, 0.7);
+        color = vec4<f32>(0.40, 0.42, 0.48, 0.45);
     }
     if is_axis {
-        color = select(vec4<f32>(0.55, 0.25, 0.25, 0.9), vec4<f32>(0.25, 0.30, 0.60, 0.9), along_x);
+        color = select(vec4<f32>(0.55, 0.22, 0.22, 0.7), vec4<f32>(0.22, 0.30, 0.60, 0.7), along_x);
     }
     var out: LineOut;
     out.clip = globals.view_proj * vec4<f32>(p, 1.0);
@@ -130,7 +132,7 @@ fn vs_grid(@builtin(vertex_index) index: u32) -> LineOut {
 fn fs_line(in: LineOut) -> @location(0) vec4<f32> {
     let d = distance(in.world.xz, globals.grid.xz);
     let fade = 1.0 - smoothstep(globals.grid2.y, globals.grid2.z, d);
-    return vec4<f32>(in.color.rgb, in.color.a * fade);
+    return vec4<f32>(linear_to_srgb(in.color.rgb), in.color.a * fade);
 }
 
 // ---- Root trajectory trail: line list over every take's whole ground path ----
@@ -191,14 +193,14 @@ fn blit_texel(uv: vec2<f32>) -> vec3<f32> {
     return textureLoad(scene_image, texel, 0).rgb;
 }
 
-// egui's preferred non-sRGB framebuffer: write gamma-encoded values.
+// egui's preferred non-sRGB framebuffer: copy the encoded values.
 @fragment
 fn fs_blit_gamma(in: BlitOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(linear_to_srgb(blit_texel(in.uv)), 1.0);
+    return vec4<f32>(blit_texel(in.uv), 1.0);
 }
 
 // An sRGB framebuffer encodes by itself: write linear values.
 @fragment
 fn fs_blit_linear(in: BlitOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(blit_texel(in.uv), 1.0);
+    return vec4<f32>(srgb_to_linear(blit_texel(in.uv)), 1.0);
 }

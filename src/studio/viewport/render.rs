@@ -20,11 +20,16 @@ use eframe::egui_wgpu::{self, wgpu};
 
 use super::mesh::{self, MeshVertex};
 
-/// Colour format of the offscreen image: shaders write linear values, stored sRGB-encoded.
-const SCENE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Colour format of the offscreen image: the shaders write sRGB-encoded values.
+const SCENE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Multisampling of the offscreen scene.
-pub(super) const SCENE_SAMPLES: u32 = 4;
+/// Multisampling of the offscreen scene: 4x on GPUs, off on software rasterisers (lavapipe,
+/// llvmpipe), where it costs more than the whole rest of the frame. `GLOCAL_VIEWPORT_MSAA`
+/// (1 or 4) overrides it.
+fn scene_samples(adapter: &wgpu::Adapter) -> u32 {
+    let env = std::env::var("GLOCAL_VIEWPORT_MSAA").ok().and_then(|s| s.parse().ok()).filter(|s| [1, 4].contains(s));
+    env.unwrap_or(if adapter.get_info().device_type == wgpu::DeviceType::Cpu { 1 } else { 4 })
+}
 
 /// How egui's own render pass is set up, which the pipeline that copies the scene into it
 /// must match. The defaults match eframe's defaults and egui_kittest.
@@ -90,7 +95,7 @@ pub(super) struct SceneCallback {
 
 struct Target {
     size: [u32; 2],
-    /// Multisampled colour when `SCENE_SAMPLES > 1`, else `None` (the resolve image is drawn).
+    /// Multisampled colour when the scene is multisampled, else `None` (the resolve image is drawn).
     msaa: Option<wgpu::TextureView>,
     resolved: wgpu::TextureView,
     depth: wgpu::TextureView,
@@ -126,6 +131,7 @@ pub(super) struct Resources {
     cylinder: (Range<u32>, i32),
     sphere: (Range<u32>, i32),
     views: HashMap<egui::Id, ViewGpu>,
+    samples: u32,
 }
 
 fn buffer(device: &wgpu::Device, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -149,7 +155,7 @@ fn alpha_blend() -> wgpu::BlendState {
 }
 
 impl Resources {
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, target_format: wgpu::TextureFormat, host: HostPass) -> Self {
+    pub fn new(adapter: &wgpu::Adapter, device: &wgpu::Device, queue: &wgpu::Queue, target_format: wgpu::TextureFormat, host: HostPass) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("glocal_viewport"),
             source: wgpu::ShaderSource::Wgsl(include_str!("../viewport.wgsl").into()),
@@ -200,7 +206,8 @@ impl Resources {
                 bias: wgpu::DepthBiasState::default(),
             })
         };
-        let scene_multisample = wgpu::MultisampleState { count: SCENE_SAMPLES, mask: !0, alpha_to_coverage_enabled: false };
+        let samples = scene_samples(adapter);
+        let scene_multisample = wgpu::MultisampleState { count: samples, mask: !0, alpha_to_coverage_enabled: false };
 
         let mesh_layout = wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<MeshVertex>() as u64,
@@ -339,6 +346,7 @@ impl Resources {
             cylinder: (0..cyl_count, 0),
             sphere: (cyl_count..cyl_count + sphere_count, cylinder.vertices.len() as i32),
             views: HashMap::new(),
+            samples,
         }
     }
 
@@ -369,7 +377,7 @@ impl Resources {
     }
 }
 
-fn make_target(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, size: [u32; 2]) -> Target {
+fn make_target(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, size: [u32; 2], samples: u32) -> Target {
     let extent = wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 };
     let texture = |label: &str, format, samples, usage| {
         device
@@ -387,8 +395,8 @@ fn make_target(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, size: [u32
     };
     let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
     let resolved = texture("glocal_viewport_image", SCENE_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);
-    let msaa = (SCENE_SAMPLES > 1).then(|| texture("glocal_viewport_msaa", SCENE_FORMAT, SCENE_SAMPLES, attach));
-    let depth = texture("glocal_viewport_depth", DEPTH_FORMAT, SCENE_SAMPLES, attach);
+    let msaa = (samples > 1).then(|| texture("glocal_viewport_msaa", SCENE_FORMAT, samples, attach));
+    let depth = texture("glocal_viewport_depth", DEPTH_FORMAT, samples, attach);
     let blit_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("glocal_viewport_blit"),
         layout,
@@ -422,6 +430,7 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
             return Vec::new();
         };
         let blit_layout = res.blit_layout.clone();
+        let samples = res.samples;
         let view = res.view(device, self.view);
         view.ready = false;
         if self.size_px[0] == 0 || self.size_px[1] == 0 {
@@ -430,7 +439,7 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
         let max = device.limits().max_texture_dimension_2d;
         let size = [self.size_px[0].min(max), self.size_px[1].min(max)];
         if view.target.as_ref().is_none_or(|t| t.size != size) {
-            view.target = Some(make_target(device, &blit_layout, size));
+            view.target = Some(make_target(device, &blit_layout, size, samples));
         }
 
         queue.write_buffer(&view.globals, 0, bytemuck::bytes_of(&self.globals));
