@@ -1,0 +1,85 @@
+//! The shipped models and the training pipeline.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use glocal::model::glocal::GlocalModel;
+use glocal::model::spec::ModelSpec;
+
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)
+}
+
+/// Both shipped models load, generate through the library API, and beat the zero-velocity
+/// baseline on their test split (the validation recorded at the end of training).
+#[test]
+fn shipped_models_load_generate_and_beat_zero_velocity() {
+    for name in ["h36m", "bandai"] {
+        let mut model = GlocalModel::load(&shipped(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        assert!(model.has_locgen(), "{name} ships LocGen");
+        let t = model.spec.block_len;
+        let dim = model.spec.layout.dim();
+        let mut input = model.seeds[0].features.clone();
+        model.spec.sparse_norm.normalize(&mut input);
+        let class = model.class_vector(0);
+        let mut out = vec![0.0; t * dim];
+        model.glogen_block(&input, &class, 1.0, &mut out);
+        assert!(out.iter().all(|v| v.is_finite()));
+        assert_ne!(out, input, "{name}: GloGen returned its input");
+        let record = model.spec.glogen_training.clone().expect("training record");
+        assert!(
+            record.val_error < record.baseline_error,
+            "{name}: GloGen {} against zero-velocity {}",
+            record.val_error,
+            record.baseline_error
+        );
+        let size: u64 = std::fs::read_dir(shipped(name)).unwrap().map(|e| e.unwrap().metadata().unwrap().len()).sum();
+        let tracked: u64 = ["glogen.safetensors", "locgen.safetensors", "model.json", "seeds.json"]
+            .iter()
+            .map(|f| std::fs::metadata(shipped(name).join(f)).unwrap().len())
+            .sum();
+        assert!(tracked < 15 << 20, "{name}: {tracked} bytes shipped (all files: {size})");
+    }
+}
+
+fn train_command(out: &Path, steps: usize, resume: bool) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_glocal"));
+    c.args(["train", "--dataset", "bandai", "--stage", "glogen", "--hidden", "48", "--batch", "16", "--seed", "5"])
+        .args(["--steps", &steps.to_string(), "--checkpoint-every", "5", "--eval-every", "50"])
+        .arg("--out")
+        .arg(out);
+    if resume {
+        c.arg("--resume");
+    }
+    c
+}
+
+fn steps_done(dir: &Path) -> usize {
+    ModelSpec::read(dir).ok().and_then(|s| s.glogen_training).map_or(0, |r| r.steps)
+}
+
+/// A run killed mid-way and resumed ends with the same weights as a run never interrupted.
+#[test]
+fn killed_training_resumes_from_its_checkpoint() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (whole, interrupted) = (tmp.path().join("whole"), tmp.path().join("interrupted"));
+    const STEPS: usize = 120;
+    assert!(train_command(&whole, STEPS, false).status().unwrap().success());
+
+    let mut child = train_command(&interrupted, STEPS, false).spawn().unwrap();
+    let start = Instant::now();
+    while steps_done(&interrupted) < 5 && start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let at_kill = steps_done(&interrupted);
+    assert!((5..STEPS).contains(&at_kill), "killed at step {at_kill}: the run was not interrupted mid-way");
+
+    assert!(train_command(&interrupted, STEPS, true).status().unwrap().success());
+    assert_eq!(steps_done(&interrupted), STEPS);
+    let a = std::fs::read(whole.join("glogen.safetensors")).unwrap();
+    let b = std::fs::read(interrupted.join("glogen.safetensors")).unwrap();
+    assert!(a == b, "resumed weights differ from the uninterrupted run's");
+}
