@@ -134,7 +134,7 @@ fn adding_a_segment_and_changing_its_class_regenerates() {
     h.run_ok();
     h.get_by_label("Class").hover();
     h.run_ok();
-    h.get_by_label("sitting").click();
+    h.get_by_role_and_label(egui::accesskit::Role::Button, "sitting").click();
     wait(&mut h, "the class change", |a| a.project().timeline.segments[2].class == "sitting");
     wait(&mut h, "the regenerated take", |a| a.take().is_some_and(|t| t.segments.len() == 3) && !a.is_busy());
     let app = h.state();

@@ -249,6 +249,13 @@ fn bench_parts() {
     };
     let mut h = harness(egui::vec2(1280.0, 800.0), vec![], ViewSettings::default());
     time("grid only", &mut h);
+    std::env::set_var("DBG_NOBLIT", "1");
+    time("grid only, no blit", &mut h);
+    std::env::set_var("DBG_NOSCENE", "1");
+    time("no scene, no blit", &mut h);
+    std::env::remove_var("DBG_NOBLIT");
+    time("no scene, blit", &mut h);
+    std::env::remove_var("DBG_NOSCENE");
     let mut h = harness(egui::vec2(1280.0, 800.0), vec![layer(walk.clone(), [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)], ViewSettings { ghosts: 0, trail: false, grid: false, ..Default::default() });
     time("one figure", &mut h);
     let mut h = harness(egui::vec2(1280.0, 800.0), vec![layer(walk.clone(), [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)], ViewSettings { ghosts: 4, ..Default::default() });

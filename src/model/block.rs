@@ -361,6 +361,11 @@ impl FrozenBlock {
         }
     }
 
+    /// The encoder outputs `[B*T*2H]` of the last `infer` or `encode_infer` call.
+    pub fn last_encoding(&self, b: usize, t: usize) -> &[f32] {
+        &self.e[..b * t * 2 * self.cfg.hidden]
+    }
+
     /// The encoder outputs `[B*T*2H]` (for embeddings).
     pub fn encode_infer(&mut self, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize, out: &mut [f32]) {
         let h2 = 2 * self.cfg.hidden;

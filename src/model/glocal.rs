@@ -61,11 +61,13 @@ impl GlocalModel {
     /// One GloGen block: `input` is `block_len` normalised sparse poses, `class` a class
     /// vector (may be a blend of two). `strength` > 1 applies classifier-free guidance
     /// (`uncond + strength * (cond - uncond)`), available when the model was trained with
-    /// class dropout.
-    pub fn glogen_block(&mut self, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) {
+    /// class dropout. Returns the block's embedding (as [`Self::embed`]), which the encoder
+    /// computed on the way.
+    pub fn glogen_block(&mut self, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
         let t = self.spec.block_len;
         let cond = (self.spec.glogen.block.cond_dim > 0).then_some(class);
         self.glogen.infer(input, cond, 1, t, out);
+        let embedding = self.glogen.last_encoding(1, t).to_vec();
         if cond.is_some() && self.spec.glogen.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6 {
             let zeros = vec![0.0; class.len()];
             let mut uncond = vec![0.0; out.len()];
@@ -74,6 +76,7 @@ impl GlocalModel {
                 *o = u + strength * (*o - u);
             }
         }
+        embedding
     }
 
     /// GloGen's encoder states over one block, concatenated: the embedding of the t-SNE panel.

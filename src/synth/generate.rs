@@ -131,9 +131,8 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         if opts.variation > 0.0 && opts.seed != 0 {
             input.iter_mut().for_each(|v| *v += opts.variation * rng.next());
         }
-        embeddings.push(model.embed(&input, &class_vec));
         block_classes.push(classes[segment_at(first)]);
-        model.glogen_block(&input, &class_vec, opts.class_strength, &mut out);
+        embeddings.push(model.glogen_block(&input, &class_vec, opts.class_strength, &mut out));
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
         }
