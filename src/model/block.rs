@@ -378,7 +378,8 @@ impl FrozenBlock {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use candle_nn::{AdamW, VarMap};
+    use candle_core::Var;
+    use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarMap};
 
     fn max_abs(a: &Tensor, b: &Tensor) -> f32 {
         (a - b).unwrap().abs().unwrap().flatten_all().unwrap().max(0).unwrap().to_scalar::<f32>().unwrap()
