@@ -446,8 +446,8 @@ impl Viewport {
             return;
         }
         let centre = (min + max) / 2.0;
-        let radius = ((max - min).length() / 2.0).max(0.5);
-        self.camera.distance = (radius / (FOV_Y / 2.0).sin() * 1.05).clamp(0.2, 500.0);
+        let radius = ((max - min).length() / 2.0).max(0.6);
+        self.camera.distance = (radius / (FOV_Y / 2.0).sin() * 1.4).clamp(0.2, 500.0);
         self.camera.target = centre;
         self.camera.pan = if scene.settings.follow_root { Vec3::new(0.0, centre.y - follow_point.y, 0.0) } else { Vec3::ZERO };
     }
@@ -525,7 +525,7 @@ impl Viewport {
             let ghosts = settings.ghosts.min(MAX_GHOSTS);
             let mut poses = vec![(current, opacity, 0.0)];
             for k in 1..=ghosts {
-                let alpha = opacity * 0.5 * (1.0 - k as f32 / (ghosts + 1) as f32);
+                let alpha = opacity * 0.4 * (1.0 - k as f32 / (ghosts + 1) as f32);
                 if let Some(t) = current.checked_sub(k * step) {
                     poses.push((t, alpha, 0.35));
                 }

@@ -465,7 +465,7 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
         let res: &Resources = res;
         let view = &res.views[&self.view];
         let target = view.target.as_ref().expect("target made above");
-        if std::env::var("DBG_NOSCENE").is_err() {
+        {
             let (color_view, resolve_target) = match &target.msaa {
                 Some(msaa) => (msaa, Some(&target.resolved)),
                 None => (&target.resolved, None),
@@ -527,7 +527,6 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
     }
 
     fn paint(&self, _info: egui::PaintCallbackInfo, render_pass: &mut wgpu::RenderPass<'static>, resources: &egui_wgpu::CallbackResources) {
-        if std::env::var("DBG_NOBLIT").is_ok() { return; }
         let Some(res) = resources.get::<Resources>() else { return };
         let Some(view) = res.views.get(&self.view) else { return };
         let (true, Some(target)) = (view.ready, view.target.as_ref()) else { return };
