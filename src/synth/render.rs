@@ -14,19 +14,20 @@ use crate::motion::Motion;
 
 /// A palette of distinct colours for classes, shared by the sheet and the studio.
 pub fn class_color(class: usize) -> [u8; 3] {
+    // Tableau's 10 categorical colours, then two more distinct ones.
     const PALETTE: [[u8; 3]; 12] = [
-        [230, 97, 1],
-        [94, 60, 153],
-        [27, 158, 119],
-        [217, 95, 2],
-        [117, 112, 179],
-        [231, 41, 138],
-        [102, 166, 30],
-        [230, 171, 2],
-        [166, 118, 29],
-        [31, 120, 180],
-        [178, 223, 138],
-        [251, 154, 153],
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [214, 39, 40],
+        [148, 103, 189],
+        [140, 86, 75],
+        [227, 119, 194],
+        [127, 127, 127],
+        [188, 189, 34],
+        [23, 190, 207],
+        [255, 215, 0],
+        [0, 0, 139],
     ];
     PALETTE[class % PALETTE.len()]
 }
