@@ -37,6 +37,17 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Studio frame time during playback (ghosts on) against an empty window, 1280x800.
+    /// Needs a display (`xvfb-run -a -s "-screen 0 1280x800x24" glocal bench studio`).
+    Studio {
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        /// Measure one window in this process (used by the command itself).
+        #[arg(long, hide = true)]
+        only: Option<String>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Time to generate 10 s, 60 s and 600 s of dense motion with a shipped model.
     Generate {
         #[arg(long, default_value = "models/h36m")]
@@ -69,6 +80,25 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 )
             })
         }
+        BenchCommand::Studio { seconds, only, json } => match only.as_deref() {
+            Some(which) => {
+                let stats = crate::studio::bench::measure(which == "empty", seconds)?;
+                println!("{}", serde_json::to_string(&stats)?);
+                Ok(())
+            }
+            None => {
+                let empty = measure_in_child("empty", seconds)?;
+                let studio = measure_in_child("studio", seconds)?;
+                let ratio = studio.mean_ms / empty.mean_ms;
+                let r = serde_json::json!({"empty": empty, "studio": studio, "ratio": ratio});
+                print(&r, json, || {
+                    format!(
+                        "empty window {:.1} ms/frame, studio playing with ghosts {:.1} ms/frame (median {:.1}, p95 {:.1}) at {}x{}: {:.2}x",
+                        empty.mean_ms, studio.mean_ms, studio.median_ms, studio.p95_ms, studio.width, studio.height, ratio
+                    )
+                })
+            }
+        },
         BenchCommand::Generate { model, repeats, json } => {
             let r = bench_generate(&model, repeats)?;
             print(&r, json, || {
@@ -128,4 +158,18 @@ pub fn bench_generate(dir: &Path, repeats: usize) -> Result<GenerateBench> {
         runs.push(GenerateRun { seconds, frames, ms: best });
     }
     Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), runs })
+}
+
+/// Runs `glocal bench studio --only WHICH` in a child process and reads its statistics.
+fn measure_in_child(which: &str, seconds: f64) -> Result<crate::studio::bench::FrameStats> {
+    let exe = std::env::current_exe()?;
+    let out = std::process::Command::new(exe)
+        .args(["bench", "studio", "--only", which, "--seconds", &seconds.to_string()])
+        .output()?;
+    if !out.status.success() {
+        anyhow::bail!("the {which} window failed: {}", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or(""));
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text.lines().last().unwrap_or("");
+    Ok(serde_json::from_str(line)?)
 }

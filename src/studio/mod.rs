@@ -10,6 +10,7 @@
 //! - [`viewport`]: the 3D view
 
 pub mod app;
+pub mod bench;
 mod bottom;
 mod central;
 pub mod dialogs;
