@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
+use glam::Vec3;
 
 use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
 use super::spec::{ModelSpec, Seed};
+use crate::data::features::interpolate;
 
 pub const GLOGEN_FILE: &str = "glogen.safetensors";
 pub const LOCGEN_FILE: &str = "locgen.safetensors";
@@ -99,6 +101,37 @@ impl GlocalModel {
             *f += r;
         }
         true
+    }
+}
+
+impl GlocalModel {
+    /// Dense frames between sparse poses at the model's native stride: their linear
+    /// interpolation, refined by LocGen when asked and available.
+    pub fn densify(&mut self, sparse: &[Vec3], refine: bool) -> Vec<Vec3> {
+        let spec = &self.spec;
+        let j = spec.layout.joints();
+        let dense = interpolate(sparse, j, spec.stride);
+        if !refine || !self.has_locgen() {
+            return dense;
+        }
+        let (layout, norm, w) = (spec.layout.clone(), spec.dense_norm.clone(), spec.locgen.window);
+        let dim = layout.dim();
+        let frames = dense.len() / j;
+        let windows = frames.div_ceil(w);
+        let refs: Vec<&[Vec3]> = dense.chunks_exact(j).collect();
+        let mut feats = layout.encode(&refs, None);
+        // Pad to whole windows with the last pose standing still, then drop the pad.
+        let mut still = feats[feats.len() - dim..].to_vec();
+        still[1..4].fill(0.0);
+        while feats.len() < windows * w * dim {
+            feats.extend_from_slice(&still);
+        }
+        norm.normalize(&mut feats);
+        self.locgen(&mut feats, windows);
+        norm.denormalize(&mut feats);
+        feats.truncate(frames * dim);
+        // The first frame's features carry no displacement, so decoding starts where it stands.
+        layout.decode(&feats, layout.placement(refs[0])).0
     }
 }
 

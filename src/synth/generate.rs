@@ -6,11 +6,12 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use glam::Vec3;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use super::init::initial_features;
 use super::timeline::Timeline;
-use crate::data::features::{interpolate, Placement};
 use crate::model::glocal::GlocalModel;
 use crate::motion::{solve_local_poses, Motion};
 
@@ -120,7 +121,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     let (seed_raw, start) = initial_features(model, &opts.init)?;
     let mut sparse = seed_raw;
     spec.sparse_norm.normalize(&mut sparse);
-    let mut rng = Noise::new(opts.seed);
+    let mut rng = StdRng::seed_from_u64(opts.seed);
     let (mut embeddings, mut block_classes) = (Vec::new(), Vec::new());
     let blocks = total.saturating_sub(t).div_ceil(t);
     let mut out = vec![0.0; t * dim];
@@ -129,7 +130,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         let class_vec = class_vector(model, &classes, opts.transition, (first..first + t).map(&segment_at));
         let mut input = sparse[sparse.len() - t * dim..].to_vec();
         if opts.variation > 0.0 && opts.seed != 0 {
-            input.iter_mut().for_each(|v| *v += opts.variation * rng.next());
+            input.iter_mut().for_each(|v| *v += opts.variation * rng.random_range(-1.0f32..1.0));
         }
         block_classes.push(classes[segment_at(first)]);
         embeddings.push(model.glogen_block(&input, &class_vec, opts.class_strength, &mut out));
@@ -144,7 +145,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     sparse.truncate(total * dim);
     spec.sparse_norm.denormalize(&mut sparse);
     let (sparse_positions, _) = spec.layout.decode(&sparse, start);
-    let dense = densify(model, &sparse_positions, opts.locgen);
+    let dense = model.densify(&sparse_positions, opts.locgen);
     if !progress(0.9) {
         bail!("cancelled");
     }
@@ -187,39 +188,6 @@ fn class_vector(model: &GlocalModel, classes: &[usize], transition: Transition, 
     }
 }
 
-/// Dense frames at the model's native stride: the linear interpolation of the sparse poses,
-/// refined by LocGen when asked and available.
-fn densify(model: &mut GlocalModel, sparse: &[Vec3], locgen: bool) -> Vec<Vec3> {
-    let spec = &model.spec;
-    let j = spec.layout.joints();
-    let dense = interpolate(sparse, j, spec.stride);
-    if !locgen || !model.has_locgen() {
-        return dense;
-    }
-    let layout = spec.layout.clone();
-    let norm = spec.dense_norm.clone();
-    let w = spec.locgen.window;
-    let frames = dense.len() / j;
-    let windows = frames.div_ceil(w);
-    let refs: Vec<&[Vec3]> = dense.chunks_exact(j).collect();
-    let mut feats = layout.encode(&refs, None);
-    let dim = layout.dim();
-    // Pad to whole windows by repeating the last frame (standing still), then drop the pad.
-    let last = feats[feats.len() - dim..].to_vec();
-    let mut still = last.clone();
-    still[1..4].fill(0.0);
-    while feats.len() < windows * w * dim {
-        feats.extend_from_slice(&still);
-    }
-    norm.normalize(&mut feats);
-    model.locgen(&mut feats, windows);
-    norm.denormalize(&mut feats);
-    feats.truncate(frames * dim);
-    let start: Placement = layout.placement(refs[0]);
-    // The first frame's features carry no displacement, so decoding starts where it stands.
-    layout.decode(&feats, start).0
-}
-
 /// Stretches each sparse interval (native `stride` frames) to `stride * pace` frames at the
 /// same frame rate, by linear interpolation in time. Returns the frames and the output frame
 /// at which each sparse pose falls.
@@ -248,22 +216,6 @@ fn apply_pace(dense: &[Vec3], joints: usize, stride: usize, paces: &[f32]) -> (V
     }
     let starts = times.iter().map(|t| t.round() as usize).collect();
     (out, starts)
-}
-
-/// A small deterministic generator of noise in [-1, 1] (xorshift), seeded per take.
-struct Noise(u64);
-
-impl Noise {
-    fn new(seed: u64) -> Self {
-        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 23) as f32 - 1.0
-    }
 }
 
 #[cfg(test)]
