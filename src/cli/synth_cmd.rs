@@ -26,7 +26,7 @@ pub struct GenerateArgs {
     /// Plain interpolation between sparse poses instead of LocGen.
     #[arg(long)]
     pub no_locgen: bool,
-    #[arg(long, value_enum, default_value = "blend")]
+    #[arg(long, value_enum, default_value = "anchor")]
     pub transition: Transition,
     /// Classifier-free guidance weight (1: plain conditioning).
     #[arg(long, default_value_t = 1.0)]

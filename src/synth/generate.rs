@@ -22,9 +22,16 @@ pub enum Transition {
     Cut,
     /// A block that straddles a boundary gets both classes, weighted by how many of its
     /// poses fall on each side, so the activity fades over about one block.
-    #[default]
     Blend,
+    /// Blend, and GloGen's context is also eased towards a real pose window of the new
+    /// class (from the seed bank) over the next blocks, so the requested activity wins
+    /// over the momentum of the previous one.
+    #[default]
+    Anchor,
 }
+
+/// Blocks over which an anchored transition eases the context (2 s at 25 fps).
+const ANCHOR_BLOCKS: usize = 2;
 
 /// Where the first sparse poses come from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -68,7 +75,7 @@ impl Default for GenerateOptions {
             pace: 1.0,
             init: InitPose::default(),
             locgen: true,
-            transition: Transition::Blend,
+            transition: Transition::Anchor,
             class_strength: 1.0,
             seed: 0,
             variation: 0.0,
@@ -119,6 +126,12 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     let segment_at = |i: usize| segment_of[i.min(segment_of.len() - 1)];
 
     let (seed_raw, start) = initial_features(model, &opts.init)?;
+    let mut context_class = match &opts.init {
+        InitPose::SeedIndex(i) => model.seeds.get(*i).map(|s| s.class),
+        InitPose::SeedClass { class, .. } => spec.class_index(class).ok(),
+        InitPose::File { .. } => None,
+    };
+    let mut easing: Option<(Vec<f32>, usize)> = None;
     let mut sparse = seed_raw;
     spec.sparse_norm.normalize(&mut sparse);
     let mut rng = StdRng::seed_from_u64(opts.seed);
@@ -129,10 +142,25 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         let first = t + b * t;
         let class_vec = class_vector(model, &classes, opts.transition, (first..first + t).map(&segment_at));
         let mut input = sparse[sparse.len() - t * dim..].to_vec();
+        let target = classes[segment_at(first)];
+        if opts.transition == Transition::Anchor {
+            if context_class != Some(target) && easing.is_none() {
+                easing = anchor_window(model, target, opts.seed as usize + b).map(|a| (a, 0));
+                context_class = Some(target);
+            }
+            if let Some((anchor, step)) = easing.as_mut() {
+                *step += 1;
+                let alpha = *step as f32 / (ANCHOR_BLOCKS + 1) as f32;
+                input.iter_mut().zip(anchor.iter()).for_each(|(v, a)| *v += alpha * (a - *v));
+                if *step == ANCHOR_BLOCKS {
+                    easing = None;
+                }
+            }
+        }
         if opts.variation > 0.0 && opts.seed != 0 {
             input.iter_mut().for_each(|v| *v += opts.variation * rng.random_range(-1.0f32..1.0));
         }
-        block_classes.push(classes[segment_at(first)]);
+        block_classes.push(target);
         embeddings.push(model.glogen_block(&input, &class_vec, opts.class_strength, &mut out));
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
@@ -171,12 +199,20 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes })
 }
 
+/// A normalised seed-bank window of `class` (the `variant`-th, wrapping around).
+fn anchor_window(model: &GlocalModel, class: usize, variant: usize) -> Option<Vec<f32>> {
+    let of_class: Vec<_> = model.seeds.iter().filter(|s| s.class == class).collect();
+    let mut window = of_class.get(variant % of_class.len().max(1))?.features.clone();
+    model.spec.sparse_norm.normalize(&mut window);
+    Some(window)
+}
+
 /// The class vector of a block whose poses belong to the given segments.
 fn class_vector(model: &GlocalModel, classes: &[usize], transition: Transition, segments: impl Iterator<Item = usize>) -> Vec<f32> {
     let segs: Vec<usize> = segments.collect();
     match transition {
         Transition::Cut => model.class_vector(classes[segs[0]]),
-        Transition::Blend => {
+        Transition::Blend | Transition::Anchor => {
             let mut v = vec![0.0; model.class_vector(0).len()];
             for s in &segs {
                 for (a, b) in v.iter_mut().zip(model.class_vector(classes[*s])) {
