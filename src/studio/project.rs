@@ -66,7 +66,7 @@ impl Project {
             timeline: Timeline::default(),
             pace: 1.0,
             init: InitPose::SeedIndex(0),
-            transition: Transition::Blend,
+            transition: Transition::Anchor,
             class_strength: 1.0,
             locgen: true,
             variation_seed: 0,

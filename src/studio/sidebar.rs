@@ -153,6 +153,7 @@ impl StudioApp {
             .on_hover_text("Below 1: slower motion, above 1: faster. A segment may set its own pace.");
         ui.horizontal(|ui| {
             ui.label("Transitions:");
+            ui.selectable_value(&mut self.doc.transition, Transition::Anchor, "Anchor").on_hover_text("Mix both classes and ease the poses towards the new activity: it wins over the old one's momentum");
             ui.selectable_value(&mut self.doc.transition, Transition::Blend, "Blend").on_hover_text("Blocks across a boundary mix both classes");
             ui.selectable_value(&mut self.doc.transition, Transition::Cut, "Cut").on_hover_text("The class changes at the first block of a segment");
         });
