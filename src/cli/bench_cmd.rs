@@ -87,14 +87,48 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 Ok(())
             }
             None => {
-                let empty = measure_in_child("empty", seconds)?;
-                let studio = measure_in_child("studio", seconds)?;
+                // The two windows take turns, so a change in the machine's load between
+                // them shows up in both; each side's frames are pooled over its rounds.
+                use crate::studio::bench::FrameStats;
+                const ROUNDS: usize = 3;
+                let (mut empties, mut studios) = (Vec::new(), Vec::new());
+                for round in 1..=ROUNDS {
+                    for (which, runs) in [("empty", &mut empties), ("studio", &mut studios)] {
+                        if !json {
+                            eprintln!("round {round}/{ROUNDS}: {which} window, {seconds} s...");
+                        }
+                        runs.push(measure_in_child(which, seconds)?);
+                    }
+                }
+                let (empty, studio) = (FrameStats::pool(&empties), FrameStats::pool(&studios));
                 let ratio = studio.mean_ms / empty.mean_ms;
-                let r = serde_json::json!({"empty": empty, "studio": studio, "ratio": ratio});
+                let median_ratio = studio.median_ms / empty.median_ms;
+                let cpu_ratio = studio.cpu_ms / empty.cpu_ms;
+                let round_ratios: Vec<f64> = studios.iter().zip(&empties).map(|(s, e)| s.mean_ms / e.mean_ms).collect();
+                let r = serde_json::json!({
+                    "empty": empty,
+                    "studio": studio,
+                    "ratio": ratio,
+                    "median_ratio": median_ratio,
+                    "cpu_ratio": cpu_ratio,
+                    "round_ratios": round_ratios,
+                    "rounds": ROUNDS,
+                    "seconds_per_window_per_round": seconds,
+                });
                 print(&r, json, || {
+                    let line = |name: &str, s: &FrameStats| {
+                        format!(
+                            "{name:<32} {:>5} frames  mean {:6.1} ms  median {:6.1} ms  p95 {:6.1} ms  cpu {:6.1} ms/frame",
+                            s.frames, s.mean_ms, s.median_ms, s.p95_ms, s.cpu_ms
+                        )
+                    };
                     format!(
-                        "empty window {:.1} ms/frame, studio playing with ghosts {:.1} ms/frame (median {:.1}, p95 {:.1}) at {}x{}: {:.2}x",
-                        empty.mean_ms, studio.mean_ms, studio.median_ms, studio.p95_ms, studio.width, studio.height, ratio
+                        "{}x{}, {ROUNDS} rounds of {seconds} s per window\n{}\n{}\nstudio / empty: {ratio:.2}x mean, {median_ratio:.2}x median, {cpu_ratio:.2}x cpu (rounds: {})",
+                        studio.width,
+                        studio.height,
+                        line("empty window", &empty),
+                        line("studio playing, ghosts on", &studio),
+                        round_ratios.iter().map(|r| format!("{r:.2}x")).collect::<Vec<_>>().join(", ")
                     )
                 })
             }
@@ -160,16 +194,20 @@ pub fn bench_generate(dir: &Path, repeats: usize) -> Result<GenerateBench> {
     Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), runs })
 }
 
-/// Runs `glocal bench studio --only WHICH` in a child process and reads its statistics.
+/// Runs `glocal bench studio --only WHICH` in a child process (a process can open only one
+/// event loop) and reads its statistics, frame intervals included.
 fn measure_in_child(which: &str, seconds: f64) -> Result<crate::studio::bench::FrameStats> {
     let exe = std::env::current_exe()?;
     let out = std::process::Command::new(exe)
         .args(["bench", "studio", "--only", which, "--seconds", &seconds.to_string()])
+        .stdin(std::process::Stdio::null())
         .output()?;
+    let stderr = String::from_utf8_lossy(&out.stderr);
     if !out.status.success() {
-        anyhow::bail!("the {which} window failed: {}", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or(""));
+        let last = stderr.lines().rev().find(|l| !l.trim().is_empty() && !l.contains("XDG_RUNTIME_DIR")).unwrap_or("");
+        anyhow::bail!("the {which} window failed ({}): {last}", out.status);
     }
     let text = String::from_utf8_lossy(&out.stdout);
-    let line = text.lines().last().unwrap_or("");
-    Ok(serde_json::from_str(line)?)
+    let line = text.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or("");
+    serde_json::from_str(line).map_err(|e| anyhow::anyhow!("the {which} window printed no statistics ({e}): {line:?}"))
 }

@@ -58,8 +58,9 @@ impl Dataset {
         match self {
             Dataset::H36m => 0.001,
             Dataset::Bandai => 0.01,
-            // The acLSTM BVH files are in CMU's unit scaled like the expmap set.
-            Dataset::CmuDance | Dataset::CmuExpmap => 0.056444,
+            // The acLSTM BVH files measure about 62 units from hips to head: centimetres.
+            Dataset::CmuDance => 0.01,
+            Dataset::CmuExpmap => 0.056444,
         }
     }
 }

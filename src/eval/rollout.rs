@@ -5,7 +5,6 @@
 use anyhow::{bail, Result};
 use glam::Vec3;
 
-use crate::data::features::interpolate;
 use crate::model::glocal::GlocalModel;
 use crate::motion::Motion;
 
@@ -37,26 +36,6 @@ pub fn glogen_forecast(model: &mut GlocalModel, m: &Motion, t0: usize, class: us
 /// poses `stride` frames apart: linear interpolation, then LocGen when `locgen` is set and
 /// the model has one.
 pub fn densify(model: &mut GlocalModel, observed: &[Vec3], sparse: &[Vec3], locgen: bool) -> Vec<Vec3> {
-    let spec = model.spec.clone();
-    let j = spec.layout.joints();
     let keys: Vec<Vec3> = observed.iter().chain(sparse).copied().collect();
-    let dense = interpolate(&keys, j, spec.stride);
-    if !locgen || !model.has_locgen() {
-        return dense;
-    }
-    let (layout, norm, w, dim) = (&spec.layout, &spec.dense_norm, spec.locgen.window, spec.layout.dim());
-    let frames = dense.len() / j;
-    let windows = frames.div_ceil(w);
-    let refs: Vec<&[Vec3]> = dense.chunks_exact(j).collect();
-    let mut feats = layout.encode(&refs, None);
-    let mut still = feats[feats.len() - dim..].to_vec();
-    still[1..4].fill(0.0);
-    while feats.len() < windows * w * dim {
-        feats.extend_from_slice(&still);
-    }
-    norm.normalize(&mut feats);
-    model.locgen(&mut feats, windows);
-    norm.denormalize(&mut feats);
-    feats.truncate(frames * dim);
-    layout.decode(&feats, layout.placement(refs[0])).0
+    model.densify(&keys, locgen)
 }
