@@ -99,6 +99,10 @@ impl ExpmapFormat {
         if self.root == RootEncoding::Incremental {
             motion = level_to_vertical(&motion);
         }
+        if let Some(bad) = motion.positions().iter().position(|p| !p.is_finite()) {
+            let frame = bad / motion.joints();
+            return Err(FormatError::new(file, format!("frame {} places a joint at infinity (values too large)", frame + 1)));
+        }
         Ok(motion)
     }
 

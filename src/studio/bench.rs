@@ -1,9 +1,22 @@
 //! Frame time of the studio during playback, against an empty eframe window of the same
 //! size: each runs in its own process (a process can open only one event loop), under the
 //! same display, and the ratio is what counts on a shared machine.
+//!
+//! What is timed is the wall time between consecutive [`eframe::App::ui`] calls, i.e. whole
+//! eframe frames: the app's ui, egui's tessellation, the wgpu paint (the viewport's offscreen
+//! scene included) and the present. Both windows present without vsync
+//! (`PresentMode::AutoNoVsync`), so the interval is the cost of a frame, not the display's
+//! refresh (with vsync, two windows both faster than the refresh would read the same and
+//! give a ratio of 1). Besides wall time each window reports its process CPU time
+//! per frame (every thread, llvmpipe's rasteriser threads included), which a loaded machine
+//! disturbs much less.
+//!
+//! The studio is measured in its steady state: the model loaded, the default take generated,
+//! the worker idle (the seed map built), playing with ghosts on; the first frames after that
+//! are not counted (pipeline and texture creation).
 
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
@@ -11,64 +24,138 @@ use serde::{Deserialize, Serialize};
 use super::app::{StudioApp, StudioOptions};
 use super::viewport::Viewport;
 
+/// Frames not counted once the measured state is reached.
+const WARMUP_FRAMES: usize = 10;
+/// Longest wait for the studio to reach its measured state (model, take, seed map).
+const READY_TIMEOUT: Duration = Duration::from_secs(240);
+
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct FrameStats {
     pub frames: usize,
     pub mean_ms: f64,
     pub median_ms: f64,
     pub p95_ms: f64,
+    /// Process CPU time (all threads) per frame, milliseconds.
+    #[serde(default)]
+    pub cpu_ms: f64,
     pub width: f32,
     pub height: f32,
+    /// Every frame interval, milliseconds (children hand them to the parent, which pools
+    /// several runs; not printed by the parent).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub intervals_ms: Vec<f64>,
+    /// Process CPU time over the measured frames, milliseconds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cpu_total_ms: Option<f64>,
 }
 
 impl FrameStats {
-    fn from_intervals(mut ms: Vec<f64>, size: egui::Vec2) -> Self {
+    pub fn from_intervals(ms: Vec<f64>, cpu_total_ms: f64, size: egui::Vec2) -> Self {
         if ms.is_empty() {
             return Self::default();
         }
-        let mean = ms.iter().sum::<f64>() / ms.len() as f64;
-        ms.sort_by(f64::total_cmp);
+        let mut sorted = ms.clone();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
         Self {
-            frames: ms.len(),
-            mean_ms: mean,
-            median_ms: ms[ms.len() / 2],
-            p95_ms: ms[(ms.len() * 95 / 100).min(ms.len() - 1)],
+            frames: n,
+            mean_ms: sorted.iter().sum::<f64>() / n as f64,
+            median_ms: if n % 2 == 1 { sorted[n / 2] } else { (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0 },
+            p95_ms: sorted[((n as f64 * 0.95).ceil() as usize).clamp(1, n) - 1],
+            cpu_ms: cpu_total_ms / n as f64,
             width: size.x,
             height: size.y,
+            intervals_ms: ms,
+            cpu_total_ms: Some(cpu_total_ms),
         }
     }
+
+    /// Pools the frames of several runs of the same window.
+    pub fn pool(runs: &[FrameStats]) -> Self {
+        let ms: Vec<f64> = runs.iter().flat_map(|r| r.intervals_ms.iter().copied()).collect();
+        let cpu = runs.iter().filter_map(|r| r.cpu_total_ms).sum();
+        let size = runs.first().map_or(egui::Vec2::ZERO, |r| egui::vec2(r.width, r.height));
+        let mut pooled = Self::from_intervals(ms, cpu, size);
+        pooled.intervals_ms.clear();
+        pooled.cpu_total_ms = None;
+        pooled
+    }
+}
+
+/// CPU time of this process so far (user + system, every thread), milliseconds.
+fn process_cpu_ms() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else { return 0.0 };
+    // The command name (field 2) may hold spaces; the fields after its ')' are plain.
+    let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else { return 0.0 };
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the whole line, 12 and 13 after the name.
+    let ticks = |k: usize| fields.get(k).and_then(|s| s.parse::<f64>().ok()).unwrap_or(0.0);
+    // Linux reports them in USER_HZ, which is 100 on every supported architecture.
+    (ticks(11) + ticks(12)) * 10.0
 }
 
 /// Wall time between consecutive frames, once `ready` says the measured state is reached.
 struct Timed<A> {
     inner: A,
     seconds: f64,
+    /// Frames seen in the measured state (the first `WARMUP_FRAMES` are not timed).
+    seen: usize,
     last: Option<Instant>,
-    started: Option<Instant>,
+    started: Option<(Instant, f64)>,
+    opened: Instant,
     intervals: Vec<f64>,
-    out: Arc<Mutex<FrameStats>>,
+    out: Arc<Mutex<Result<FrameStats, String>>>,
     ready: fn(&mut A) -> bool,
+    /// The statistics are written: eframe still runs a frame or two after `Close`, which
+    /// must not overwrite them.
+    done: bool,
+}
+
+impl<A> Timed<A> {
+    fn new(inner: A, seconds: f64, out: Arc<Mutex<Result<FrameStats, String>>>, ready: fn(&mut A) -> bool) -> Self {
+        Self { inner, seconds, seen: 0, last: None, started: None, opened: Instant::now(), intervals: Vec::new(), out, ready, done: false }
+    }
+
+    fn finish(&mut self, ctx: &egui::Context, result: Result<FrameStats, String>) {
+        if let Ok(mut out) = self.out.lock() {
+            *out = result;
+        }
+        self.done = true;
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
 }
 
 impl<A: eframe::App> eframe::App for Timed<A> {
+    fn logic(&mut self, ctx: &egui::Context, frame: &mut eframe::Frame) {
+        self.inner.logic(ctx, frame);
+    }
+
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.inner.ui(ui, frame);
         let ctx = ui.ctx().clone();
+        if self.done {
+            return;
+        }
         ctx.request_repaint();
         if !(self.ready)(&mut self.inner) {
+            if self.opened.elapsed() > READY_TIMEOUT {
+                self.finish(&ctx, Err(format!("the studio did not reach playback within {} s", READY_TIMEOUT.as_secs())));
+            }
+            return;
+        }
+        self.seen += 1;
+        if self.seen <= WARMUP_FRAMES {
             return;
         }
         let now = Instant::now();
-        let started = *self.started.get_or_insert(now);
+        let (started, cpu_start) = *self.started.get_or_insert_with(|| (now, process_cpu_ms()));
         if let Some(last) = self.last.replace(now) {
             self.intervals.push((now - last).as_secs_f64() * 1e3);
         }
-        if (now - started).as_secs_f64() >= self.seconds {
-            let size = ctx.content_rect().size();
-            if let Ok(mut out) = self.out.lock() {
-                *out = FrameStats::from_intervals(std::mem::take(&mut self.intervals), size);
-            }
-            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        if (now - started).as_secs_f64() >= self.seconds && !self.intervals.is_empty() {
+            let cpu = process_cpu_ms() - cpu_start;
+            let stats = FrameStats::from_intervals(std::mem::take(&mut self.intervals), cpu, ctx.content_rect().size());
+            self.finish(&ctx, Ok(stats));
         }
     }
 }
@@ -81,50 +168,82 @@ impl eframe::App for Empty {
     }
 }
 
+/// The studio's measured state: a take playing with ghosts on, nothing generating, the seed
+/// map built (the worker builds it right after the first take, on another thread).
+fn studio_ready(app: &mut StudioApp) -> bool {
+    let frames = app.take.as_ref().map_or(0, |t| t.motion.frames());
+    let idle = app.pending.is_none() && app.model_loading.is_none() && (app.map.is_some() || app.map_error.is_some());
+    if frames < 2 || !idle {
+        return false;
+    }
+    if !app.playback.playing {
+        app.doc.view.ghosts = app.doc.view.ghosts.max(3);
+        app.playback.toggle(frames, &app.doc.playback);
+    }
+    app.playback.playing
+}
+
 /// Runs one window for `seconds` of measured frames: the studio playing its default take
 /// with ghosts on, or (`empty`) a window with nothing in it.
 pub fn measure(empty: bool, seconds: f64) -> Result<FrameStats> {
-    let out = Arc::new(Mutex::new(FrameStats::default()));
-    let options = eframe::NativeOptions {
+    let out = Arc::new(Mutex::new(Err("the window closed before it was measured".to_string())));
+    let mut options = eframe::NativeOptions {
         renderer: eframe::Renderer::Wgpu,
         viewport: egui::ViewportBuilder::default().with_inner_size([1280.0, 800.0]).with_title("Glocal Studio benchmark"),
+        persist_window: false,
         ..Default::default()
     };
+    options.wgpu_options.surface.present_mode = eframe::wgpu::PresentMode::AutoNoVsync;
     let sink = out.clone();
     eframe::run_native(
         "glocal-bench",
         options,
         Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
             if empty {
-                return Ok(Box::new(Timed { inner: Empty, seconds, last: None, started: None, intervals: Vec::new(), out: sink, ready: |_| true }));
+                return Ok(Box::new(Timed::new(Empty, seconds, sink, |_| true)));
             }
             if let Some(rs) = &cc.wgpu_render_state {
                 Viewport::register(rs);
             }
             let options = StudioOptions { autosave: None, restore_autosave: false, ..Default::default() };
-            let app = StudioApp::new(cc, options);
-            Ok(Box::new(Timed {
-                inner: app,
-                seconds,
-                last: None,
-                started: None,
-                intervals: Vec::new(),
-                out: sink,
-                ready: |app: &mut StudioApp| {
-                    let frames = app.take.as_ref().map_or(0, |t| t.motion.frames());
-                    if frames > 1 && !app.playback.playing {
-                        app.doc.view.ghosts = app.doc.view.ghosts.max(3);
-                        app.playback.toggle(frames, &app.doc.playback);
-                    }
-                    app.playback.playing
-                },
-            }))
+            Ok(Box::new(Timed::new(StudioApp::new(cc, options), seconds, sink, studio_ready)))
         }),
     )
     .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;
-    let stats = out.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone();
-    if stats.frames == 0 {
-        anyhow::bail!("no frames were measured: the window closed before a take played");
+    let stats = out.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone().map_err(|e| anyhow::anyhow!(e))?;
+    if stats.frames < 2 {
+        anyhow::bail!("only {} frames were measured", stats.frames);
     }
     Ok(stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_of_intervals() {
+        let s = FrameStats::from_intervals((1..=20).map(f64::from).collect(), 40.0, egui::vec2(2.0, 1.0));
+        assert_eq!(s.frames, 20);
+        assert!((s.mean_ms - 10.5).abs() < 1e-9);
+        assert!((s.median_ms - 10.5).abs() < 1e-9);
+        assert!((s.p95_ms - 19.0).abs() < 1e-9);
+        assert!((s.cpu_ms - 2.0).abs() < 1e-9);
+        let pooled = FrameStats::pool(&[s.clone(), s]);
+        assert_eq!(pooled.frames, 40);
+        assert!((pooled.cpu_ms - 2.0).abs() < 1e-9);
+        assert!(pooled.intervals_ms.is_empty());
+    }
+
+    #[test]
+    fn cpu_time_grows() {
+        let a = process_cpu_ms();
+        let t = Instant::now();
+        let mut x = 0u64;
+        while t.elapsed() < Duration::from_millis(60) {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+        }
+        std::hint::black_box(x);
+        assert!(process_cpu_ms() >= a);
+    }
 }

@@ -504,12 +504,16 @@ impl Viewport {
         let major = 2.0;
         let snap = spacing * major;
         let extent = half_lines * spacing;
+        // The grid fades out at 0.9 of its extent: lines (and line ends) further out than
+        // that are invisible, so only the lines that reach inside the fade radius are drawn,
+        // and only as long (the shader draws `drawn_lines` each side, each that long).
+        let drawn_lines = (half_lines * 0.9).ceil().min(half_lines);
         let globals = Globals {
             view_proj: (proj * view).to_cols_array_2d(),
             eye: eye.extend(1.0).to_array(),
             light_dir: light.extend(0.0).to_array(),
             grid: [(target.x / snap).round() * snap, ground, (target.z / snap).round() * snap, spacing],
-            grid2: [half_lines, extent * 0.2, extent * 0.9, major],
+            grid2: [drawn_lines, extent * 0.2, extent * 0.9, major],
             trail: [scene.frame as f32, (settings.ghosts * settings.ghost_step.max(1)).max(30) as f32, 0.004, 0.0],
         };
 
@@ -574,7 +578,7 @@ impl Viewport {
             globals,
             instances,
             counts,
-            grid_vertices: if settings.grid { (2 * half_lines as u32 + 1) * 2 * 2 } else { 0 },
+            grid_vertices: if settings.grid { (2 * drawn_lines as u32 + 1) * 2 * 2 } else { 0 },
             trail,
         }
     }
