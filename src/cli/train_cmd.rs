@@ -45,6 +45,9 @@ pub struct TrainArgs {
     rollout: usize,
     #[arg(long, default_value_t = 0.1)]
     class_dropout: f32,
+    /// Dense frames between sparse poses (the paper's M + 1).
+    #[arg(long, default_value_t = 5)]
+    stride: usize,
     #[arg(long, default_value_t = 250)]
     eval_every: usize,
     #[arg(long, default_value_t = 250)]
@@ -63,6 +66,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.use_class = !args.no_class;
     opts.rollout_blocks = args.rollout;
     opts.class_dropout = args.class_dropout;
+    opts.stride = args.stride;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
     if args.paper {
