@@ -66,7 +66,7 @@ fn round_trip_all(entries: &[(String, String)], unit: f32, joints: usize) -> (us
 #[test]
 fn bandai_bvh_round_trip_every_clip() {
     let entries = clips("bandai", |_| true);
-    let (n, frames, own, default) = round_trip_all(&entries, 0.01, 22);
+    let (n, frames, own, default) = round_trip_all(&entries, Dataset::Bandai.meters_per_unit(), 22);
     println!("bandai: {n} clips, {frames} frames; max position error own layout {own:.2e} cm, default layout {default:.2e} cm");
     assert_eq!((n, frames), (174, 31_914), "counts from the data README");
 }
@@ -74,7 +74,7 @@ fn bandai_bvh_round_trip_every_clip() {
 #[test]
 fn cmu_dance_bvh_round_trip_every_clip() {
     let entries = clips("cmu-dance", |p| p.matches('/').count() == 2);
-    let (n, frames, own, default) = round_trip_all(&entries, 0.056444, 43);
+    let (n, frames, own, default) = round_trip_all(&entries, Dataset::CmuDance.meters_per_unit(), 43);
     println!("cmu-dance: {n} clips, {frames} frames; max position error own layout {own:.2e}, default layout {default:.2e} (file units)");
     assert_eq!((n, frames), (43, 90_808), "counts from the data README");
     let (_, text) = &entries[0];
