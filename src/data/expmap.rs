@@ -101,7 +101,7 @@ impl ExpmapFormat {
         }
         if let Some(bad) = motion.positions().iter().position(|p| !p.is_finite()) {
             let frame = bad / motion.joints();
-            return Err(FormatError::new(file, format!("frame {} places a joint at infinity (values too large)", frame + 1)));
+            return Err(FormatError::new(file, format!("frame {} gives a joint a non-finite position (values too large)", frame + 1)));
         }
         Ok(motion)
     }
@@ -209,5 +209,13 @@ mod tests {
         assert!(f.read("", "c.txt").is_err());
         assert!(f.read("\u{0}\u{1}garbage", "d.txt").is_err());
         assert!(ExpmapFormat::from_skeleton_json("{", "s.json", RootEncoding::Absolute, 1.0, 1.0).is_err());
+    }
+
+    /// Found by the fuzzer: a finite but enormous angle used to yield NaN positions.
+    #[test]
+    fn enormous_values_are_an_error_not_nan() {
+        let f = tiny();
+        let e = f.read("0,0,0,0,6444444444444444444444444444444444440,0,0,0,0", "big.txt").unwrap_err();
+        assert!(e.to_string().starts_with("big.txt: frame 1 gives a joint a non-finite position"), "{e}");
     }
 }
