@@ -15,14 +15,7 @@ use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
     /// Time to load a whole dataset from its archive.
-    Load {
-        #[arg(long)]
-        dataset: String,
-        #[arg(long)]
-        data: Option<PathBuf>,
-        #[arg(long)]
-        json: bool,
-    },
+    Load(super::data_cmd::DatasetArgs),
     /// GloGen training steps per second, fast LSTM against candle-nn's (the PyTorch reference's shapes).
     Train {
         #[arg(long, default_value_t = 10.0)]
@@ -61,7 +54,7 @@ pub enum BenchCommand {
 
 pub fn run(command: BenchCommand) -> Result<()> {
     match command {
-        BenchCommand::Load { dataset, data, json } => super::data_cmd::bench_load(&dataset, data.as_deref(), json),
+        BenchCommand::Load(args) => super::data_cmd::bench_load(&args),
         BenchCommand::Train { seconds, json } => {
             let r = bench_train(TrainBenchConfig::default(), Budget::Seconds(seconds))?;
             print(&r, json, || {

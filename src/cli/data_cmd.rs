@@ -1,25 +1,29 @@
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
-use clap::Subcommand;
+use clap::{Args, Subcommand};
 use serde::Serialize;
 
 use crate::data::archive::DataRoot;
 use crate::data::registry::{self, Dataset, DatasetClips, Skipped};
 
+/// Which dataset, where, and how to print.
+#[derive(Args, Debug)]
+pub struct DatasetArgs {
+    #[arg(long)]
+    pub dataset: String,
+    /// Dataset folder (default: $GLOCAL_DATA, else ../shared/data).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
 #[derive(Subcommand, Debug)]
 pub enum DataCommand {
     /// Per-class clip and frame counts, fps, joints, and every skipped file.
-    Stats {
-        #[arg(long)]
-        dataset: String,
-        /// Dataset folder (default: $GLOCAL_DATA, else ../shared/data).
-        #[arg(long)]
-        data: Option<PathBuf>,
-        #[arg(long)]
-        json: bool,
-    },
+    Stats(DatasetArgs),
 }
 
 #[derive(Serialize)]
@@ -64,7 +68,7 @@ pub fn stats(d: &DatasetClips) -> Stats {
 
 pub fn run(command: DataCommand) -> Result<()> {
     match command {
-        DataCommand::Stats { dataset, data, json } => {
+        DataCommand::Stats(DatasetArgs { dataset, data, json }) => {
             let dataset: Dataset = dataset.parse()?;
             let loaded = registry::load(dataset, &DataRoot::resolve(data.as_deref()))?;
             let s = stats(&loaded);
@@ -92,9 +96,9 @@ fn print_stats(s: &Stats) {
     }
 }
 
-pub fn bench_load(dataset: &str, data: Option<&Path>, json: bool) -> Result<()> {
-    let dataset: Dataset = dataset.parse()?;
-    let root = DataRoot::resolve(data);
+pub fn bench_load(args: &DatasetArgs) -> Result<()> {
+    let (dataset, json): (Dataset, bool) = (args.dataset.parse()?, args.json);
+    let root = DataRoot::resolve(args.data.as_deref());
     let start = Instant::now();
     let loaded = registry::load(dataset, &root)?;
     let seconds = start.elapsed().as_secs_f64();

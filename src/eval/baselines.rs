@@ -175,7 +175,7 @@ impl ArModel {
         let dim = layout.dim();
         let varmap = VarMap::new();
         let (cell, head) = build(cfg.kind, dim, cfg.hidden, VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
-        super::classifier::seeded_init(&varmap, cfg.seed)?;
+        crate::model::train::seeded_init(&varmap, cfg.seed, 3)?;
         let mut opt = candle_nn::AdamW::new(varmap.all_vars(), ParamsAdamW { lr: cfg.lr, weight_decay: 1e-4, ..Default::default() })?;
         let me = Self {
             record: ArRecord { dataset: corpus.dataset.name().into(), config: cfg.clone(), norm: norm.clone(), train_seconds: 0.0, final_loss: f32::NAN },

@@ -15,7 +15,7 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::rnn::{gru, GRUConfig, GRU, RNN};
 use candle_nn::{linear, Linear, Module, Optimizer, ParamsAdamW, VarBuilder, VarMap};
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 
 use crate::data::features::{FeatureLayout, Normalizer};
@@ -64,23 +64,6 @@ pub struct Classifier {
 
 fn build(vb: VarBuilder, in_dim: usize, hidden: usize, classes: usize) -> Result<(GRU, Linear, Linear)> {
     Ok((gru(in_dim, hidden, GRUConfig::default(), vb.pp("gru"))?, linear(hidden, hidden, vb.pp("fc1"))?, linear(hidden, classes, vb.pp("fc2"))?))
-}
-
-/// Uniform ±1/sqrt(fan) from our own seed, so a training run is reproducible.
-pub(crate) fn seeded_init(varmap: &VarMap, seed: u64) -> Result<()> {
-    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
-    let mut names: Vec<&String> = vars.keys().collect();
-    names.sort();
-    let mut rng = StdRng::seed_from_u64(seed);
-    for name in names {
-        let var = &vars[name];
-        let dims = var.dims().to_vec();
-        let fan = if name.contains("_ih") || name.contains("_hh") { dims[0] / 3 } else { *dims.last().unwrap_or(&1) };
-        let k = 1.0 / (fan.max(1) as f32).sqrt();
-        let values: Vec<f32> = (0..var.elem_count()).map(|_| rng.random_range(-k..k)).collect();
-        var.set(&Tensor::from_vec(values, var.shape(), &Device::Cpu)?)?;
-    }
-    Ok(())
 }
 
 /// Features of `frames` frames of `m` from `start` (which needs a frame before it).
@@ -151,7 +134,7 @@ impl Classifier {
         let norm = Normalizer::fit(&dense, dim);
         let varmap = VarMap::new();
         let (g, f1, f2) = build(VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu), dim, cfg.hidden, classes)?;
-        seeded_init(&varmap, cfg.seed)?;
+        crate::model::train::seeded_init(&varmap, cfg.seed, 3)?;
         let mut opt = candle_nn::AdamW::new(varmap.all_vars(), ParamsAdamW { lr: cfg.lr, weight_decay: 1e-4, ..Default::default() })?;
         let mut me = Self {
             record: ClassifierRecord {

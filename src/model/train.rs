@@ -122,7 +122,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     };
     let varmap = VarMap::new();
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
-    seeded_init(&varmap, opts.seed)?;
+    seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
     let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
     let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
     let weights_path = opts.out.join(opts.stage.file());
@@ -280,18 +280,20 @@ fn write_seed_bank(dir: &Path, spec: &ModelSpec, corpus: &Corpus) -> Result<()> 
     write_atomic(&dir.join(SEEDS_FILE), serde_json::to_string(&seeds)?.as_bytes())
 }
 
-/// PyTorch's default LSTM/linear initialisation, uniform in ±1/sqrt(fan), from our own seed
-/// (candle's initialisers draw from an unseeded generator).
-fn seeded_init(varmap: &VarMap, seed: u64) -> Result<()> {
+/// PyTorch's default recurrent/linear initialisation, uniform in ±1/sqrt(fan), from our own
+/// seed (candle's initialisers draw from an unseeded generator). `gates`: 4 for an LSTM, 3 for
+/// a GRU.
+pub fn seeded_init(varmap: &VarMap, seed: u64, gates: usize) -> Result<()> {
     let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
     let mut names: Vec<&String> = vars.keys().collect();
     names.sort();
-    let mut rng = StdRng::seed_from_u64(seed.wrapping_add(0x5EED));
+    let mut rng = StdRng::seed_from_u64(seed);
     for name in names {
         let var = &vars[name];
         let dims = var.dims().to_vec();
-        // LSTM tensors are [4H, *] or [4H]; fan = H. Linear weights [out, in]; fan = in.
-        let fan = if name.contains("_ih") || name.contains("_hh") { dims[0] / 4 } else { *dims.last().unwrap_or(&1) };
+        // Recurrent tensors are [gates * H, *] or [gates * H]; fan = H. Linear weights
+        // [out, in]; fan = in.
+        let fan = if name.contains("_ih") || name.contains("_hh") { dims[0] / gates } else { *dims.last().unwrap_or(&1) };
         let k = 1.0 / (fan.max(1) as f32).sqrt();
         let values: Vec<f32> = (0..var.elem_count()).map(|_| rng.random_range(-k..k)).collect();
         var.set(&Tensor::from_vec(values, var.shape(), &Device::Cpu)?)?;
