@@ -7,7 +7,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -51,6 +51,15 @@ impl Dataset {
         match self {
             Dataset::H36m => 25.0,
             Dataset::Bandai | Dataset::CmuDance | Dataset::CmuExpmap => 30.0,
+        }
+    }
+
+    /// How an exponential-map file of this dataset encodes the root (None: a BVH dataset).
+    pub fn root_encoding(self) -> Option<RootEncoding> {
+        match self {
+            Dataset::H36m => Some(RootEncoding::Incremental),
+            Dataset::CmuExpmap => Some(RootEncoding::Absolute),
+            Dataset::Bandai | Dataset::CmuDance => None,
         }
     }
 
@@ -136,11 +145,8 @@ pub fn load(dataset: Dataset, root: &DataRoot) -> Result<DatasetClips> {
 
 /// The exponential-map format of h36m or cmu-expmap, from its skeleton file.
 pub fn expmap_format(dataset: Dataset, root: &DataRoot) -> Result<ExpmapFormat> {
-    let (file, encoding) = match dataset {
-        Dataset::H36m => ("h36m-skeleton.json", RootEncoding::Incremental),
-        Dataset::CmuExpmap => ("cmu-expmap-skeleton.json", RootEncoding::Absolute),
-        _ => bail!("{dataset} is not an exponential-map dataset"),
-    };
+    let encoding = dataset.root_encoding().with_context(|| format!("{dataset} is not an exponential-map dataset"))?;
+    let file = if dataset == Dataset::H36m { "h36m-skeleton.json" } else { "cmu-expmap-skeleton.json" };
     let path = root.file(file);
     let text = std::fs::read_to_string(&path).with_context(|| format!("skeleton file {} is missing", path.display()))?;
     Ok(ExpmapFormat::from_skeleton_json(&text, &path.display().to_string(), encoding, dataset.source_fps(), dataset.meters_per_unit())?)

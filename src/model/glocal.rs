@@ -51,6 +51,12 @@ impl GlocalModel {
         self.locgen.is_some()
     }
 
+    /// The `variant`-th seed-bank window of `class` (wrapping around), if the class has any.
+    pub fn seed_of_class(&self, class: usize, variant: usize) -> Option<&Seed> {
+        let count = self.seeds.iter().filter(|s| s.class == class).count();
+        self.seeds.iter().filter(|s| s.class == class).nth(variant % count.max(1))
+    }
+
     /// One-hot class vector (all zeros when the model was trained without classes).
     pub fn class_vector(&self, class: usize) -> Vec<f32> {
         let mut v = vec![0.0; self.spec.glogen.block.cond_dim];

@@ -119,11 +119,6 @@ impl ModelSpec {
             .position(|c| c.eq_ignore_ascii_case(name))
             .with_context(|| format!("unknown class '{name}'; this model knows: {}", self.classes.join(", ")))
     }
-
-    /// Sparse poses per block, times dense frames per sparse step: one block's duration.
-    pub fn block_seconds(&self) -> f32 {
-        (self.block_len * self.stride) as f32 / self.fps
-    }
 }
 
 /// A starting point: `block_len` consecutive sparse poses from a training clip, as raw

@@ -111,12 +111,6 @@ impl Motion {
         Motion { skeleton: self.skeleton.clone(), fps, positions, local_poses: poses }
     }
 
-    /// Every joint relative to the root of its own frame.
-    pub fn root_relative(&self) -> Vec<Vec3> {
-        let j = self.joints();
-        self.positions.chunks_exact(j).flat_map(|f| f.iter().map(move |p| *p - f[0])).collect()
-    }
-
     /// Mean relative deviation of bone lengths from the skeleton's rest lengths, over all
     /// frames and every bone at least `min_bone` long.
     pub fn bone_length_error(&self, min_bone: f32) -> f32 {

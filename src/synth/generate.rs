@@ -201,8 +201,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
 
 /// A normalised seed-bank window of `class` (the `variant`-th, wrapping around).
 fn anchor_window(model: &GlocalModel, class: usize, variant: usize) -> Option<Vec<f32>> {
-    let of_class: Vec<_> = model.seeds.iter().filter(|s| s.class == class).collect();
-    let mut window = of_class.get(variant % of_class.len().max(1))?.features.clone();
+    let mut window = model.seed_of_class(class, variant)?.features.clone();
     model.spec.sparse_norm.normalize(&mut window);
     Some(window)
 }

@@ -8,9 +8,10 @@ use anyhow::{bail, Context, Result};
 
 use super::generate::InitPose;
 use crate::data::bvh::read_bvh_with_unit;
-use crate::data::expmap::{ExpmapFormat, RootEncoding};
+use crate::data::expmap::ExpmapFormat;
 use crate::data::features::Placement;
 use crate::data::npy::motion_from_npy;
+use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
 use crate::motion::Motion;
 
@@ -24,11 +25,8 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
         }
         InitPose::SeedClass { class, variant } => {
             let k = spec.class_index(class)?;
-            let of_class: Vec<_> = model.seeds.iter().filter(|s| s.class == k).collect();
-            if of_class.is_empty() {
-                bail!("the seed bank has no seed of class '{class}'");
-            }
-            Ok((of_class[variant % of_class.len()].features.clone(), Placement::default()))
+            let seed = model.seed_of_class(k, *variant).with_context(|| format!("the seed bank has no seed of class '{class}'"))?;
+            Ok((seed.features.clone(), Placement::default()))
         }
         InitPose::File { path, frame } => {
             let motion = read_on_model_skeleton(model, path)?;
@@ -75,9 +73,11 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
             }
         }
         "txt" => {
-            let encoding = if spec.dataset == "h36m" { RootEncoding::Incremental } else { RootEncoding::Absolute };
-            let fps = if spec.dataset == "h36m" { 50.0 } else { 120.0 };
-            let format = ExpmapFormat { skeleton: source.clone(), root: encoding, fps, major15: None };
+            let dataset: Dataset = spec.dataset.parse()?;
+            let root = dataset
+                .root_encoding()
+                .with_context(|| format!("{name}: a {dataset} model takes BVH or NPY, not exponential-map text"))?;
+            let format = ExpmapFormat { skeleton: source.clone(), root, fps: dataset.source_fps(), major15: None };
             let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
             format.read(&text, &name)?
         }
