@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::model::bench::{bench_infer, bench_train, Budget, TrainBenchConfig};
 use crate::model::glocal::GlocalModel;
-use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, DEFAULT_CLASS_STRENGTH};
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
@@ -47,6 +47,9 @@ pub enum BenchCommand {
         model: PathBuf,
         #[arg(long, default_value_t = 5)]
         repeats: usize,
+        /// 1 does the PyTorch reference's work (no classifier-free guidance pass).
+        #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
+        class_strength: f32,
         #[arg(long)]
         json: bool,
     },
@@ -126,8 +129,8 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 })
             }
         },
-        BenchCommand::Generate { model, repeats, json } => {
-            let r = bench_generate(&model, repeats)?;
+        BenchCommand::Generate { model, repeats, class_strength, json } => {
+            let r = bench_generate(&model, repeats, class_strength)?;
             print(&r, json, || {
                 r.runs
                     .iter()
@@ -160,12 +163,13 @@ pub struct GenerateRun {
 pub struct GenerateBench {
     pub model: String,
     pub locgen: bool,
+    pub class_strength: f32,
     pub runs: Vec<GenerateRun>,
 }
 
 /// Best-of-`repeats` wall time of whole takes (GloGen + LocGen + pace + bone projection)
 /// cycling through the model's classes in 10 s segments.
-pub fn bench_generate(dir: &Path, repeats: usize) -> Result<GenerateBench> {
+pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32) -> Result<GenerateBench> {
     let mut model = GlocalModel::load(dir)?;
     let classes = model.spec.classes.clone();
     let mut runs = Vec::new();
@@ -173,7 +177,7 @@ pub fn bench_generate(dir: &Path, repeats: usize) -> Result<GenerateBench> {
         let segments = (0..(seconds / 10.0) as usize)
             .map(|k| Segment { class: classes[k % classes.len()].clone(), seconds: 10.0, pace: None })
             .collect();
-        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), ..Default::default() };
+        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, ..Default::default() };
         let mut best = f64::INFINITY;
         let mut frames = 0;
         for _ in 0..repeats.max(1) {
@@ -184,7 +188,7 @@ pub fn bench_generate(dir: &Path, repeats: usize) -> Result<GenerateBench> {
         }
         runs.push(GenerateRun { seconds, frames, ms: best });
     }
-    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), runs })
+    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, runs })
 }
 
 /// Runs `glocal bench studio --only WHICH` in a child process (a process can open only one

@@ -8,6 +8,7 @@ use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::eval::{run_suite, SuiteOptions, SUITES};
+use crate::synth::{Transition, DEFAULT_CLASS_STRENGTH};
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
@@ -29,10 +30,23 @@ pub struct EvalArgs {
     /// Where trained baselines and classifiers are cached (default: target/eval-cache).
     #[arg(long)]
     cache: Option<PathBuf>,
+    /// The class-generation suites' transition (ablation: `cut` is the paper's class prior alone).
+    #[arg(long, value_enum, default_value = "anchor")]
+    transition: Transition,
+    /// The class-generation suites' classifier-free guidance weight.
+    #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
+    class_strength: f32,
 }
 
 pub fn run(args: EvalArgs) -> Result<()> {
-    let mut opts = SuiteOptions { data: DataRoot::resolve(args.data.as_deref()), train_baselines: args.train_baselines, model: args.model, ..Default::default() };
+    let mut opts = SuiteOptions {
+        data: DataRoot::resolve(args.data.as_deref()),
+        train_baselines: args.train_baselines,
+        model: args.model,
+        transition: args.transition,
+        class_strength: args.class_strength,
+        ..Default::default()
+    };
     if let Some(c) = args.cache {
         opts.cache = c;
     }

@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::model::glocal::GlocalModel;
 use crate::synth::export::{export, ExportFormat};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
-use crate::synth::{generate, GenerateOptions, InitPose, Transition};
+use crate::synth::{generate, GenerateOptions, InitPose, Transition, DEFAULT_CLASS_STRENGTH};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
@@ -28,8 +28,9 @@ pub struct GenerateArgs {
     pub no_locgen: bool,
     #[arg(long, value_enum, default_value = "anchor")]
     pub transition: Transition,
-    /// Classifier-free guidance weight (1: plain conditioning).
-    #[arg(long, default_value_t = 1.0)]
+    /// Classifier-free guidance weight (1: plain conditioning; ignored by models trained
+    /// without class dropout).
+    #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
     pub class_strength: f32,
     /// Variation seed: 0 gives the model's deterministic take, others differ slightly.
     #[arg(long, default_value_t = 0)]
@@ -37,6 +38,9 @@ pub struct GenerateArgs {
     /// Skip the bone-length projection.
     #[arg(long)]
     pub no_projection: bool,
+    /// Let a long segment's motion stall instead of re-anchoring it on the class's seed windows.
+    #[arg(long)]
+    pub no_keep_alive: bool,
     #[arg(long)]
     pub out: PathBuf,
     #[arg(long)]
@@ -73,6 +77,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         seed: args.seed,
         variation: if args.seed == 0 { 0.0 } else { 0.05 },
         project_bones: !args.no_projection,
+        keep_alive: !args.no_keep_alive,
     };
     let mut model = GlocalModel::load(&args.model)?;
     let start = Instant::now();

@@ -22,7 +22,7 @@ use crate::model::glocal::GlocalModel;
 use crate::model::spec::{LossKind, ModelSpec};
 use crate::model::train::{train, Stage, TrainOptions};
 use crate::motion::Motion;
-use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, Transition, DEFAULT_CLASS_STRENGTH};
 
 pub const SUITES: [&str; 6] = ["cmu-euclid", "h36m-mmd", "h36m", "bandai", "locgen", "long-term"];
 
@@ -34,11 +34,15 @@ pub struct SuiteOptions {
     /// The shipped model to evaluate (default `models/<dataset>`).
     pub model: Option<PathBuf>,
     pub cache: PathBuf,
+    /// How the class-generation suites' takes change class (the shipped anchored transition,
+    /// or the paper's class prior alone) and their class strength: for ablations.
+    pub transition: Transition,
+    pub class_strength: f32,
 }
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir() }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH }
     }
 }
 
@@ -406,24 +410,104 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, V
 const GEN_VARIANTS: usize = 16;
 const GEN_NOISE_SEEDS: [u64; 2] = [1, 2];
 const REAL_PER_CLASS: usize = 64;
+/// Seconds between the start of the requested class and the scored frames.
+const TRANSITIONS_S: [f32; 3] = [0.0, 1.0, 2.0];
+/// Length of the previous timeline segment in the "previous segment" start.
+const PREVIOUS_SEGMENT_S: f32 = 4.0;
 
-fn take_for(model: &mut GlocalModel, class: usize, init_class: usize, variant: usize, seed: u64, extra_s: f32, frames: usize) -> Result<(Motion, usize)> {
+/// Where a scored take comes from before its requested class begins.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Start {
+    /// A seed-bank window of the requested class.
+    SameClass,
+    /// A seed-bank window of another class.
+    OtherSeed,
+    /// The last poses of a timeline segment of another class (itself started from its seed).
+    PreviousSegment,
+}
+
+impl Start {
+    const ALL: [Start; 3] = [Start::SameClass, Start::OtherSeed, Start::PreviousSegment];
+
+    fn label(self) -> &'static str {
+        match self {
+            Start::SameClass => "same class's seed",
+            Start::OtherSeed => "other class's seed",
+            Start::PreviousSegment => "previous segment of another class",
+        }
+    }
+}
+
+/// Generates a take that requests `class` from `start` and returns it with the first of the
+/// `frames` scored frames, `transition_s` after the requested class begins.
+#[allow(clippy::too_many_arguments)]
+fn scored_take(model: &mut GlocalModel, suite: &SuiteOptions, class: usize, start: Start, other: usize, variant: usize, seed: u64, transition_s: f32, frames: usize) -> Result<(Motion, usize)> {
     let spec = model.spec.clone();
-    let seed_frames = spec.block_len * spec.stride;
-    let lead = seed_frames + (extra_s * spec.fps).round() as usize;
-    let seconds = (lead + frames + 2 * spec.stride) as f32 / spec.fps;
+    let transition = (transition_s * spec.fps).round() as usize;
+    let scored_s = (transition + frames + 2 * spec.stride) as f32 / spec.fps;
+    let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
+    let segment = |c: usize, seconds: f32| Segment { class: spec.classes[c].clone(), seconds, pace: None };
+    let (segments, init_class) = match start {
+        Start::SameClass => (vec![segment(class, seed_s + scored_s)], class),
+        Start::OtherSeed => (vec![segment(class, seed_s + scored_s)], other),
+        Start::PreviousSegment => (vec![segment(other, PREVIOUS_SEGMENT_S), segment(class, scored_s)], other),
+    };
     let opts = GenerateOptions {
-        timeline: Timeline { segments: vec![Segment { class: spec.classes[class].clone(), seconds, pace: None }] },
+        timeline: Timeline { segments },
         init: InitPose::SeedClass { class: spec.classes[init_class].clone(), variant },
         seed,
         variation: 0.05,
+        transition: suite.transition,
+        class_strength: suite.class_strength,
         ..Default::default()
     };
     let g = generate(model, &opts, &mut |_| true)?;
-    if g.motion.frames() < lead + frames {
+    // The seed's own poses open a single-segment take; the requested segment's span says
+    // where it begins otherwise.
+    let class_begins = if start == Start::PreviousSegment { g.segments[1].start_frame } else { spec.block_len * spec.stride };
+    let first = class_begins + transition;
+    if g.motion.frames() < first + frames {
         bail!("generated take too short: {} frames", g.motion.frames());
     }
-    Ok((g.motion, lead))
+    Ok((g.motion, first))
+}
+
+/// FID, accuracy, diversity and multimodality of clips against the real test features.
+struct Scores {
+    fid: f64,
+    accuracy: f64,
+    diversity: f64,
+    multimodality: f64,
+    /// Accuracy per requested class.
+    per_class: Vec<f64>,
+}
+
+impl Scores {
+    fn json(&self) -> Value {
+        json!({"fid": self.fid, "accuracy": self.accuracy, "diversity": self.diversity, "multimodality": self.multimodality, "per_class_accuracy": self.per_class})
+    }
+
+    fn row(&self, label: &str) -> String {
+        format!("| {label} | {} | {} | {} | {} |\n", f(self.fid, 2), f(self.accuracy, 3), f(self.diversity, 2), f(self.multimodality, 2))
+    }
+}
+
+fn score(clf: &Classifier, clips: &[Vec<f32>], labels: &[usize], test_f: &[Vec<f32>], k: usize) -> Result<Scores> {
+    let feats = clf.features(clips)?;
+    let pred = clf.predict(clips)?;
+    let per_class = (0..k)
+        .map(|c| {
+            let idx: Vec<usize> = (0..labels.len()).filter(|&i| labels[i] == c).collect();
+            idx.iter().filter(|&&i| pred[i] == c).count() as f64 / idx.len().max(1) as f64
+        })
+        .collect();
+    Ok(Scores {
+        fid: metrics::fid(&feats, test_f),
+        accuracy: metrics::accuracy(&pred, labels),
+        diversity: metrics::diversity(&feats, 200, 3),
+        multimodality: metrics::multimodality(&feats, labels, k, 20, 4),
+        per_class,
+    })
 }
 
 fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
@@ -443,61 +527,63 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
     let (_, train_clips): (Vec<usize>, Vec<Vec<f32>>) = real_windows(&corpus.layout, &corpus.train, k, frames, frames / 2, REAL_PER_CLASS).into_iter().unzip();
     let test_f = clf.features(&test_clips)?;
     let train_f = clf.features(&train_clips)?;
-    let test_pred = clf.predict(&test_clips)?;
-    let stats = |feats: &[Vec<f32>], labels: &[usize], pred: &[usize]| -> (f64, f64, f64, f64) {
-        (metrics::fid(feats, &test_f), metrics::accuracy(pred, labels), metrics::diversity(feats, 200, 3), metrics::multimodality(feats, labels, k, 20, 4))
-    };
-    let real = stats(&test_f, &test_labels, &test_pred);
-    let real_fid_train = metrics::fid(&train_f, &test_f);
+    let mut real = score(&clf, &test_clips, &test_labels, &test_f, k)?;
+    real.fid = metrics::fid(&train_f, &test_f);
     log(&format!("{dataset}: generating"));
-    let (mut gen_clips, mut gen_labels, mut ctl_clips, mut ctl_labels) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut gen_clips, mut gen_labels) = (Vec::new(), Vec::new());
     for class in 0..k {
         for v in 0..GEN_VARIANTS {
             for seed in GEN_NOISE_SEEDS {
-                let (m, lead) = take_for(&mut model, class, class, v, seed, 0.0, frames)?;
-                gen_clips.push(clf.clip(&m, lead));
+                let (m, first) = scored_take(&mut model, opts, class, Start::SameClass, class, v, seed, 0.0, frames)?;
+                gen_clips.push(clf.clip(&m, first));
                 gen_labels.push(class);
             }
-            // Class control: start from another class's seed, 2 s of transition.
-            let other = (class + 1 + v % (k - 1)) % k;
-            let (m, lead) = take_for(&mut model, class, other, v, 1, 2.0, frames)?;
-            ctl_clips.push(clf.clip(&m, lead));
-            ctl_labels.push(class);
         }
     }
-    let gen_f = clf.features(&gen_clips)?;
-    let gen_pred = clf.predict(&gen_clips)?;
-    let gen = stats(&gen_f, &gen_labels, &gen_pred);
-    let ctl_f = clf.features(&ctl_clips)?;
-    let ctl_pred = clf.predict(&ctl_clips)?;
-    let ctl = stats(&ctl_f, &ctl_labels, &ctl_pred);
-    let per_class_acc: Vec<(String, f64, f64)> = (0..k)
-        .map(|c| {
-            let acc = |p: &[usize], l: &[usize]| {
-                let idx: Vec<usize> = (0..l.len()).filter(|&i| l[i] == c).collect();
-                idx.iter().filter(|&&i| p[i] == c).count() as f64 / idx.len().max(1) as f64
-            };
-            (spec.classes[c].clone(), acc(&gen_pred, &gen_labels), acc(&ctl_pred, &ctl_labels))
-        })
-        .collect();
+    let generated = score(&clf, &gen_clips, &gen_labels, &test_f, k)?;
+    // The class-control matrix: every start, every transition length, 16 takes per class
+    // (the other class cycles through all the others).
+    let mut conditions = Vec::new();
+    for start in Start::ALL {
+        for transition_s in TRANSITIONS_S {
+            let (mut clips, mut labels) = (Vec::new(), Vec::new());
+            for class in 0..k {
+                for v in 0..GEN_VARIANTS {
+                    let other = (class + 1 + v % (k - 1)) % k;
+                    // Each take its own variation seed, as repeated takes in the studio.
+                    let (m, first) = scored_take(&mut model, opts, class, start, other, v, 1 + v as u64, transition_s, frames)?;
+                    clips.push(clf.clip(&m, first));
+                    labels.push(class);
+                }
+            }
+            conditions.push((start, transition_s, clips.len(), score(&clf, &clips, &labels, &test_f, k)?));
+        }
+    }
     let mut md = format!(
-        "{dataset}: classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Generated: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the 2 s seed); class control: {} clips started from another class's seed, scored after a 2 s transition.\n\n| samples | FID | accuracy | diversity | multimodality |\n|---|---|---|---|---|\n",
-        cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
-        gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), ctl_clips.len()
+        "{dataset} ({}, {:?} transition, class strength {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n| samples | FID | accuracy | diversity | multimodality |\n|---|---|---|---|---|\n",
+        dir.display(), opts.transition, opts.class_strength, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
+        gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), GEN_VARIANTS
     );
-    for (label, s) in [("Real test split (reference; FID = train vs test)", (real_fid_train, real.1, real.2, real.3)), ("GlocalNet, class-conditioned", gen), ("GlocalNet, class control (other class's seed)", ctl)] {
-        md.push_str(&format!("| {label} | {} | {} | {} | {} |\n", f(s.0, 2), f(s.1, 3), f(s.2, 2), f(s.3, 2)));
+    md.push_str(&real.row("Real test split (reference; FID = train vs test)"));
+    md.push_str(&generated.row("GlocalNet, class-conditioned"));
+    for (start, transition_s, n, s) in &conditions {
+        md.push_str(&s.row(&format!("class control: {}, {transition_s} s transition ({n} clips)", start.label())));
     }
-    md.push_str("\n| class | accuracy (conditioned) | accuracy (class control) |\n|---|---|---|\n");
-    for (c, a, b) in &per_class_acc {
-        md.push_str(&format!("| {c} | {} | {} |\n", f(*a, 2), f(*b, 2)));
+    md.push_str("\nPer class, accuracy of the requested class (class control after a 2 s transition):\n\n| class | conditioned | same class's seed | other class's seed | previous segment |\n|---|---|---|---|---|\n");
+    let after_2s: Vec<&Scores> = conditions.iter().filter(|c| c.1 == 2.0).map(|c| &c.3).collect();
+    for c in 0..k {
+        md.push_str(&format!("| {} | {} |", spec.classes[c], f(generated.per_class[c], 2)));
+        for s in &after_2s {
+            md.push_str(&format!(" {} |", f(s.per_class[c], 2)));
+        }
+        md.push('\n');
     }
-    let row = |s: (f64, f64, f64, f64)| json!({"fid": s.0, "accuracy": s.1, "diversity": s.2, "multimodality": s.3});
     Ok((md, json!({
-        "model": dir, "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
-        "real_test": row((real_fid_train, real.1, real.2, real.3)), "generated": row(gen), "class_control": row(ctl),
-        "per_class_accuracy": per_class_acc.iter().map(|(c, a, b)| json!({"class": c, "conditioned": a, "class_control": b})).collect::<Vec<_>>(),
-        "samples": {"generated": gen_clips.len(), "class_control": ctl_clips.len(), "real_test": test_clips.len(), "real_train": train_clips.len()},
+        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.class_strength,
+        "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
+        "real_test": real.json(), "generated": generated.json(),
+        "class_control": conditions.iter().map(|(start, transition_s, n, s)| json!({"start": format!("{start:?}"), "transition_s": transition_s, "clips": n, "scores": s.json()})).collect::<Vec<_>>(),
+        "samples": {"generated": gen_clips.len(), "real_test": test_clips.len(), "real_train": train_clips.len()},
     })))
 }
 
@@ -574,7 +660,7 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Strin
 // long-term
 
 fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
-    let mut md = String::from("Each class generated for 120 s from its first seed (noise seed 1), judged per 10 s window: mean joint speed over the class's real mean speed (training split), relative bone-length error (after the shipped bone projection, and of the raw network output without it), and whether every value is finite. The 60 s columns are the first six windows of the same take.\n");
+    let mut md = String::from("Each class generated for 120 s from its first seed (noise seed 1), judged per 10 s window: mean joint speed over the class's real mean speed (training split), relative bone-length error (after the shipped bone projection, and of the raw network output without it), and whether every value is finite. Keep-alive (re-anchoring a stalled segment on its class's seed windows) is on, as shipped; one column gives the lowest window speed with it off. The 60 s columns are the first six windows of the same take.\n");
     let mut out = Vec::new();
     let datasets: Vec<Dataset> = match &opts.model {
         Some(p) => vec![ModelSpec::read(p)?.dataset.parse()?],
@@ -589,18 +675,19 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, 
         let mut model = GlocalModel::load(&dir)?;
         let spec = model.spec.clone();
         log(&format!("long-term: {}", dir.display()));
-        md.push_str(&format!("\n**{}** ({}; LocGen: {})\n\n| class | speed ratio 0-10 s | 50-60 s | 110-120 s | min / max over 120 s | bone error (projected, max) | bone error (raw, mean / max) | finite |\n|---|---|---|---|---|---|---|---|\n", dir.display(), dataset, model.has_locgen()));
+        md.push_str(&format!("\n**{}** ({}; LocGen: {})\n\n| class | speed ratio 0-10 s | 50-60 s | 110-120 s | min / max over 120 s | min without keep-alive | bone error (projected, max) | bone error (raw, mean / max) | finite |\n|---|---|---|---|---|---|---|---|---|\n", dir.display(), dataset, model.has_locgen()));
         let rest = spec.layout.skeleton.rest_bone_lengths();
         let min_bone = 0.02 * rest.iter().cloned().fold(0.0, f32::max);
         for class in 0..spec.classes.len() {
             let mut stats = Vec::new();
-            for project in [true, false] {
+            for (project, keep_alive) in [(true, true), (false, true), (true, false)] {
                 let o = GenerateOptions {
                     timeline: Timeline { segments: vec![Segment { class: spec.classes[class].clone(), seconds: 120.0, pace: None }] },
                     init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: 0 },
                     seed: 1,
                     variation: 0.05,
                     project_bones: project,
+                    keep_alive,
                     ..Default::default()
                 };
                 match generate(&mut model, &o, &mut |_| true) {
@@ -611,19 +698,20 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, 
                     }
                 }
             }
-            let (p, raw) = (&stats[0], &stats[1]);
+            let (p, raw, stalling) = (&stats[0], &stats[1], &stats[2]);
             let sr = |i: usize| p.get(i).map_or(f64::NAN, |w| w.speed_ratio as f64);
             let min = p.iter().map(|w| w.speed_ratio).fold(f32::INFINITY, f32::min);
             let max = p.iter().map(|w| w.speed_ratio).fold(0.0, f32::max);
+            let min_stalling = stalling.iter().map(|w| w.speed_ratio).fold(f32::INFINITY, f32::min);
             let bmax = p.iter().map(|w| w.bone_error).fold(0.0, f32::max);
             let rmean = raw.iter().map(|w| w.bone_error).sum::<f32>() / raw.len().max(1) as f32;
             let rmax = raw.iter().map(|w| w.bone_error).fold(0.0, f32::max);
             let finite = !p.is_empty() && p.iter().chain(raw.iter()).all(|w| w.finite && w.speed_ratio.is_finite());
             md.push_str(&format!(
-                "| {} | {} | {} | {} | {} / {} | {} | {} / {} | {} |\n",
-                spec.classes[class], f(sr(0), 2), f(sr(5), 2), f(sr(11), 2), f(min as f64, 2), f(max as f64, 2), f(bmax as f64, 4), f(rmean as f64, 3), f(rmax as f64, 3), if finite { "yes" } else { "NO" }
+                "| {} | {} | {} | {} | {} / {} | {} | {} | {} / {} | {} |\n",
+                spec.classes[class], f(sr(0), 2), f(sr(5), 2), f(sr(11), 2), f(min as f64, 2), f(max as f64, 2), f(min_stalling as f64, 2), f(bmax as f64, 4), f(rmean as f64, 3), f(rmax as f64, 3), if finite { "yes" } else { "NO" }
             ));
-            out.push(json!({"dataset": dataset.name(), "class": spec.classes[class], "windows_projected": p, "windows_raw": raw, "finite": finite}));
+            out.push(json!({"dataset": dataset.name(), "class": spec.classes[class], "windows_projected": p, "windows_raw": raw, "windows_without_keep_alive": stalling, "finite": finite}));
         }
     }
     Ok((md, json!({"classes": out})))

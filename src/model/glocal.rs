@@ -74,17 +74,22 @@ impl GlocalModel {
     pub fn glogen_block(&mut self, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
         let t = self.spec.block_len;
         let cond = (self.spec.glogen.block.cond_dim > 0).then_some(class);
-        self.glogen.infer(input, cond, 1, t, out);
-        let embedding = self.glogen.last_encoding(1, t).to_vec();
-        if cond.is_some() && self.spec.glogen.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6 {
-            let zeros = vec![0.0; class.len()];
-            let mut uncond = vec![0.0; out.len()];
-            self.glogen.infer(input, Some(&zeros), 1, t, &mut uncond);
-            for (o, u) in out.iter_mut().zip(&uncond) {
-                *o = u + strength * (*o - u);
-            }
+        let guided = cond.is_some() && self.spec.glogen.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6;
+        if !guided {
+            self.glogen.infer(input, cond, 1, t, out);
+            return self.glogen.last_encoding(1, t).to_vec();
         }
-        embedding
+        // The conditioned and unconditioned passes as one batch of two: the weights stream
+        // from memory once for both.
+        let inputs = [input, input].concat();
+        let conds = [class, &vec![0.0; class.len()]].concat();
+        let mut both = vec![0.0; 2 * out.len()];
+        self.glogen.infer(&inputs, Some(&conds), 2, t, &mut both);
+        let (conditioned, unconditioned) = both.split_at(out.len());
+        for ((o, c), u) in out.iter_mut().zip(conditioned).zip(unconditioned) {
+            *o = u + strength * (c - u);
+        }
+        self.glogen.last_encoding(2, t)[..t * 2 * self.spec.glogen.block.hidden].to_vec()
     }
 
     /// GloGen's encoder states over one block, concatenated: the embedding of the t-SNE panel.

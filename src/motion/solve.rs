@@ -21,6 +21,7 @@
 //! pose, never against another frame, so frames are independent.
 
 use glam::{DQuat, DVec3, Quat, Vec3};
+use rayon::prelude::*;
 
 use super::{LocalPose, Skeleton};
 
@@ -41,7 +42,8 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
     }
     let scale = skeleton.offsets.iter().map(|o| o.length()).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
     let eps = 1e-6 * scale;
-    positions.chunks_exact(n).map(|frame| solve_frame(skeleton, &children, frame, eps)).collect()
+    // Frames are independent: spread them over the cores.
+    positions.par_chunks_exact(n).map(|frame| solve_frame(skeleton, &children, frame, eps)).collect()
 }
 
 fn solve_frame(skeleton: &Skeleton, children: &[Vec<usize>], frame: &[Vec3], eps: f32) -> LocalPose {

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::viewport::ViewSettings;
 use crate::data::write::write_atomic;
-use crate::synth::{GenerateOptions, InitPose, Segment, Timeline, Transition};
+use crate::synth::{GenerateOptions, InitPose, Segment, Timeline, Transition, DEFAULT_CLASS_STRENGTH};
 
 /// The project file format this build writes; files of a newer version are refused.
 pub const PROJECT_VERSION: u32 = 1;
@@ -67,7 +67,7 @@ impl Project {
             pace: 1.0,
             init: InitPose::SeedIndex(0),
             transition: Transition::Anchor,
-            class_strength: 1.0,
+            class_strength: DEFAULT_CLASS_STRENGTH,
             locgen: true,
             variation_seed: 0,
             view: ViewSettings::default(),
@@ -99,6 +99,7 @@ impl Project {
             seed: self.variation_seed,
             variation: if self.variation_seed == 0 { 0.0 } else { 0.05 },
             project_bones: true,
+            keep_alive: true,
         }
     }
 

@@ -6,5 +6,5 @@ pub mod init;
 pub mod render;
 pub mod timeline;
 
-pub use generate::{generate, GenerateOptions, Generated, InitPose, SegmentSpan, Transition};
+pub use generate::{generate, GenerateOptions, Generated, InitPose, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH};
 pub use timeline::{Segment, Timeline};
