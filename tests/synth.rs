@@ -102,7 +102,11 @@ fn bvh_round_trip_within_a_centimetre() {
     let back = read_bvh_with_unit(&std::fs::read_to_string(&path).unwrap(), "take.bvh", unit).unwrap();
     assert_eq!(back.frames(), take.motion.frames());
     assert!((back.fps - take.motion.fps).abs() < 1e-3);
-    let err: f32 = back.positions().iter().zip(take.motion.positions()).map(|(a, b)| a.distance(*b)).sum::<f32>()
+    // Exports stand on the floor: Human3.6M's own world has the hips at 0.
+    assert!(take.motion.floor_height() * unit < -0.5, "h36m's floor is {} m", take.motion.floor_height() * unit);
+    let on_floor = take.motion.translated(glam::Vec3::new(0.0, -take.motion.floor_height(), 0.0));
+    assert!(back.floor_height().abs() * unit < 0.01, "exported floor at {} m", back.floor_height() * unit);
+    let err: f32 = back.positions().iter().zip(on_floor.positions()).map(|(a, b)| a.distance(*b)).sum::<f32>()
         / back.positions().len() as f32;
     assert!(err * unit < 0.01, "mean joint error {} m", err * unit);
     for ext in ["json", "npy"] {
@@ -110,7 +114,7 @@ fn bvh_round_trip_within_a_centimetre() {
         export(&take.motion, &take.segments, &p).unwrap();
         let (again, segments) = glocal::synth::export::read_take(&p, Some(&m.dir)).unwrap();
         assert_eq!(again.frames(), take.motion.frames());
-        assert!(again.positions().iter().zip(take.motion.positions()).all(|(a, b)| a.distance(*b) < 1e-3));
+        assert!(again.positions().iter().zip(on_floor.positions()).all(|(a, b)| a.distance(*b) < 1e-3));
         if ext == "json" {
             assert_eq!(segments, take.segments);
         }
@@ -186,4 +190,21 @@ fn cancel_stops_generation() {
     let mut m = model("h36m");
     let e = generate(&mut m, &opts("walking:60"), &mut |f| f < 0.2).err().unwrap();
     assert!(format!("{e:#}").contains("cancelled"));
+}
+
+/// An exported take (set on the floor) used as the initial poses of the next one lands back
+/// on the model's floor: the next take carries on at the height the first one was at.
+#[test]
+fn an_exported_take_starts_the_next_at_the_same_height() {
+    let mut m = model("h36m");
+    let first = generate(&mut m, &opts("walking:4"), &mut |_| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("first.bvh");
+    export(&first.motion, &first.segments, &path).unwrap();
+    let next = GenerateOptions { init: InitPose::File { path, frame: 0 }, ..opts("walking:4") };
+    let next = generate(&mut m, &next, &mut |_| true).unwrap();
+    let hips = |motion: &glocal::motion::Motion, t: usize| motion.frame(t)[0].y;
+    let unit = first.motion.skeleton.meters_per_unit;
+    let gap = (hips(&next.motion, 0) - hips(&first.motion, m.spec.stride)).abs() * unit;
+    assert!(gap < 0.05, "the next take starts {gap} m off the first's height");
 }

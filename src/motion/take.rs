@@ -63,6 +63,29 @@ impl Motion {
             .collect()
     }
 
+    /// The height of the lowest joint over the whole take (0 when empty): where its floor is.
+    pub fn floor_height(&self) -> f32 {
+        let lowest = self.positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        if lowest.is_finite() {
+            lowest
+        } else {
+            0.0
+        }
+    }
+
+    /// The take moved by `offset` (positions and the roots' local translations).
+    pub fn translated(&self, offset: Vec3) -> Motion {
+        let mut moved = self.clone();
+        moved.positions.iter_mut().for_each(|p| *p += offset);
+        if let Some(poses) = moved.local_poses.as_mut() {
+            let roots: Vec<usize> = (0..self.joints()).filter(|&j| self.skeleton.parents[j].is_none()).collect();
+            for pose in poses {
+                roots.iter().for_each(|&r| pose.translations[r] += offset);
+            }
+        }
+        moved
+    }
+
     /// Frames `[start, end)` as a new motion.
     pub fn slice(&self, start: usize, end: usize) -> Motion {
         let j = self.joints();

@@ -48,8 +48,11 @@ struct JsonTake {
 
 /// Writes `motion` (already cut to the range to export) to `path` in the format its
 /// extension names. BVH gets the skeleton's hierarchy with rotations solved against its
-/// rest pose and the take's frame time; JSON and NPY get world positions.
+/// rest pose and the take's frame time; JSON and NPY get world positions. The take is set on
+/// the floor (its lowest joint at height 0), as animation tools expect: the models' own
+/// worlds keep the dataset's origin (Human3.6M's hips at 0, its feet near -0.9 m).
 pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<()> {
+    let motion = &motion.translated(Vec3::new(0.0, -motion.floor_height(), 0.0));
     let bytes = match ExportFormat::from_path(path)? {
         ExportFormat::Bvh => write_bvh(motion, None).into_bytes(),
         ExportFormat::Npy => motion_to_npy(motion),

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
+use glam::Vec3;
 
 use super::generate::InitPose;
 use crate::data::bvh::read_bvh_with_unit;
@@ -37,6 +38,9 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
                     path.display(), motion.frames(), spec.fps, spec.stride * spec.block_len + 1, spec.block_len, spec.stride
                 );
             }
+            // Onto the model's floor: an exported take stands at 0, Human3.6M's world lower.
+            let used = motion.slice(*frame, needed + 1);
+            let motion = motion.translated(Vec3::new(0.0, model.floor_height() - used.floor_height(), 0.0));
             let start = frame + spec.stride;
             Ok((spec.layout.encode_motion(&motion, start, spec.stride, spec.block_len), Placement::default()))
         }
@@ -54,6 +58,12 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
         "bvh" => {
             let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
             let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit)?;
+            // A take this model exported is on its own joints already.
+            if m.skeleton.differences(&spec.layout.skeleton).is_empty() {
+                let mut m = m.resample(spec.fps);
+                m.skeleton = spec.layout.skeleton.clone();
+                return Ok(m);
+            }
             let diff = m.skeleton.differences(&spec.source_skeleton);
             if !diff.is_empty() {
                 bail!("{name}: its skeleton does not match the model's ({}): {}", spec.dataset, diff.join("; "));
