@@ -93,6 +93,22 @@ fn snapshot_options() -> SnapshotOptions {
     SnapshotOptions::new().threshold(2.0).max_failed_pixels(2000)
 }
 
+/// The window as eframe shows it: kittest clears to transparent, eframe to the app's clear
+/// colour, which the studio's panels leave as their background.
+fn render_on_clear_color(h: &mut Harness<'_, StudioApp>) -> image::RgbaImage {
+    let mut img = h.render().unwrap();
+    let clear = eframe::App::clear_color(h.state(), &h.ctx.global_style().visuals).map(|c| c * 255.0);
+    for p in img.pixels_mut() {
+        // egui's output is premultiplied: what shows is the pixel over the clear colour.
+        let cover = 1.0 - f32::from(p[3]) / 255.0;
+        for k in 0..3 {
+            p[k] = (f32::from(p[k]) + cover * clear[k]).round().min(255.0) as u8;
+        }
+        p[3] = 255;
+    }
+    img
+}
+
 /// The viewport's part of a rendered image (between the side panels, above the timeline).
 fn viewport_pixels(img: &image::RgbaImage) -> Vec<u8> {
     let mut out = Vec::new();
@@ -117,7 +133,7 @@ fn whole_app_with_a_generated_take_and_the_seed_map() {
     assert_eq!(app.seed_map().unwrap().points.len(), model.seeds.len(), "every seed is on the map");
     assert!(take.path.len() == take.block_classes.len() && !take.path.is_empty(), "the take's blocks are projected into the map");
     assert!(shows(&h, "Segment 1: walking") && shows(&h, "Segment 2:"));
-    h.snapshot_options("studio_app", &snapshot_options());
+    egui_kittest::image_snapshot_options(&render_on_clear_color(&mut h), "studio_app", &snapshot_options());
 }
 
 #[test]

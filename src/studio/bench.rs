@@ -126,6 +126,12 @@ impl<A> Timed<A> {
 }
 
 impl<A: eframe::App> eframe::App for Timed<A> {
+    /// The studio's panels show the window's clear colour: forwarded so the measured window
+    /// looks (and costs) exactly like the real one.
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        self.inner.clear_color(visuals)
+    }
+
     fn logic(&mut self, ctx: &egui::Context, frame: &mut eframe::Frame) {
         self.inner.logic(ctx, frame);
     }
