@@ -27,6 +27,24 @@ use gemm::Parallelism;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Mutex;
 
+/// A row-major `[rows, cols]` matrix transposed to `[cols, rows]`. gemm streams a right
+/// operand stored `[K, N]` row-major as it is, while the transposed view of a PyTorch-layout
+/// weight `[N, K]` is repacked on every call: at batch 1 that repacking was a fifth of a block.
+fn transposed(w: &[f32], rows: usize, cols: usize) -> Vec<f32> {
+    let mut t = vec![0f32; rows * cols];
+    for r in 0..rows {
+        for c in 0..cols {
+            t[c * rows + r] = w[r * cols + c];
+        }
+    }
+    t
+}
+
+/// [`transposed`] for each direction's block of two stacked `[rows, cols]` matrices.
+fn transposed_per_direction(w: &[f32], rows: usize, cols: usize) -> Vec<f32> {
+    w.chunks_exact(rows * cols).flat_map(|m| transposed(m, rows, cols)).collect()
+}
+
 // ---------------------------------------------------------------------------------------------
 // Threading policy
 
@@ -378,10 +396,8 @@ struct DirFwd<'a> {
     h: usize,
     /// Projected gates `[B*T, 8H]` (this direction's columns start at `d*4H`), no bias.
     g: *const f32,
-    /// This direction's `W_hh [4H, H]`.
-    whh: *const f32,
-    /// This direction's `W_hhᵀ [H, 4H]`, used for small batches when present.
-    whh_t: Option<&'a [f32]>,
+    /// This direction's `W_hhᵀ [H, 4H]`.
+    whh_t: &'a [f32],
     /// `b_ih + b_hh` of this direction `[4H]`.
     bias: &'a [f32],
     /// Output `[B*T, 2H]` (this direction's columns start at `d*H`).
@@ -406,7 +422,7 @@ fn time_at(d: usize, t: usize, s: usize) -> usize {
 
 impl DirFwd<'_> {
     fn run(self) {
-        let DirFwd { d, b, t, h, g, whh, whh_t, bias, out, acts, cs, z, zeros, par } = self;
+        let DirFwd { d, b, t, h, g, whh_t, bias, out, acts, cs, z, zeros, par } = self;
         let h4 = 4 * h;
         let out = out.get();
         for s in 0..t {
@@ -418,22 +434,19 @@ impl DirFwd<'_> {
                 let tp = time_at(d, t, s - 1);
                 // h_prev rows: out[(bb*T + tp)*2H + d*H], row stride T*2H
                 let hp = unsafe { out.add(tp * 2 * h + d * h) } as *const f32;
-                match whh_t {
-                    Some(wt) if b <= SMALL_BATCH => {
-                        z.fill(0.0);
-                        let hrow = |bb: usize| unsafe { std::slice::from_raw_parts(hp.add(bb * t * 2 * h), h) };
-                        let mut rows = z.chunks_exact_mut(h4).enumerate();
-                        while let Some((bb, za)) = rows.next() {
-                            match rows.next() {
-                                Some((_, zb)) => axpy_rows2(hrow(bb), hrow(bb + 1), wt, za, zb),
-                                None => axpy_rows(hrow(bb), wt, za),
-                            }
+                if b <= SMALL_BATCH {
+                    z.fill(0.0);
+                    let hrow = |bb: usize| unsafe { std::slice::from_raw_parts(hp.add(bb * t * 2 * h), h) };
+                    let mut rows = z.chunks_exact_mut(h4).enumerate();
+                    while let Some((bb, za)) = rows.next() {
+                        match rows.next() {
+                            Some((_, zb)) => axpy_rows2(hrow(bb), hrow(bb + 1), whh_t, za, zb),
+                            None => axpy_rows(hrow(bb), whh_t, za),
                         }
                     }
-                    _ => unsafe {
-                        // z[B,4H] = h_prev[B,H] · W_hhᵀ  (W_hhᵀ[k, n] = W_hh[n, k])
-                        mm(b, h4, h, z.as_mut_ptr(), h4, hp, t * 2 * h, 1, whh, 1, h, false, par);
-                    },
+                } else {
+                    // z[B,4H] = h_prev[B,H] · W_hhᵀ, from the stored transpose (see [`transposed`])
+                    unsafe { mm(b, h4, h, z.as_mut_ptr(), h4, hp, t * 2 * h, 1, whh_t.as_ptr(), h4, 1, false, par) };
                 }
             }
             for bb in 0..b {
@@ -685,6 +698,8 @@ impl CustomOp2 for BiLstmOp {
         let mut cs = [vec![0f32; b * t * h], vec![0f32; b * t * h]];
         let mut z = [vec![0f32; b * 4 * h], vec![0f32; b * 4 * h]];
         let zeros = vec![0f32; h];
+        // once per call rather than a repack at every step
+        let whh_t: [Vec<f32>; 2] = [0, 1].map(|d| transposed(&p[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h], 4 * h, h));
         let th = threading();
         let par = gemm_par(th);
         let outp = SPtr(out.as_mut_ptr());
@@ -699,8 +714,7 @@ impl CustomOp2 for BiLstmOp {
                 t,
                 h,
                 g: gp.get(),
-                whh: p[fl.w_hh(d)..].as_ptr(),
-                whh_t: None,
+                whh_t: &whh_t[d],
                 bias: &bsum[d],
                 out: outp,
                 acts,
@@ -936,6 +950,7 @@ impl BiLstm {
         let h = self.hidden;
         let mut w_ih = v(&self.fwd.w_ih)?;
         w_ih.extend(v(&self.bwd.w_ih)?);
+        let w_ih_t = transposed_per_direction(&w_ih, 4 * h, self.in_dim);
         let mut w_hh = v(&self.fwd.w_hh)?;
         w_hh.extend(v(&self.bwd.w_hh)?);
         let mut bias = Vec::with_capacity(8 * h);
@@ -943,15 +958,8 @@ impl BiLstm {
             let (bi, bh) = (v(&dir.b_ih)?, v(&dir.b_hh)?);
             bias.extend(bi.iter().zip(&bh).map(|(a, b)| a + b));
         }
-        let mut w_hh_t = vec![0f32; 8 * h * h];
-        for d in 0..2 {
-            for n in 0..4 * h {
-                for k in 0..h {
-                    w_hh_t[d * 4 * h * h + k * 4 * h + n] = w_hh[d * 4 * h * h + n * h + k];
-                }
-            }
-        }
-        Ok(CpuBiLstm { in_dim: self.in_dim, hidden: h, w_ih, w_hh, w_hh_t, bias })
+        let w_hh_t = transposed_per_direction(&w_hh, 4 * h, h);
+        Ok(CpuBiLstm { in_dim: self.in_dim, hidden: h, w_ih_t, w_hh_t, bias })
     }
 
     /// All eight parameter tensors (forward then backward: w_ih, w_hh, b_ih, b_hh).
@@ -977,11 +985,9 @@ impl BiLstm {
 pub struct CpuBiLstm {
     pub in_dim: usize,
     pub hidden: usize,
-    /// `[8H, I]`: forward rows then backward rows.
-    pub w_ih: Vec<f32>,
-    /// `[8H, H]`.
-    pub w_hh: Vec<f32>,
-    /// Per direction `W_hhᵀ [H, 4H]`, for small batches.
+    /// Per direction `W_ihᵀ [I, 4H]` (the layout gemm takes without repacking).
+    pub w_ih_t: Vec<f32>,
+    /// Per direction `W_hhᵀ [H, 4H]` (likewise).
     pub w_hh_t: Vec<f32>,
     /// `b_ih + b_hh`, `[8H]`.
     pub bias: Vec<f32>,
@@ -1073,9 +1079,9 @@ impl CpuBiLstm {
                 x.as_ptr(),
                 i,
                 1,
-                self.w_ih.as_ptr().add(d * h4 * i),
+                self.w_ih_t.as_ptr().add(d * i * h4),
+                h4,
                 1,
-                i,
                 false,
                 Parallelism::None,
             );
@@ -1086,8 +1092,7 @@ impl CpuBiLstm {
             t,
             h,
             g: gp.get(),
-            whh: self.w_hh[d * h4 * h..].as_ptr(),
-            whh_t: Some(&self.w_hh_t[d * h4 * h..(d + 1) * h4 * h]),
+            whh_t: &self.w_hh_t[d * h4 * h..(d + 1) * h4 * h],
             bias: &self.bias[d * h4..(d + 1) * h4],
             out: outp,
             acts,
