@@ -51,18 +51,19 @@ fn transposed_per_direction(w: &[f32], rows: usize, cols: usize) -> Vec<f32> {
 /// How the two directions of a bidirectional LSTM use the cores.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Threading {
-    /// One scoped thread per direction, single-threaded gemm inside.
+    /// The two directions side by side on rayon's pool, single-threaded gemm inside (default).
     PerDirection,
-    /// Directions one after the other, gemm parallel over rayon (default).
+    /// Directions one after the other, gemm parallel over rayon.
     RayonGemm,
     /// Everything on the calling thread.
     Single,
 }
 
-/// Default: [`Threading::RayonGemm`]. Measured on the 2-core machine while other jobs ran, a
-/// training step was ~25% faster with it than with one thread per direction (candle's own rayon
-/// workers compete with extra threads); on an idle machine the two are close.
-static THREADING: AtomicU8 = AtomicU8::new(1);
+/// Default: [`Threading::PerDirection`]. With the directions on `rayon::join` (no spawned
+/// threads beside rayon's, and candle's spinning pool off), a training step measured 1.15-1.37x
+/// faster than with a parallel gemm per call, which wakes rayon's workers for every small gemm
+/// (docs/BENCHMARKS.md).
+static THREADING: AtomicU8 = AtomicU8::new(0);
 
 /// Select the threading policy of the fused LSTM (process wide; for benchmarking).
 pub fn set_threading(t: Threading) {
@@ -89,11 +90,7 @@ const SMALL_BATCH: usize = 4;
 
 fn run2<A: FnOnce() + Send, B: FnOnce() + Send>(parallel: bool, a: A, b: B) {
     if parallel {
-        std::thread::scope(|s| {
-            let hb = s.spawn(b);
-            a();
-            hb.join().expect("lstm worker thread panicked");
-        });
+        rayon::join(a, b);
     } else {
         a();
         b();
@@ -1160,7 +1157,7 @@ mod tests {
                 assert!(dbwd < 1e-4, "backward direction differs: {dbwd}");
             }
         }
-        set_threading(Threading::RayonGemm);
+        set_threading(Threading::PerDirection);
     }
 
     #[test]
@@ -1291,6 +1288,6 @@ mod tests {
             let d = max_abs(gf.get(x.as_tensor()).unwrap(), gr.get(x.as_tensor()).unwrap());
             assert!(d < 1e-4, "input grad diff {d}");
         }
-        set_threading(Threading::RayonGemm);
+        set_threading(Threading::PerDirection);
     }
 }
