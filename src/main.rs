@@ -1,9 +1,10 @@
 use clap::Parser;
 
 fn main() {
-    // candle's elementwise ops run on its own spinning thread pool, which here fights the
-    // rayon pool of gemm and the fused LSTM for the same cores: a training step measured up to
-    // 1.9x faster with candle's pool off (docs/BENCHMARKS.md). Set before any thread starts.
+    // candle's elementwise ops run on its own spinning thread pool, which fights the fused
+    // LSTM's rayon threads for the cores: with other work on the machine a training step
+    // measured 1.2-1.4x faster with candle's pool off (7-10% slower on an idle machine;
+    // docs/BENCHMARKS.md). Set before any thread starts.
     if std::env::var_os("CANDLE_NUM_THREADS").is_none() {
         std::env::set_var("CANDLE_NUM_THREADS", "1");
     }
