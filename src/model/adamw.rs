@@ -78,15 +78,17 @@ impl AdamW {
         let Some(g) = grads.get(p.var.as_tensor()) else { return Ok(()) };
         let next = with_f32(p.var.as_tensor(), |theta| {
             with_f32(g, |g| {
-                let mut out = vec![0f32; theta.len()];
-                for k in 0..theta.len() {
-                    let m = p.m[k] * c.b1 + g[k] * (1.0 - c.b1);
-                    let v = p.v[k] * c.b2 + g[k] * g[k] * (1.0 - c.b2);
-                    p.m[k] = m;
-                    p.v[k] = v;
-                    out[k] = theta[k] * c.decay - c.lr * (m * c.bias1) / ((v * c.bias2).sqrt() + c.eps);
-                }
-                out
+                // zipped, not indexed, so the loop vectorises (no bounds checks)
+                theta
+                    .iter()
+                    .zip(g)
+                    .zip(p.m.iter_mut().zip(p.v.iter_mut()))
+                    .map(|((&theta, &g), (m, v))| {
+                        *m = *m * c.b1 + g * (1.0 - c.b1);
+                        *v = *v * c.b2 + g * g * (1.0 - c.b2);
+                        theta * c.decay - c.lr * (*m * c.bias1) / ((*v * c.bias2).sqrt() + c.eps)
+                    })
+                    .collect::<Vec<f32>>()
             })
         })??;
         p.var.set(&Tensor::from_vec(next, p.var.shape(), p.var.device())?)
