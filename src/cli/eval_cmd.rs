@@ -36,6 +36,10 @@ pub struct EvalArgs {
     /// The class-generation suites' classifier-free guidance weight.
     #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
     class_strength: f32,
+    /// The class-generation suites without keep-alive (with `--transition cut --class-strength
+    /// 1`: the paper's mechanism alone).
+    #[arg(long)]
+    no_keep_alive: bool,
 }
 
 pub fn run(args: EvalArgs) -> Result<()> {
@@ -45,6 +49,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         model: args.model,
         transition: args.transition,
         class_strength: args.class_strength,
+        keep_alive: !args.no_keep_alive,
         ..Default::default()
     };
     if let Some(c) = args.cache {

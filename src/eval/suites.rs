@@ -38,11 +38,12 @@ pub struct SuiteOptions {
     /// or the paper's class prior alone) and their class strength: for ablations.
     pub transition: Transition,
     pub class_strength: f32,
+    pub keep_alive: bool,
 }
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true }
     }
 }
 
@@ -459,6 +460,7 @@ fn scored_take(model: &mut GlocalModel, suite: &SuiteOptions, class: usize, star
         variation: 0.05,
         transition: suite.transition,
         class_strength: suite.class_strength,
+        keep_alive: suite.keep_alive,
         ..Default::default()
     };
     let g = generate(model, &opts, &mut |_| true)?;
@@ -560,8 +562,8 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
         }
     }
     let mut md = format!(
-        "{dataset} ({}, {:?} transition, class strength {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n| samples | FID | accuracy | diversity | multimodality |\n|---|---|---|---|---|\n",
-        dir.display(), opts.transition, opts.class_strength, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
+        "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n| samples | FID | accuracy | diversity | multimodality |\n|---|---|---|---|---|\n",
+        dir.display(), opts.transition, opts.class_strength, if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
         gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), GEN_VARIANTS
     );
     md.push_str(&real.row("Real test split (reference; FID = train vs test)"));
@@ -579,7 +581,7 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
         md.push('\n');
     }
     Ok((md, json!({
-        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.class_strength,
+        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.class_strength, "keep_alive": opts.keep_alive,
         "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
         "real_test": real.json(), "generated": generated.json(),
         "class_control": conditions.iter().map(|(start, transition_s, n, s)| json!({"start": format!("{start:?}"), "transition_s": transition_s, "clips": n, "scores": s.json()})).collect::<Vec<_>>(),
