@@ -56,9 +56,9 @@ fn two_minutes_stay_alive() {
 #[test]
 fn keep_alive_holds_a_long_segment() {
     let mut m = model("h36m");
-    let class = m.spec.class_index("discussion").unwrap();
+    let class = m.spec.class_index("greeting").unwrap();
     let speeds = |m: &mut GlocalModel, keep_alive: bool| -> Vec<f32> {
-        let o = GenerateOptions { init: InitPose::SeedClass { class: "discussion".into(), variant: 0 }, seed: 1, variation: 0.05, keep_alive, ..opts("discussion:120") };
+        let o = GenerateOptions { init: InitPose::SeedClass { class: "greeting".into(), variant: 0 }, seed: 1, variation: 0.05, keep_alive, ..opts("greeting:120") };
         let take = generate(m, &o, &mut |_| true).unwrap();
         window_stats(&take.motion, 10.0, m.spec.class_speed[class], 1e-3 / take.motion.skeleton.meters_per_unit).iter().map(|w| w.speed_ratio).collect()
     };
