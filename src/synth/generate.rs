@@ -34,7 +34,7 @@ pub enum Transition {
 /// The default classifier-free guidance weight. Measured on both shipped models (docs/RESULTS.md):
 /// against plain conditioning (1.0) it lifts class control after a 2 s transition from 89-93%
 /// to 94-97% with FID at the real data's level; stronger guidance (2.5) adds 1-3 points but
-/// moves FID and poses away from the data (a sitting take sits 8 cm higher).
+/// moves FID and poses away from the data (seated hips 5-9 cm higher in one take).
 pub const DEFAULT_CLASS_STRENGTH: f32 = 1.5;
 
 /// Blocks over which an anchored transition eases the context (2 s at 25 fps).
