@@ -11,6 +11,7 @@ use glam::Vec3;
 use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
 use super::spec::{ModelSpec, Seed};
 use crate::data::features::{interpolate, Placement};
+use crate::motion::floor_height;
 
 pub const GLOGEN_FILE: &str = "glogen.safetensors";
 pub const LOCGEN_FILE: &str = "locgen.safetensors";
@@ -51,15 +52,15 @@ impl GlocalModel {
         self.locgen.is_some()
     }
 
-    /// The `variant`-th seed-bank window of `class` (wrapping around), if the class has any.
     /// The height of the floor in the model's world: the mean over the seed bank of each
     /// window's lowest joint.
     pub fn floor_height(&self) -> f32 {
         let layout = &self.spec.layout;
-        let lowest = |s: &Seed| layout.decode(&s.features, Placement::default()).0.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        let lowest = |s: &Seed| floor_height(&layout.decode(&s.features, Placement::default()).0);
         self.seeds.iter().map(lowest).sum::<f32>() / self.seeds.len().max(1) as f32
     }
 
+    /// The `variant`-th seed-bank window of `class` (wrapping around), if the class has any.
     pub fn seed_of_class(&self, class: usize, variant: usize) -> Option<&Seed> {
         let count = self.seeds.iter().filter(|s| s.class == class).count();
         self.seeds.iter().filter(|s| s.class == class).nth(variant % count.max(1))

@@ -59,10 +59,9 @@ pub enum Threading {
     Single,
 }
 
-/// Default: [`Threading::PerDirection`]. With the directions on `rayon::join` (no spawned
-/// threads beside rayon's, and candle's spinning pool off), a training step measured 1.15-1.37x
-/// faster than with a parallel gemm per call, which wakes rayon's workers for every small gemm
-/// (docs/BENCHMARKS.md).
+/// Default: [`Threading::PerDirection`]. With the directions on `rayon::join` (no threads
+/// spawned beside rayon's), a training step measured 1.15-1.37x faster than with a parallel
+/// gemm per call, which wakes rayon's workers for every small gemm (docs/BENCHMARKS.md).
 static THREADING: AtomicU8 = AtomicU8::new(0);
 
 /// Select the threading policy of the fused LSTM (process wide; for benchmarking).
@@ -1041,12 +1040,7 @@ impl CpuBiLstm {
             let (a, c, z) = j1.into_inner();
             self.infer_dir(1, x, b, t, gp, outp, a, c, z, zeros)
         };
-        if parallel {
-            rayon::join(f0, f1);
-        } else {
-            f0();
-            f1();
-        }
+        run2(parallel, f0, f1);
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -63,14 +63,9 @@ impl Motion {
             .collect()
     }
 
-    /// The height of the lowest joint over the whole take (0 when empty): where its floor is.
+    /// The height of the lowest joint over the whole take: where its floor is.
     pub fn floor_height(&self) -> f32 {
-        let lowest = self.positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-        if lowest.is_finite() {
-            lowest
-        } else {
-            0.0
-        }
+        floor_height(&self.positions)
     }
 
     /// The take moved by `offset` (positions and the roots' local translations).
@@ -187,5 +182,15 @@ mod tests {
         let sub = s.subset(&keep);
         assert_eq!(sub.parents, vec![None, Some(0)]);
         assert_eq!(sub.offsets[1], Vec3::new(0.0, 2.0, 0.0));
+    }
+}
+
+/// The height of the lowest of `positions` (0 when there are none).
+pub fn floor_height(positions: &[Vec3]) -> f32 {
+    let lowest = positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    if lowest.is_finite() {
+        lowest
+    } else {
+        0.0
     }
 }

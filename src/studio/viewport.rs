@@ -141,10 +141,7 @@ impl LayerInfo {
         let mpu = skeleton.meters_per_unit;
         let n = motion.joints();
         let frames = motion.frames();
-        let mut ground = motion.positions().iter().map(|p| p.y * mpu).fold(f32::INFINITY, f32::min);
-        if !ground.is_finite() {
-            ground = 0.0;
-        }
+        let ground = motion.floor_height() * mpu;
         let first_root = skeleton.parents.iter().position(Option::is_none).unwrap_or(0);
         // A root that stays on the floor (e.g. Bandai's `joint_Root`, fixed at the origin while
         // the hips carry the motion) is not part of the body: hide it and its bones, and take

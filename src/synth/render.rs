@@ -10,7 +10,7 @@ use imageproc::drawing::{draw_filled_circle_mut, draw_line_segment_mut};
 
 use super::SegmentSpan;
 use crate::data::write::write_atomic;
-use crate::motion::Motion;
+use crate::motion::{floor_height, Motion};
 
 /// A palette of distinct colours for classes, shared by the sheet and the studio.
 pub fn class_color(class: usize) -> [u8; 3] {
@@ -59,7 +59,7 @@ pub fn contact_sheet(motion: &Motion, segments: &[SegmentSpan], opts: &SheetOpti
         let color = Rgb(class_color(class));
         let (cx, cy) = ((k % opts.columns) as f32 * opts.cell as f32, (k / opts.columns) as f32 * opts.cell as f32);
         let frame = motion.frame(t);
-        let ground = frame.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        let ground = floor_height(frame);
         let scale = 0.8 * opts.cell as f32 / height;
         let project = |p: Vec3| {
             let q = view * (p - Vec3::new(frame[0].x, ground, frame[0].z));
