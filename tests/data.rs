@@ -132,3 +132,39 @@ fn features_invert_exactly_on_real_clips() {
         }
     }
 }
+
+/// Heights (m) of the toes in the frames where they stand still, per class of the h36m test
+/// subject, after the reader levelled each take on its floor.
+fn still_toe_heights(d: &DatasetClips, class: usize) -> Vec<f32> {
+    let mut heights = Vec::new();
+    for clip in d.clips.iter().filter(|c| c.class == class && c.split == registry::Split::Test) {
+        let m = &clip.motion;
+        let unit = m.skeleton.meters_per_unit;
+        let toes: Vec<usize> = ["LeftToeBase", "RightToeBase"].iter().filter_map(|n| m.skeleton.index_of(n)).collect();
+        for t in 1..m.frames() {
+            for &j in &toes {
+                let speed = m.frame(t)[j].distance(m.frame(t - 1)[j]) * unit * m.fps;
+                if speed < 0.2 {
+                    heights.push(m.frame(t)[j].y * unit);
+                }
+            }
+        }
+    }
+    heights
+}
+
+#[test]
+fn h36m_takes_stand_on_a_level_floor_at_zero() {
+    let d = load(Dataset::H36m);
+    for (k, name) in d.classes.iter().enumerate() {
+        let mut h = still_toe_heights(&d, k);
+        h.sort_by(f32::total_cmp);
+        let q = |p: f32| h[((h.len() - 1) as f32 * p) as usize];
+        eprintln!("{name}: {} still toe samples; heights p10 {:.3} p50 {:.3} p90 {:.3} m", h.len(), q(0.1), q(0.5), q(0.9));
+        if name == "walking" {
+            // Over metres of travel the standing toes stay at one height near the floor.
+            assert!(q(0.5).abs() < 0.03, "walking: median standing toe at {:.3} m", q(0.5));
+            assert!(q(0.9) - q(0.1) < 0.04, "walking: standing toes spread {:.3} m", q(0.9) - q(0.1));
+        }
+    }
+}

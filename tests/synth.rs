@@ -208,3 +208,54 @@ fn an_exported_take_starts_the_next_at_the_same_height() {
     let gap = (hips(&next.motion, 0) - hips(&first.motion, m.spec.stride)).abs() * unit;
     assert!(gap < 0.05, "the next take starts {gap} m off the first's height");
 }
+
+/// Largest distance between two takes' joints over all frames, in metres.
+fn largest_difference(a: &glocal::motion::Motion, b: &glocal::motion::Motion) -> f32 {
+    a.positions().iter().zip(b.positions()).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max) * a.skeleton.meters_per_unit
+}
+
+/// A boundary exactly on a GloGen block seam (4 s into an h36m take: the seed's 2 s block,
+/// then one generated block): with a transition length, blend and anchor each change the
+/// take; with none, all three are the same cut.
+#[test]
+fn transitions_act_on_a_boundary_at_a_block_seam() {
+    let mut m = model("h36m");
+    let take = |m: &mut GlocalModel, transition: glocal::synth::Transition, seconds: f32| {
+        let o = GenerateOptions { transition, transition_seconds: seconds, ..opts("walking:4,sitting:6") };
+        generate(m, &o, &mut |_| true).unwrap().motion
+    };
+    use glocal::synth::Transition::{Anchor, Blend, Cut};
+    let (cut, blend, anchor) = (take(&mut m, Cut, 2.0), take(&mut m, Blend, 2.0), take(&mut m, Anchor, 2.0));
+    for (what, a, b) in [("blend vs cut", &blend, &cut), ("anchor vs blend", &anchor, &blend), ("anchor vs cut", &anchor, &cut)] {
+        let d = largest_difference(a, b);
+        assert!(d > 0.02, "{what}: takes differ by only {d:.4} m");
+    }
+    let (cut0, blend0) = (take(&mut m, Cut, 0.0), take(&mut m, Blend, 0.0));
+    assert_eq!(largest_difference(&cut0, &blend0), 0.0, "a transition of 0 s is a cut");
+    // A longer transition changes the take too.
+    let long = take(&mut m, Blend, 4.0);
+    assert!(largest_difference(&long, &blend) > 0.02);
+}
+
+/// Ten minutes of one class, for every class of both models: every 10 s window moves at
+/// 0.5-2x the real class's mean joint speed (once the seed's block is over).
+#[test]
+fn ten_minute_takes_stay_at_their_class_speed() {
+    let mut failures = Vec::new();
+    for name in ["h36m", "bandai"] {
+        let mut m = model(name);
+        let window = (10.0 * m.spec.fps) as usize;
+        for (class, class_name) in m.spec.classes.clone().iter().enumerate() {
+            let o = GenerateOptions { init: InitPose::SeedClass { class: class_name.clone(), variant: 0 }, ..opts(&format!("{class_name}:600")) };
+            let motion = generate(&mut m, &o, &mut |_| true).unwrap().motion;
+            let start = m.spec.block_len * m.spec.stride;
+            let ratios: Vec<f32> = (start..motion.frames() - window).step_by(window).map(|f| mean_joint_speed(&motion.slice(f, f + window)) / m.spec.class_speed[class]).collect();
+            let (lo, hi) = (ratios.iter().cloned().fold(f32::MAX, f32::min), ratios.iter().cloned().fold(0.0, f32::max));
+            eprintln!("{name} {class_name}: 10 s windows at {lo:.2}-{hi:.2}x the real speed");
+            if !(lo >= 0.5 && hi <= 2.0) {
+                failures.push(format!("{name} {class_name}: {lo:.2}-{hi:.2}x"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "outside 0.5-2x: {failures:?}");
+}

@@ -175,7 +175,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32) -> Result
     let mut runs = Vec::new();
     for seconds in [10.0f32, 60.0, 600.0] {
         let segments = (0..(seconds / 10.0) as usize)
-            .map(|k| Segment { class: classes[k % classes.len()].clone(), seconds: 10.0, pace: None })
+            .map(|k| Segment::new(classes[k % classes.len()].clone(), 10.0))
             .collect();
         let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, ..Default::default() };
         let mut best = f64::INFINITY;

@@ -8,7 +8,8 @@ use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::eval::{run_suite, SuiteOptions, SUITES};
-use crate::synth::{Transition, DEFAULT_CLASS_STRENGTH};
+use super::args::TransitionArg;
+use crate::synth::DEFAULT_CLASS_STRENGTH;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
@@ -32,7 +33,7 @@ pub struct EvalArgs {
     cache: Option<PathBuf>,
     /// The class-generation suites' transition (ablation: `cut` is the paper's class prior alone).
     #[arg(long, value_enum, default_value = "anchor")]
-    transition: Transition,
+    transition: TransitionArg,
     /// The class-generation suites' classifier-free guidance weight.
     #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
     class_strength: f32,
@@ -40,6 +41,12 @@ pub struct EvalArgs {
     /// 1`: the paper's mechanism alone).
     #[arg(long)]
     no_keep_alive: bool,
+    /// The suites' takes and forecasts with GloGen's blocks unjoined at their seams.
+    #[arg(long)]
+    no_seam_join: bool,
+    /// The paper's GlocalNet: `--transition cut --class-strength 1 --no-keep-alive --no-seam-join`.
+    #[arg(long)]
+    paper: bool,
 }
 
 pub fn run(args: EvalArgs) -> Result<()> {
@@ -47,9 +54,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
         data: DataRoot::resolve(args.data.as_deref()),
         train_baselines: args.train_baselines,
         model: args.model,
-        transition: args.transition,
-        class_strength: args.class_strength,
-        keep_alive: !args.no_keep_alive,
+        transition: if args.paper { TransitionArg::Cut } else { args.transition }.into(),
+        class_strength: if args.paper { 1.0 } else { args.class_strength },
+        keep_alive: !(args.no_keep_alive || args.paper),
+        join_seams: !(args.no_seam_join || args.paper),
         ..Default::default()
     };
     if let Some(c) = args.cache {

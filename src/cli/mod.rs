@@ -1,5 +1,6 @@
 //! The `glocal` command line: every subcommand is a thin layer over the library.
 
+mod args;
 mod bench_cmd;
 mod data_cmd;
 mod eval_cmd;

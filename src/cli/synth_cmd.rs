@@ -8,14 +8,16 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::model::glocal::GlocalModel;
 use crate::synth::export::{export, ExportFormat};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
-use crate::synth::{generate, GenerateOptions, InitPose, Transition, DEFAULT_CLASS_STRENGTH};
+use super::args::TransitionArg;
+use crate::synth::{generate, GenerateOptions, InitPose, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
     /// Model folder (default: models/h36m).
     #[arg(long, default_value = "models/h36m")]
     pub model: PathBuf,
-    /// Segments as CLASS:SECONDS[@PACE], comma-separated, e.g. "sitting:3,eating:5,walking:10".
+    /// Segments as CLASS:SECONDS[@PACE][~TRANSITION], comma-separated, e.g.
+    /// "sitting:3,eating:5,walking:10~0.5" (TRANSITION: seconds into that segment).
     #[arg(long)]
     pub timeline: String,
     #[arg(long, default_value_t = 1.0)]
@@ -27,7 +29,16 @@ pub struct GenerateArgs {
     #[arg(long)]
     pub no_locgen: bool,
     #[arg(long, value_enum, default_value = "anchor")]
-    pub transition: Transition,
+    pub transition: TransitionArg,
+    /// Seconds over which each class change happens, centred on its boundary (0: a cut).
+    #[arg(long, default_value_t = DEFAULT_TRANSITION_SECONDS)]
+    pub transition_seconds: f32,
+    /// Leave GloGen's blocks unjoined at their seams (as in the paper), for comparison.
+    #[arg(long)]
+    pub no_seam_join: bool,
+    /// The paper's GlocalNet: cut transitions, class strength 1, no keep-alive, unjoined seams.
+    #[arg(long)]
+    pub paper: bool,
     /// Classifier-free guidance weight (1: plain conditioning; ignored by models trained
     /// without class dropout).
     #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
@@ -67,18 +78,23 @@ pub fn parse_init(s: &str) -> Result<InitPose> {
 
 pub fn run_generate(args: GenerateArgs) -> Result<()> {
     ExportFormat::from_path(&args.out)?;
-    let opts = GenerateOptions {
+    let mut opts = GenerateOptions {
         timeline: args.timeline.parse()?,
         pace: args.pace,
         init: parse_init(&args.init)?,
         locgen: !args.no_locgen,
-        transition: args.transition,
+        transition: args.transition.into(),
+        transition_seconds: args.transition_seconds,
         class_strength: args.class_strength,
-        seed: args.seed,
-        variation: if args.seed == 0 { 0.0 } else { 0.05 },
         project_bones: !args.no_projection,
         keep_alive: !args.no_keep_alive,
-    };
+        join_seams: !args.no_seam_join,
+        ..Default::default()
+    }
+    .varied(args.seed);
+    if args.paper {
+        opts = opts.paper();
+    }
     let mut model = GlocalModel::load(&args.model)?;
     let start = Instant::now();
     let bar = ProgressBar::new(1000);

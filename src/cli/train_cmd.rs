@@ -7,6 +7,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::data::archive::DataRoot;
+use crate::data::features::Interpolation;
 use crate::model::spec::LossKind;
 use crate::model::train::{train, Stage, TrainOptions};
 
@@ -52,6 +53,12 @@ pub struct TrainArgs {
     eval_every: usize,
     #[arg(long, default_value_t = 250)]
     checkpoint_every: usize,
+    /// Start from the trained weights of this stage in DIR (a fresh optimiser): fine-tuning.
+    #[arg(long, value_name = "DIR")]
+    init_from: Option<PathBuf>,
+    /// Fine-tune the stage already trained in --out (the same as --init-from OUT).
+    #[arg(long)]
+    fine_tune: bool,
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
@@ -69,10 +76,15 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.stride = args.stride;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
+    opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
     if args.paper {
         opts.class_in_decoder = false;
         opts.class_dropout = 0.0;
         opts.rollout_blocks = 1;
+        opts.interpolation = Interpolation::Linear;
+    }
+    if let Some(dir) = &opts.init_from {
+        eprintln!("fine-tuning {:?} from the trained weights in {}", opts.stage, dir.display());
     }
     let bar = ProgressBar::new(opts.steps as u64);
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")?);

@@ -10,6 +10,7 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 use serde::Deserialize;
 
+use super::floor::fit_floor;
 use super::FormatError;
 use crate::motion::{LocalPose, Motion, Skeleton};
 
@@ -131,8 +132,10 @@ fn local_rotation(r: Vec3) -> Quat {
 }
 
 /// Human3.6M stores no absolute starting orientation, so a rebuilt take can stand tilted.
-/// Rotates the take so that its mean hips-to-neck direction points up (+y), keeping the
-/// first frame's root on the vertical axis through the origin.
+/// Levels the take on the floor its toes stand on ([`fit_floor`]), with the floor at height
+/// 0 and the first frame's root on the vertical axis through the origin. A take whose toes
+/// never stand still is levelled by its mean hips-to-neck direction instead, with the floor
+/// under its lowest toe.
 fn level_to_vertical(motion: &Motion) -> Motion {
     let neck = motion.skeleton.index_of("Neck").unwrap_or(motion.joints() - 1);
     let mut up = Vec3::ZERO;
@@ -140,19 +143,33 @@ fn level_to_vertical(motion: &Motion) -> Motion {
         let f = motion.frame(t);
         up += (f[neck] - f[0]).normalize_or_zero();
     }
-    let fix = Quat::from_rotation_arc(up.normalize_or(Vec3::Y), Vec3::Y);
-    let origin = motion.frame(0)[0];
+    let by_torso = Quat::from_rotation_arc(up.normalize_or(Vec3::Y), Vec3::Y);
+    let torso_levelled = rotate_about_origin(motion, by_torso, Vec3::ZERO);
+    let toes: Vec<usize> = ["LeftToeBase", "RightToeBase"].iter().filter_map(|n| motion.skeleton.index_of(n)).collect();
+    let (fix, floor) = match fit_floor(&torso_levelled, &toes) {
+        Some(floor) => (floor.levelling * by_torso, floor.height),
+        None => {
+            let lowest = (0..motion.frames()).flat_map(|t| toes.iter().map(move |&j| (t, j))).map(|(t, j)| torso_levelled.frame(t)[j].y).fold(f32::INFINITY, f32::min);
+            (by_torso, if lowest.is_finite() { lowest } else { 0.0 })
+        }
+    };
+    let origin = fix * motion.frame(0)[0];
+    rotate_about_origin(motion, fix, Vec3::new(origin.x, floor, origin.z))
+}
+
+/// The take rotated by `rotation` about the origin, then moved by `-shift`.
+fn rotate_about_origin(motion: &Motion, rotation: Quat, shift: Vec3) -> Motion {
     let poses = motion.local_poses.as_ref().expect("expmap takes have local poses");
-    let leveled = poses
+    let moved = poses
         .iter()
         .map(|p| {
             let mut p = p.clone();
-            p.rotations[0] = fix * p.rotations[0];
-            p.translations[0] = fix * (p.translations[0] - origin);
+            p.rotations[0] = rotation * p.rotations[0];
+            p.translations[0] = rotation * p.translations[0] - shift;
             p
         })
         .collect();
-    Motion::from_local_poses(motion.skeleton.clone(), motion.fps, leveled)
+    Motion::from_local_poses(motion.skeleton.clone(), motion.fps, moved)
 }
 
 /// Human3.6M's 2D view: the given joints, root-relative, projected orthographically onto the

@@ -194,23 +194,52 @@ impl Normalizer {
     }
 }
 
-/// Dense frames between sparse poses, by linear interpolation of world positions (the
-/// paper's equation for LocGen's input): `stride` frames per interval, the last sparse pose
-/// included once at the end.
-pub fn interpolate(sparse: &[Vec3], joints: usize, stride: usize) -> Vec<Vec3> {
+/// How LocGen's input fills the frames between sparse poses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Interpolation {
+    /// Straight lines between sparse poses (the paper's equation): every sparse pose is a
+    /// kink, which LocGen does not smooth away (acceleration at sparse frames 3x the mean).
+    #[default]
+    Linear,
+    /// A Catmull-Rom spline through the sparse poses: velocity is continuous at each of them.
+    CatmullRom,
+}
+
+/// Dense frames between sparse poses, interpolating world positions: `stride` frames per
+/// interval, the last sparse pose included once at the end.
+pub fn interpolate(sparse: &[Vec3], joints: usize, stride: usize, kind: Interpolation) -> Vec<Vec3> {
     let n = sparse.len() / joints;
+    let pose = |k: usize| &sparse[k * joints..(k + 1) * joints];
     let mut out = Vec::with_capacity(((n.max(1) - 1) * stride + 1) * joints);
     for k in 0..n.saturating_sub(1) {
-        let (a, b) = (&sparse[k * joints..(k + 1) * joints], &sparse[(k + 1) * joints..(k + 2) * joints]);
+        let (a, b) = (pose(k), pose(k + 1));
+        // Catmull-Rom tangents (one-sided at the ends), per interval.
+        let (before, after) = (pose(k.saturating_sub(1)), pose((k + 2).min(n - 1)));
         for s in 0..stride {
             let w = s as f32 / stride as f32;
-            out.extend(a.iter().zip(b).map(|(p, q)| p.lerp(*q, w)));
+            match kind {
+                Interpolation::Linear => out.extend(a.iter().zip(b).map(|(p, q)| p.lerp(*q, w))),
+                Interpolation::CatmullRom => {
+                    let (h00, h10, h01, h11) = hermite(w);
+                    out.extend((0..joints).map(|j| {
+                        let m0 = if k == 0 { b[j] - a[j] } else { (b[j] - before[j]) * 0.5 };
+                        let m1 = if k + 2 >= n { b[j] - a[j] } else { (after[j] - a[j]) * 0.5 };
+                        a[j] * h00 + m0 * h10 + b[j] * h01 + m1 * h11
+                    }));
+                }
+            }
         }
     }
     if n > 0 {
-        out.extend_from_slice(&sparse[(n - 1) * joints..]);
+        out.extend_from_slice(pose(n - 1));
     }
     out
+}
+
+/// The cubic Hermite basis at `w` in [0, 1].
+fn hermite(w: f32) -> (f32, f32, f32, f32) {
+    let (w2, w3) = (w * w, w * w * w);
+    (2.0 * w3 - 3.0 * w2 + 1.0, w3 - 2.0 * w2 + w, -2.0 * w3 + 3.0 * w2, w3 - w2)
 }
 
 #[cfg(test)]
@@ -271,9 +300,16 @@ mod tests {
     #[test]
     fn interpolation_keeps_keyframes() {
         let sparse = vec![Vec3::ZERO, Vec3::splat(5.0)];
-        let dense = interpolate(&sparse, 1, 5);
+        let dense = interpolate(&sparse, 1, 5, Interpolation::Linear);
         assert_eq!(dense.len(), 6);
         assert_eq!(dense[1], Vec3::ONE);
         assert_eq!(dense[5], Vec3::splat(5.0));
+        // A spline passes through the keys and keeps a steady motion steady.
+        let steady: Vec<Vec3> = (0..4).map(|k| Vec3::splat(5.0 * k as f32)).collect();
+        let smooth = interpolate(&steady, 1, 5, Interpolation::CatmullRom);
+        assert_eq!(smooth.len(), 16);
+        for (f, p) in smooth.iter().enumerate() {
+            assert!((p.x - f as f32).abs() < 1e-5, "frame {f}: {p}");
+        }
     }
 }

@@ -5,6 +5,7 @@ pub mod bvh;
 mod error;
 pub mod expmap;
 pub mod features;
+pub mod floor;
 pub mod npy;
 pub mod registry;
 pub mod write;

@@ -11,7 +11,7 @@ use crate::motion::Motion;
 /// `blocks * block_len` sparse poses after frame `t0` of `m` (on the model's skeleton and
 /// frame rate), the `k`-th at frame `t0 + (k + 1) * stride`, from the `block_len` observed
 /// sparse poses ending at `t0`. Positions are in the motion's own world frame.
-pub fn glogen_forecast(model: &mut GlocalModel, m: &Motion, t0: usize, class: usize, blocks: usize) -> Result<Vec<Vec3>> {
+pub fn glogen_forecast(model: &mut GlocalModel, m: &Motion, t0: usize, class: usize, blocks: usize, join_seams: bool) -> Result<Vec<Vec3>> {
     let spec = model.spec.clone();
     let (s, t, dim) = (spec.stride, spec.block_len, spec.layout.dim());
     let first = t0 as isize - ((t - 1) * s) as isize;
@@ -24,7 +24,7 @@ pub fn glogen_forecast(model: &mut GlocalModel, m: &Motion, t0: usize, class: us
     let mut out = vec![0.0; t * dim];
     for _ in 0..blocks {
         let input = sparse[sparse.len() - t * dim..].to_vec();
-        model.glogen_block(&input, &class_vec, 1.0, &mut out);
+        model.rollout_block(&input, &input[(t - 2) * dim..], &class_vec, 1.0, join_seams, &mut out);
         sparse.extend_from_slice(&out);
     }
     let mut predicted = sparse[t * dim..].to_vec();

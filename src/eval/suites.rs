@@ -39,11 +39,13 @@ pub struct SuiteOptions {
     pub transition: Transition,
     pub class_strength: f32,
     pub keep_alive: bool,
+    /// GloGen's blocks joined at their seams ([`crate::model::glocal::GlocalModel::rollout_block`]).
+    pub join_seams: bool,
 }
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true }
     }
 }
 
@@ -250,7 +252,7 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String,
                 for &(ti, t0) in &starts {
                     let m = &corpus.test[ti].motion;
                     let mut p = m.frame(t0).to_vec();
-                    p.extend(glogen_forecast(model, m, t0, k, 1)?);
+                    p.extend(glogen_forecast(model, m, t0, k, 1, opts.join_seams)?);
                     preds.push(p);
                 }
                 rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
@@ -354,7 +356,7 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, V
             let truth: Vec<Vec3> = (0..n_out).flat_map(|k| m16.frame(w + n_in + k).to_vec()).collect();
             real.push(view2d(&skel, truth, &model_joints, hips, unit));
             let observed = m25.frame(*t0).to_vec();
-            let sparse = glogen_forecast(&mut model, m25, *t0, class, blocks)?;
+            let sparse = glogen_forecast(&mut model, m25, *t0, class, blocks, opts.join_seams)?;
             for (mi, locgen) in [(0, true), (1, false)] {
                 let dense = densify(&mut model, &observed, &sparse, locgen);
                 let frames: Vec<Vec3> = (1..=n_out).flat_map(|k| metrics::pose_at(&dense, skel.len(), spec.fps, k as f32 * dt16)).collect();
@@ -447,7 +449,7 @@ fn scored_take(model: &mut GlocalModel, suite: &SuiteOptions, class: usize, star
     let transition = (transition_s * spec.fps).round() as usize;
     let scored_s = (transition + frames + 2 * spec.stride) as f32 / spec.fps;
     let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
-    let segment = |c: usize, seconds: f32| Segment { class: spec.classes[c].clone(), seconds, pace: None };
+    let segment = |c: usize, seconds: f32| Segment::new(spec.classes[c].clone(), seconds);
     let (segments, init_class) = match start {
         Start::SameClass => (vec![segment(class, seed_s + scored_s)], class),
         Start::OtherSeed => (vec![segment(class, seed_s + scored_s)], other),
@@ -456,13 +458,13 @@ fn scored_take(model: &mut GlocalModel, suite: &SuiteOptions, class: usize, star
     let opts = GenerateOptions {
         timeline: Timeline { segments },
         init: InitPose::SeedClass { class: spec.classes[init_class].clone(), variant },
-        seed,
-        variation: 0.05,
         transition: suite.transition,
         class_strength: suite.class_strength,
         keep_alive: suite.keep_alive,
+        join_seams: suite.join_seams,
         ..Default::default()
-    };
+    }
+    .varied(seed);
     let g = generate(model, &opts, &mut |_| true)?;
     // The seed's own poses open a single-segment take; the requested segment's span says
     // where it begins otherwise.
@@ -622,7 +624,7 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Strin
             let m = &t.motion;
             let mut frame = s;
             while frame + w + s + 1 < m.frames() && meta.len() < 4000 {
-                let interp = crate::model::corpus::interpolated_window(m, frame, w, s);
+                let interp = crate::model::corpus::interpolated_window(m, frame, w, s, spec.locgen.interpolation);
                 let refs: Vec<&[Vec3]> = interp.chunks_exact(j).collect();
                 feats.extend(layout.encode(&refs, Some(m.frame(frame - 1))));
                 meta.push((m, frame, interp));
@@ -684,14 +686,14 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, 
             let mut stats = Vec::new();
             for (project, keep_alive) in [(true, true), (false, true), (true, false)] {
                 let o = GenerateOptions {
-                    timeline: Timeline { segments: vec![Segment { class: spec.classes[class].clone(), seconds: 120.0, pace: None }] },
+                    timeline: Timeline { segments: vec![Segment::new(spec.classes[class].clone(), 120.0)] },
                     init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: 0 },
-                    seed: 1,
-                    variation: 0.05,
                     project_bones: project,
                     keep_alive,
+                    join_seams: opts.join_seams,
                     ..Default::default()
-                };
+                }
+                .varied(1);
                 match generate(&mut model, &o, &mut |_| true) {
                     Ok(g) => stats.push(metrics::window_stats(&g.motion, 10.0, spec.class_speed[class], min_bone)),
                     Err(e) => {

@@ -8,7 +8,7 @@ use glam::Vec3;
 use rand::Rng;
 
 use crate::data::archive::DataRoot;
-use crate::data::features::{interpolate, FeatureLayout, Normalizer};
+use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
 use crate::motion::{Motion, Skeleton};
 
@@ -150,12 +150,18 @@ pub fn sample_window<'a>(tracks: &'a [Track], classes: usize, span: usize, rng: 
     None
 }
 
-/// LocGen's input for the dense frames `[start, start + window)`: the linear interpolation
-/// between the sparse keyframes `stride` apart (the next window's first keyframe included).
-pub fn interpolated_window(m: &Motion, start: usize, window: usize, stride: usize) -> Vec<Vec3> {
+/// LocGen's input for the dense frames `[start, start + window)`: the interpolation between
+/// the sparse keyframes `stride` apart (the next window's first keyframe included). A spline
+/// also reads the keyframes either side of the window where the clip has them, as it does
+/// inside a generated take.
+pub fn interpolated_window(m: &Motion, start: usize, window: usize, stride: usize, kind: Interpolation) -> Vec<Vec3> {
     let j = m.joints();
-    let keys: Vec<Vec3> = (0..=window / stride).flat_map(|k| m.frame(start + k * stride).to_vec()).collect();
-    let mut dense = interpolate(&keys, j, stride);
-    dense.truncate(window * j);
-    dense
+    let spline = kind == Interpolation::CatmullRom;
+    let before = spline && start >= stride;
+    let last_key = window / stride + usize::from(spline && start + (window / stride + 1) * stride < m.frames());
+    let first = if before { start - stride } else { start };
+    let keys: Vec<Vec3> = (0..=last_key + usize::from(before)).flat_map(|k| m.frame(first + k * stride).to_vec()).collect();
+    let dense = interpolate(&keys, j, stride, kind);
+    let skip = if before { stride * j } else { 0 };
+    dense[skip..skip + window * j].to_vec()
 }

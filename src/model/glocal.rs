@@ -10,12 +10,15 @@ use glam::Vec3;
 
 use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
 use super::spec::{ModelSpec, Seed};
-use crate::data::features::{interpolate, Placement};
+use crate::data::features::{interpolate, Placement, ROOT_FEATURES};
 use crate::motion::floor_height;
 
 pub const GLOGEN_FILE: &str = "glogen.safetensors";
 pub const LOCGEN_FILE: &str = "locgen.safetensors";
 pub const SEEDS_FILE: &str = "seeds.json";
+
+/// LocGen windows per batch: 256 windows (102 s at 25 fps) keep its workspace near 20 MB.
+const LOCGEN_CHUNK: usize = 256;
 
 pub struct GlocalModel {
     pub dir: PathBuf,
@@ -101,6 +104,24 @@ impl GlocalModel {
         self.glogen.last_encoding(2, t)[..t * 2 * self.spec.glogen.block.hidden].to_vec()
     }
 
+    /// One step of GloGen's rollout: a block from `input` (the context as GloGen should see
+    /// it, eased towards an anchor or noised), joined onto `previous`, the last two poses
+    /// actually before it (normalised), when `join` is set. Returns the block's embedding.
+    ///
+    /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
+    /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
+    /// inside a block). Joining shifts the block so that its first pose continues the last
+    /// step of the context (positions at the last velocity, velocities as they were) and
+    /// fades the shift out over the block with a raised cosine, which keeps the block's own
+    /// motion and its end where GloGen put it.
+    pub fn rollout_block(&mut self, input: &[f32], previous: &[f32], class: &[f32], strength: f32, join: bool, out: &mut [f32]) -> Vec<f32> {
+        let embedding = self.glogen_block(input, class, strength, out);
+        if join {
+            join_seam(previous, out, self.spec.layout.dim());
+        }
+        embedding
+    }
+
     /// GloGen's encoder states over one block, concatenated: the embedding of the t-SNE panel.
     pub fn embed(&mut self, input: &[f32], class: &[f32]) -> Vec<f32> {
         let t = self.spec.block_len;
@@ -115,10 +136,14 @@ impl GlocalModel {
     pub fn locgen(&mut self, frames: &mut [f32], windows: usize) -> bool {
         let Some(locgen) = self.locgen.as_mut() else { return false };
         let w = self.spec.locgen.window;
-        let mut residual = vec![0.0; frames.len()];
-        locgen.infer(frames, None, windows, w, &mut residual);
-        for (f, r) in frames.iter_mut().zip(&residual) {
-            *f += r;
+        let width = w * self.spec.layout.dim();
+        // Chunks of windows bound the workspace (gates and states of every window in the
+        // batch) whatever the take's length.
+        let mut residual = vec![0.0; LOCGEN_CHUNK.min(windows) * width];
+        for chunk in frames[..windows * width].chunks_mut(LOCGEN_CHUNK * width) {
+            let n = chunk.len() / width;
+            locgen.infer(chunk, None, n, w, &mut residual[..n * width]);
+            chunk.iter_mut().zip(&residual).for_each(|(f, r)| *f += r);
         }
         true
     }
@@ -130,7 +155,7 @@ impl GlocalModel {
     pub fn densify(&mut self, sparse: &[Vec3], refine: bool) -> Vec<Vec3> {
         let spec = &self.spec;
         let j = spec.layout.joints();
-        let dense = interpolate(sparse, j, spec.stride);
+        let dense = interpolate(sparse, j, spec.stride, spec.locgen.interpolation);
         if !refine || !self.has_locgen() {
             return dense;
         }
@@ -152,6 +177,29 @@ impl GlocalModel {
         feats.truncate(frames * dim);
         // The first frame's features carry no displacement, so decoding starts where it stands.
         layout.decode(&feats, layout.placement(refs[0])).0
+    }
+}
+
+/// See [`GlocalModel::rollout_block`]. Features 1-3 (the root's ground displacement and
+/// heading change) are velocities already; the rest are positions. The block's first two
+/// poses are moved to where the context's last step carries on to (continuous position and
+/// velocity); the second pose's shift then fades out over the rest of the block with a
+/// raised cosine, so the block ends where GloGen put it.
+fn join_seam(previous: &[f32], block: &mut [f32], dim: usize) {
+    let (before, last) = previous.split_at(dim);
+    let poses = block.len() / dim;
+    if poses < 2 {
+        return;
+    }
+    let fade: Vec<f32> = (1..poses).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * (k - 1) as f32 / (poses - 1) as f32).cos())).collect();
+    for f in 0..dim {
+        let step = if (1..ROOT_FEATURES).contains(&f) { 0.0 } else { last[f] - before[f] };
+        let first_shift = last[f] + step - block[f];
+        let second_shift = last[f] + 2.0 * step - block[dim + f];
+        block[f] += first_shift;
+        for (k, w) in (1..poses).zip(&fade) {
+            block[k * dim + f] += second_shift * w;
+        }
     }
 }
 

@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::block::BlockConfig;
-use crate::data::features::{FeatureLayout, Normalizer};
+use crate::data::features::{FeatureLayout, Interpolation, Normalizer};
 use crate::data::write::write_atomic;
 use crate::motion::Skeleton;
 
@@ -46,6 +46,9 @@ pub struct LocGenSpec {
     pub block: BlockConfig,
     /// Dense frames per LocGen window.
     pub window: usize,
+    /// The interpolation LocGen refines (models saved before it had a choice: linear).
+    #[serde(default)]
+    pub interpolation: Interpolation,
 }
 
 /// What training recorded, per stage.

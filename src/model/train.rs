@@ -22,7 +22,7 @@ use super::corpus::{interpolated_window, sample_window, Corpus, Track};
 use super::glocal::{load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
 use super::spec::{GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
-use crate::data::features::{FeatureLayout, Normalizer, Placement};
+use crate::data::features::{FeatureLayout, Interpolation, Normalizer, Placement};
 use crate::data::registry::Dataset;
 use crate::data::write::write_atomic;
 
@@ -65,6 +65,11 @@ pub struct TrainOptions {
     pub min_clips: usize,
     pub eval_every: usize,
     pub checkpoint_every: usize,
+    /// Start the stage from this folder's trained weights (with a fresh optimiser) instead
+    /// of random ones: fine-tuning, e.g. after a change to the data.
+    pub init_from: Option<PathBuf>,
+    /// The interpolation a new LocGen refines.
+    pub interpolation: Interpolation,
 }
 
 impl TrainOptions {
@@ -91,6 +96,8 @@ impl TrainOptions {
             min_clips: 3,
             eval_every: 250,
             checkpoint_every: 250,
+            init_from: None,
+            interpolation: Interpolation::CatmullRom,
         }
     }
 }
@@ -123,6 +130,10 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let varmap = VarMap::new();
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
     seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
+    if let Some(dir) = &opts.init_from {
+        let from = dir.join(opts.stage.file());
+        load_weights(&from, &varmap).with_context(|| format!("cannot fine-tune from {}", from.display()))?;
+    }
     let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
     let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
     let weights_path = opts.out.join(opts.stage.file());
@@ -208,6 +219,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
     let locgen = LocGenSpec {
         block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
         window: opts.locgen_window,
+        interpolation: opts.interpolation,
     };
     if opts.out.join("model.json").exists() {
         let mut spec = ModelSpec::read(&opts.out)?;
@@ -363,7 +375,7 @@ impl StageTrainer<'_> {
             }
             Stage::Locgen => {
                 let w = self.spec.locgen.window;
-                let interp = interpolated_window(m, frame, w, s);
+                let interp = interpolated_window(m, frame, w, s, self.spec.locgen.interpolation);
                 let frames: Vec<&[glam::Vec3]> = interp.chunks_exact(m.joints()).collect();
                 let mut input = self.layout().encode(&frames, Some(m.frame(frame - 1)));
                 let mut target = self.layout().encode_motion(m, frame, 1, w);
@@ -442,7 +454,7 @@ impl StageTrainer<'_> {
                 Stage::Locgen => {
                     let w = self.spec.locgen.window;
                     let target: Vec<Vec3> = (0..w).flat_map(|k| m.frame(frame + k).to_vec()).collect();
-                    let baseline = interpolated_window(m, frame, w, s);
+                    let baseline = interpolated_window(m, frame, w, s, self.spec.locgen.interpolation);
                     (target, self.layout().placement(m.frame(frame - 1)), baseline)
                 }
             };

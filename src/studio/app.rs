@@ -259,7 +259,7 @@ impl StudioApp {
             return;
         };
         let at = self.selected.map_or(self.doc.timeline.segments.len(), |k| k + 1).min(self.doc.timeline.segments.len());
-        self.edit(|d| d.timeline.segments.insert(at, Segment { class, seconds: 3.0, pace: None }));
+        self.edit(|d| d.timeline.segments.insert(at, Segment::new(class, 3.0)));
         self.selected = Some(at);
     }
 

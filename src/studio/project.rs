@@ -82,7 +82,7 @@ impl Project {
         let segments = walk
             .into_iter()
             .chain(other)
-            .map(|c| Segment { class: c.clone(), seconds: 4.0, pace: None })
+            .map(|c| Segment::new(c.clone(), 4.0))
             .collect();
         Timeline { segments }
     }
@@ -96,11 +96,9 @@ impl Project {
             locgen: self.locgen,
             transition: self.transition,
             class_strength: self.class_strength,
-            seed: self.variation_seed,
-            variation: if self.variation_seed == 0 { 0.0 } else { 0.05 },
-            project_bones: true,
-            keep_alive: true,
+            ..Default::default()
         }
+        .varied(self.variation_seed)
     }
 
     /// Whether a change from `other` to `self` changes the generated take (and not only how

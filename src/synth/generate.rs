@@ -2,31 +2,28 @@
 //! segment's class, LocGen refines the interpolated frames between them, pace stretches
 //! time, and a final projection restores the skeleton's bone lengths.
 
-use std::path::PathBuf;
-
 use anyhow::{bail, Result};
 use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use super::init::initial_features;
+use super::init::{initial_features, InitPose};
 use super::timeline::Timeline;
 use crate::data::features::ROOT_FEATURES;
 use crate::model::glocal::GlocalModel;
 use crate::motion::{solve_local_poses, Motion};
 
 /// How GloGen's class prior changes at a segment boundary.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum Transition {
     /// The paper's method: the block that starts in the new segment gets the new class.
     Cut,
-    /// A block that straddles a boundary gets both classes, weighted by how many of its
-    /// poses fall on each side, so the activity fades over about one block.
+    /// The class vector fades from the old class to the new one over the transition length.
     Blend,
     /// Blend, and GloGen's context is also eased towards a real pose window of the new
-    /// class (from the seed bank) over the next blocks, so the requested activity wins
-    /// over the momentum of the previous one.
+    /// class (from the seed bank) over the blocks of the transition, so the requested
+    /// activity wins over the momentum of the previous one.
     #[default]
     Anchor,
 }
@@ -37,8 +34,9 @@ pub enum Transition {
 /// moves FID and poses away from the data (seated hips 5-9 cm higher in one take).
 pub const DEFAULT_CLASS_STRENGTH: f32 = 1.5;
 
-/// Blocks over which an anchored transition eases the context (2 s at 25 fps).
-const ANCHOR_BLOCKS: usize = 2;
+/// The default length of a class change, centred on the boundary (one h36m block, two
+/// Bandai blocks).
+pub const DEFAULT_TRANSITION_SECONDS: f32 = 2.0;
 
 /// A block whose poses move less than this fraction of its class's typical motion (the mean
 /// over the seed bank) has stalled: deterministic regression drifts towards the mean pose
@@ -49,42 +47,39 @@ const STALL_BELOW: f32 = 0.7;
 /// naturally still moment (a pause in a gesture) is not cut short at once.
 const KEEP_ALIVE_GAP: usize = 2;
 
-/// Where the first sparse poses come from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum InitPose {
-    /// A seed-bank entry of this class (the `variant`-th one, wrapping around).
-    SeedClass { class: String, variant: usize },
-    /// A seed-bank entry by index.
-    SeedIndex(usize),
-    /// A motion file (BVH, NPY (T, J, 3), or an exponential-map text of the model's
-    /// dataset) from this frame on.
-    File { path: PathBuf, frame: usize },
-}
+/// Blocks over which a keep-alive eases the context towards its anchor window.
+const KEEP_ALIVE_EASE: usize = 2;
 
-impl Default for InitPose {
-    fn default() -> Self {
-        InitPose::SeedIndex(0)
-    }
-}
+/// A keep-alive pulls the context this far (at random in this range) towards its anchor, so
+/// no two re-anchorings are alike and a long take never falls into a loop.
+const KEEP_ALIVE_STRENGTH: std::ops::Range<f32> = 0.6..1.0;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct GenerateOptions {
     pub timeline: Timeline,
     pub pace: f32,
     pub init: InitPose,
     pub locgen: bool,
     pub transition: Transition,
+    /// Seconds over which the take changes class, centred on each boundary (a segment's own
+    /// `transition` overrides it); 0 is a cut whatever `transition` says.
+    pub transition_seconds: f32,
     /// Classifier-free guidance weight (1 = plain conditioning).
     pub class_strength: f32,
-    /// Seeds the small pose noise that makes repeated takes differ (0: none).
+    /// Seeds the choice of anchor windows and the small pose noise that make repeated takes
+    /// differ.
     pub seed: u64,
     /// Noise added to each block's input, in normalised units, so takes with different
-    /// seeds differ while staying in class.
+    /// seeds differ while staying in class (see [`GenerateOptions::varied`]).
     pub variation: f32,
     pub project_bones: bool,
     /// Re-anchor the context on a fresh seed window of the segment's class when GloGen's
     /// motion stalls (see [`STALL_BELOW`]), so long segments do not freeze.
     pub keep_alive: bool,
+    /// Join each GloGen block onto the poses before it (see [`GlocalModel::rollout_block`]);
+    /// off, the blocks pop at every seam as in the paper.
+    pub join_seams: bool,
 }
 
 impl Default for GenerateOptions {
@@ -95,12 +90,37 @@ impl Default for GenerateOptions {
             init: InitPose::default(),
             locgen: true,
             transition: Transition::Anchor,
+            transition_seconds: DEFAULT_TRANSITION_SECONDS,
             class_strength: DEFAULT_CLASS_STRENGTH,
             seed: 0,
             variation: 0.0,
             project_bones: true,
             keep_alive: true,
+            join_seams: true,
         }
+    }
+}
+
+/// Pose noise of a varied take: seed 0 is the canonical take, any other seed a variation.
+pub const VARIATION: f32 = 0.05;
+
+impl GenerateOptions {
+    /// The options with variation `seed` (and the noise that goes with it).
+    pub fn varied(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self.variation = if seed == 0 { 0.0 } else { VARIATION };
+        self
+    }
+
+    /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks
+    /// that pop at their seams.
+    pub fn paper(mut self) -> Self {
+        self.transition = Transition::Cut;
+        self.transition_seconds = 0.0;
+        self.class_strength = 1.0;
+        self.keep_alive = false;
+        self.join_seams = false;
+        self
     }
 }
 
@@ -122,28 +142,125 @@ pub struct Generated {
     pub block_classes: Vec<usize>,
 }
 
+/// What one GloGen block is asked for, decided from the timeline before the rollout.
+#[derive(Clone, Debug, PartialEq)]
+struct BlockPlan {
+    /// The class vector: one class, or a blend of two inside a transition.
+    class: Vec<f32>,
+    /// The class the block belongs to (the heavier of a blend): anchoring and keep-alive aim
+    /// at it.
+    target: usize,
+    /// Blocks over which a change into `target` eases the context (0: no anchoring).
+    ease_blocks: usize,
+}
+
+/// The sparse poses of each segment and where its boundaries fall.
+struct SparseTimeline {
+    /// Segment index of each sparse pose (the seed block belongs to the first segment).
+    segment_of: Vec<usize>,
+    /// Per segment: sparse poses, pace and class.
+    counts: Vec<usize>,
+    paces: Vec<f32>,
+    classes: Vec<usize>,
+    /// Per segment: the length of the transition into it in sparse steps (for the first
+    /// segment, from the initial poses' class).
+    transition_steps: Vec<f32>,
+}
+
+impl SparseTimeline {
+    fn new(model: &GlocalModel, opts: &GenerateOptions) -> Result<Self> {
+        let spec = &model.spec;
+        let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
+        crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
+        let step_seconds = |pace: f32| spec.stride as f32 * pace / spec.fps;
+        let segments = &opts.timeline.segments;
+        let paces: Vec<f32> = segments.iter().map(|s| s.pace.unwrap_or(opts.pace)).collect();
+        // Sparse poses per segment: its duration over the time one sparse step takes at its pace.
+        let counts: Vec<usize> = segments.iter().zip(&paces).map(|(s, &p)| ((s.seconds / step_seconds(p)).round() as usize).max(1)).collect();
+        let segment_of = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
+        let transition_steps = segments
+            .iter()
+            .zip(&paces)
+            .map(|(s, &p)| if opts.transition == Transition::Cut { 0.0 } else { s.transition.unwrap_or(opts.transition_seconds) / step_seconds(p) })
+            .collect();
+        Ok(Self { segment_of, counts, paces, classes, transition_steps })
+    }
+
+    /// Sparse poses of the take, the seed's last pose included.
+    fn total(&self) -> usize {
+        self.counts.iter().sum::<usize>() + 1
+    }
+
+    fn segment_at(&self, i: usize) -> usize {
+        self.segment_of[i.min(self.segment_of.len() - 1)]
+    }
+
+    /// Sparse index at which segment `k` begins.
+    fn boundary(&self, k: usize) -> usize {
+        self.counts[..k].iter().sum()
+    }
+
+    /// The boundary whose transition covers sparse pose `i`, and how far through it `i` is
+    /// (0 at its start, 1 at its end).
+    fn transition_at(&self, i: usize) -> Option<(usize, f32)> {
+        (1..self.counts.len()).find_map(|k| {
+            let len = self.transition_steps[k];
+            let through = (i as f32 - self.boundary(k) as f32) / len + 0.5;
+            (len > 0.0 && (0.0..1.0).contains(&through)).then_some((k, through))
+        })
+    }
+
+    /// The per-block plan: each block's class vector is the mean of its poses' class mixes,
+    /// a pose inside a transition mixing the two classes by a smoothstep over it.
+    fn plan(&self, model: &GlocalModel, anchored: bool) -> Vec<BlockPlan> {
+        let t = model.spec.block_len;
+        let blocks = self.total().saturating_sub(t).div_ceil(t);
+        let ease_of = |k: usize| if anchored && self.transition_steps[k] > 0.0 { 1 + (self.transition_steps[k] / t as f32).ceil() as usize } else { 0 };
+        (0..blocks)
+            .map(|b| {
+                let mut class = vec![0.0; model.class_vector(0).len()];
+                for i in t + b * t..t + (b + 1) * t {
+                    let mix = match self.transition_at(i) {
+                        Some((k, through)) => {
+                            let s = through * through * (3.0 - 2.0 * through);
+                            vec![(self.classes[k - 1], 1.0 - s), (self.classes[k], s)]
+                        }
+                        None => vec![(self.classes[self.segment_at(i)], 1.0)],
+                    };
+                    for (c, w) in mix {
+                        if let Some(v) = class.get_mut(c) {
+                            *v += w / t as f32;
+                        }
+                    }
+                }
+                let segment = self.segment_at(t + b * t + t / 2);
+                let target = self.classes[segment];
+                let ease_blocks = ease_of(segment);
+                BlockPlan { class: if class.iter().all(|v| *v == 0.0) { model.class_vector(target) } else { class }, target, ease_blocks }
+            })
+            .collect()
+    }
+}
+
+/// A context being eased towards a real window of its class.
+struct Easing {
+    anchor: Vec<f32>,
+    step: usize,
+    blocks: usize,
+    strength: f32,
+}
+
 /// Generates a take. `progress` gets the fraction done and returns false to cancel.
 pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
     let spec = model.spec.clone();
-    let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
+    let timeline = SparseTimeline::new(model, opts)?;
     if !(0.0..=10.0).contains(&opts.class_strength) {
         bail!("class strength must be between 0 and 10, got {}", opts.class_strength);
     }
     let dim = spec.layout.dim();
     let t = spec.block_len;
-    let stride = spec.stride as f32;
-    let paces: Vec<f32> = opts.timeline.segments.iter().map(|s| s.pace.unwrap_or(opts.pace)).collect();
-    // Sparse poses per segment: its duration over the time one sparse step takes at its pace.
-    let counts: Vec<usize> = opts
-        .timeline
-        .segments
-        .iter()
-        .zip(&paces)
-        .map(|(s, p)| ((s.seconds * spec.fps / (stride * p)).round() as usize).max(1))
-        .collect();
-    let total: usize = counts.iter().sum::<usize>() + 1;
-    let segment_of: Vec<usize> = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
-    let segment_at = |i: usize| segment_of[i.min(segment_of.len() - 1)];
+    let total = timeline.total();
+    let plans = timeline.plan(model, opts.transition == Transition::Anchor);
 
     let (seed_raw, start) = initial_features(model, &opts.init)?;
     let mut context_class = match &opts.init {
@@ -151,46 +268,50 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         InitPose::SeedClass { class, .. } => spec.class_index(class).ok(),
         InitPose::File { .. } => None,
     };
-    let mut easing: Option<(Vec<f32>, usize)> = None;
+    let mut easing: Option<Easing> = None;
     let typical_motion = class_motion(model);
     let mut since_anchor = 0;
+    let mut last_anchor = None;
     let mut sparse = seed_raw;
     spec.sparse_norm.normalize(&mut sparse);
-    let mut rng = StdRng::seed_from_u64(opts.seed);
+    let mut noise = StdRng::seed_from_u64(opts.seed);
+    let mut anchors = StdRng::seed_from_u64(opts.seed ^ 0xA1C4_0125);
     let (mut embeddings, mut block_classes) = (Vec::new(), Vec::new());
-    let blocks = total.saturating_sub(t).div_ceil(t);
     let mut out = vec![0.0; t * dim];
-    for b in 0..blocks {
-        let first = t + b * t;
-        let class_vec = class_vector(model, &classes, opts.transition, (first..first + t).map(&segment_at));
-        let mut input = sparse[sparse.len() - t * dim..].to_vec();
-        let target = classes[segment_at(first)];
-        let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && pose_motion(&input, dim) < STALL_BELOW * typical_motion[target];
-        let switching = opts.transition == Transition::Anchor && context_class != Some(target);
+    for (b, plan) in plans.iter().enumerate() {
+        let context = &sparse[sparse.len() - t * dim..];
+        let mut input = context.to_vec();
+        let previous = context[context.len() - 2 * dim..].to_vec();
+        let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && pose_motion(&input, dim) < STALL_BELOW * typical_motion[plan.target];
+        let switching = plan.ease_blocks > 0 && context_class != Some(plan.target);
         if easing.is_none() && (switching || stalled) {
-            easing = anchor_window(model, target, opts.seed as usize + b).map(|a| (a, 0));
-            context_class = Some(target);
+            let (blocks, strength) = if switching { (plan.ease_blocks, 1.0) } else { (KEEP_ALIVE_EASE, anchors.random_range(KEEP_ALIVE_STRENGTH)) };
+            easing = pick_anchor(model, plan.target, &mut anchors, last_anchor).map(|(k, anchor)| {
+                last_anchor = Some(k);
+                Easing { anchor, step: 0, blocks, strength }
+            });
+            context_class = Some(plan.target);
             since_anchor = 0;
         }
         since_anchor += 1;
-        if let Some((anchor, step)) = easing.as_mut() {
-            *step += 1;
-            let alpha = *step as f32 / (ANCHOR_BLOCKS + 1) as f32;
-            input.iter_mut().zip(anchor.iter()).for_each(|(v, a)| *v += alpha * (a - *v));
-            if *step == ANCHOR_BLOCKS {
+        if let Some(e) = easing.as_mut() {
+            e.step += 1;
+            let alpha = e.strength * e.step as f32 / (e.blocks + 1) as f32;
+            input.iter_mut().zip(&e.anchor).for_each(|(v, a)| *v += alpha * (a - *v));
+            if e.step == e.blocks {
                 easing = None;
             }
         }
         if opts.variation > 0.0 && opts.seed != 0 {
-            input.iter_mut().for_each(|v| *v += opts.variation * rng.random_range(-1.0f32..1.0));
+            input.iter_mut().for_each(|v| *v += opts.variation * noise.random_range(-1.0f32..1.0));
         }
-        block_classes.push(target);
-        embeddings.push(model.glogen_block(&input, &class_vec, opts.class_strength, &mut out));
+        block_classes.push(plan.target);
+        embeddings.push(model.rollout_block(&input, &previous, &plan.class, opts.class_strength, opts.join_seams, &mut out));
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
         }
         sparse.extend_from_slice(&out);
-        if !progress(0.8 * (b + 1) as f32 / blocks as f32) {
+        if !progress(0.8 * (b + 1) as f32 / plans.len() as f32) {
             bail!("cancelled");
         }
     }
@@ -201,7 +322,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     if !progress(0.9) {
         bail!("cancelled");
     }
-    let interval_paces: Vec<f32> = (0..total - 1).map(|i| paces[segment_at(i)]).collect();
+    let interval_paces: Vec<f32> = (0..total - 1).map(|i| timeline.paces[timeline.segment_at(i)]).collect();
     let (positions, interval_starts) = apply_pace(&dense, spec.layout.joints(), spec.stride, &interval_paces);
     let skeleton = spec.layout.skeleton.clone();
     let motion = if opts.project_bones {
@@ -210,24 +331,40 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     } else {
         Motion::from_positions(skeleton, spec.fps, positions)
     };
-    let frames = motion.frames();
-    let mut segments = Vec::new();
-    let mut first_sparse = 0;
-    for (k, &n) in counts.iter().enumerate() {
-        let start_frame = interval_starts[first_sparse.min(interval_starts.len() - 1)];
-        let end_frame = if k + 1 == counts.len() { frames } else { interval_starts[(first_sparse + n).min(interval_starts.len() - 1)] };
-        segments.push(SegmentSpan { class: classes[k], name: spec.classes[classes[k]].clone(), start_frame, end_frame });
-        first_sparse += n;
-    }
+    let segments = segment_spans(&timeline, &spec.classes, &interval_starts, motion.frames());
     progress(1.0);
     Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes })
 }
 
-/// A normalised seed-bank window of `class` (the `variant`-th, wrapping around).
-fn anchor_window(model: &GlocalModel, class: usize, variant: usize) -> Option<Vec<f32>> {
-    let mut window = model.seed_of_class(class, variant)?.features.clone();
+/// Where each segment falls in the paced take.
+fn segment_spans(timeline: &SparseTimeline, names: &[String], interval_starts: &[usize], frames: usize) -> Vec<SegmentSpan> {
+    let mut segments = Vec::new();
+    let mut first_sparse = 0;
+    let last = interval_starts.len() - 1;
+    for (k, &n) in timeline.counts.iter().enumerate() {
+        let start_frame = interval_starts[first_sparse.min(last)];
+        let end_frame = if k + 1 == timeline.counts.len() { frames } else { interval_starts[(first_sparse + n).min(last)] };
+        let class = timeline.classes[k];
+        segments.push(SegmentSpan { class, name: names[class].clone(), start_frame, end_frame });
+        first_sparse += n;
+    }
+    segments
+}
+
+/// A random normalised seed-bank window of `class`, another than `avoid` where the class has
+/// more than one, with its index.
+fn pick_anchor(model: &GlocalModel, class: usize, rng: &mut StdRng, avoid: Option<usize>) -> Option<(usize, Vec<f32>)> {
+    let count = model.seeds.iter().filter(|s| s.class == class).count();
+    if count == 0 {
+        return None;
+    }
+    let mut k = rng.random_range(0..count);
+    if count > 1 && Some(k) == avoid {
+        k = (k + 1 + rng.random_range(0..count - 1)) % count;
+    }
+    let mut window = model.seed_of_class(class, k)?.features.clone();
     model.spec.sparse_norm.normalize(&mut window);
-    Some(window)
+    Some((k, window))
 }
 
 /// Mean distance between consecutive poses of a normalised sparse window, over the joint
@@ -250,23 +387,6 @@ fn class_motion(model: &GlocalModel) -> Vec<f32> {
         }
     }
     sums.into_iter().map(|(s, n)| if n == 0 { 0.0 } else { s / n as f32 }).collect()
-}
-
-/// The class vector of a block whose poses belong to the given segments.
-fn class_vector(model: &GlocalModel, classes: &[usize], transition: Transition, segments: impl Iterator<Item = usize>) -> Vec<f32> {
-    let segs: Vec<usize> = segments.collect();
-    match transition {
-        Transition::Cut => model.class_vector(classes[segs[0]]),
-        Transition::Blend | Transition::Anchor => {
-            let mut v = vec![0.0; model.class_vector(0).len()];
-            for s in &segs {
-                for (a, b) in v.iter_mut().zip(model.class_vector(classes[*s])) {
-                    *a += b / segs.len() as f32;
-                }
-            }
-            v
-        }
-    }
 }
 
 /// Stretches each sparse interval (native `stride` frames) to `stride * pace` frames at the

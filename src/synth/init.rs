@@ -1,13 +1,13 @@
 //! The first sparse poses of a take: from the model's seed bank, or from a motion file on
 //! the model's skeleton.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
 use glam::Vec3;
 
-use super::generate::InitPose;
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
 use crate::data::features::Placement;
@@ -15,6 +15,24 @@ use crate::data::npy::motion_from_npy;
 use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
 use crate::motion::Motion;
+
+/// Where the first sparse poses come from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum InitPose {
+    /// A seed-bank entry of this class (the `variant`-th one, wrapping around).
+    SeedClass { class: String, variant: usize },
+    /// A seed-bank entry by index.
+    SeedIndex(usize),
+    /// A motion file (BVH, NPY (T, J, 3), or an exponential-map text of the model's
+    /// dataset) from this frame on.
+    File { path: PathBuf, frame: usize },
+}
+
+impl Default for InitPose {
+    fn default() -> Self {
+        InitPose::SeedIndex(0)
+    }
+}
 
 /// Raw (un-normalised) sparse features of the first block, and where the take starts.
 pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32>, Placement)> {

@@ -6,5 +6,6 @@ pub mod init;
 pub mod render;
 pub mod timeline;
 
-pub use generate::{generate, GenerateOptions, Generated, InitPose, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH};
+pub use generate::{generate, GenerateOptions, Generated, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+pub use init::InitPose;
 pub use timeline::{Segment, Timeline};

@@ -16,6 +16,16 @@ pub struct Segment {
     /// Overrides the global pace for this segment.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pace: Option<f32>,
+    /// Seconds over which the take changes into this segment from the previous one,
+    /// overriding the take's transition length (0: a cut).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transition: Option<f32>,
+}
+
+impl Segment {
+    pub fn new(class: impl Into<String>, seconds: f32) -> Self {
+        Self { class: class.into(), seconds, pace: None, transition: None }
+    }
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -44,6 +54,9 @@ impl Timeline {
                 if let Some(p) = s.pace {
                     check_pace(p, &format!("segment {} ('{}') pace", k + 1, s.class))?;
                 }
+                if let Some(t) = s.transition {
+                    check_transition(t, &format!("segment {} ('{}') transition", k + 1, s.class))?;
+                }
                 classes
                     .iter()
                     .position(|c| c.eq_ignore_ascii_case(&s.class))
@@ -53,6 +66,16 @@ impl Timeline {
     }
 }
 
+/// Longest transition between two segments, in seconds.
+pub const MAX_TRANSITION_SECONDS: f32 = 10.0;
+
+pub fn check_transition(t: f32, what: &str) -> Result<()> {
+    if !(0.0..=MAX_TRANSITION_SECONDS).contains(&t) {
+        bail!("{what} must be between 0 and {MAX_TRANSITION_SECONDS} seconds, got {t}");
+    }
+    Ok(())
+}
+
 fn check_pace(p: f32, what: &str) -> Result<()> {
     if !(MIN_PACE..=MAX_PACE).contains(&p) {
         bail!("{what} must be between {MIN_PACE} and {MAX_PACE}, got {p}");
@@ -60,7 +83,8 @@ fn check_pace(p: f32, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// `"sit:3,drink:5,walk:10"`; a segment may carry its own pace as `walk:10@1.5`.
+/// `"sit:3,drink:5,walk:10"`; a segment may carry its own pace as `walk:10@1.5` and its own
+/// transition length (seconds, into it from the previous segment) as `walk:10~0.5`.
 impl FromStr for Timeline {
     type Err = anyhow::Error;
     fn from_str(s: &str) -> Result<Self> {
@@ -72,12 +96,16 @@ impl FromStr for Timeline {
             let (class, rest) = part
                 .split_once(':')
                 .with_context(|| format!("segment {} '{part}': expected CLASS:SECONDS, e.g. walk:5", k + 1))?;
+            let (rest, transition) = match rest.split_once('~') {
+                Some((r, t)) => (r, Some(t.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': transition '{t}' is not a number of seconds", k + 1))?)),
+                None => (rest, None),
+            };
             let (secs, pace) = match rest.split_once('@') {
                 Some((s, p)) => (s, Some(p.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': pace '{p}' is not a number", k + 1))?)),
                 None => (rest, None),
             };
             let seconds = secs.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': duration '{secs}' is not a number", k + 1))?;
-            segments.push(Segment { class: class.trim().to_string(), seconds, pace });
+            segments.push(Segment { class: class.trim().to_string(), seconds, pace, transition });
         }
         Ok(Timeline { segments })
     }
@@ -88,9 +116,10 @@ impl fmt::Display for Timeline {
         let parts: Vec<String> = self
             .segments
             .iter()
-            .map(|s| match s.pace {
-                Some(p) => format!("{}:{}@{}", s.class, s.seconds, p),
-                None => format!("{}:{}", s.class, s.seconds),
+            .map(|s| {
+                let pace = s.pace.map(|p| format!("@{p}")).unwrap_or_default();
+                let transition = s.transition.map(|t| format!("~{t}")).unwrap_or_default();
+                format!("{}:{}{pace}{transition}", s.class, s.seconds)
             })
             .collect();
         f.write_str(&parts.join(","))
@@ -112,6 +141,10 @@ mod tests {
         assert_eq!(t.segments[1].pace, Some(1.5));
         assert_eq!(t.to_string(), "sitting:3,eating:5@1.5,walking:10");
         assert_eq!(t.validate(&classes(), 1.0).unwrap(), vec![0, 1, 2]);
+        let t: Timeline = "sitting:3,walking:4@2~0.5".parse().unwrap();
+        assert_eq!(t.segments[1].transition, Some(0.5));
+        assert_eq!(t.to_string(), "sitting:3,walking:4@2~0.5");
+        assert!(format!("{:#}", "sitting:3,walking:4~-1".parse::<Timeline>().unwrap().validate(&classes(), 1.0).unwrap_err()).contains("transition must be between 0 and 10"));
     }
 
     #[test]
