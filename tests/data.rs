@@ -86,7 +86,7 @@ fn bone_lengths_are_constant() {
             let handle = sk.children(0).count() == 1;
             let first = m.bone_lengths(0);
             let bones: Vec<usize> = (0..m.joints())
-                .filter(|&j| first[j] * sk.meters_per_unit >= 0.01 && !(handle && sk.parents[j] == Some(0)))
+                .filter(|&j| first[j] * sk.meters_per_unit() >= 0.01 && !(handle && sk.parents()[j] == Some(0)))
                 .collect();
             for t in 0..m.frames() {
                 let lengths = m.bone_lengths(t);

@@ -40,14 +40,14 @@ fn round_trip_all(entries: &[(String, String)], unit: f32, joints: usize) -> (us
     for (path, text) in entries {
         let (m, layout) = read_bvh_layout_with_unit(text, path, unit).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(m.joints(), joints, "{path}");
-        assert_eq!(m.skeleton.meters_per_unit, unit);
+        assert_eq!(m.skeleton.meters_per_unit(), unit);
         frames += m.frames();
         for (own, l) in [(true, Some(&layout)), (false, None)] {
             let written = write_bvh(&m, l);
             let (back, back_layout) =
                 read_bvh_layout_with_unit(&written, path, unit).unwrap_or_else(|e| panic!("{path} written back: {e}"));
-            assert_eq!(back.skeleton.names, m.skeleton.names, "{path}");
-            assert_eq!(back.skeleton.parents, m.skeleton.parents, "{path}");
+            assert_eq!(back.skeleton.names(), m.skeleton.names(), "{path}");
+            assert_eq!(back.skeleton.parents(), m.skeleton.parents(), "{path}");
             assert!((back.fps - m.fps).abs() < 1e-3, "{path}: fps {} against {}", back.fps, m.fps);
             let err = max_distance(&m, &back);
             assert!(err < 1e-3, "{path} (own layout: {own}): positions differ by up to {err}");

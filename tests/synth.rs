@@ -38,7 +38,7 @@ fn two_minutes_stay_alive() {
         let motion = &take.motion;
         assert!(motion.positions().iter().all(|p| p.is_finite()), "{name}: NaN");
         assert!((motion.seconds() - 120.0).abs() < 1.0, "{name}: {} s", motion.seconds());
-        let bone_error = motion.bone_length_error(1e-3 / motion.skeleton.meters_per_unit);
+        let bone_error = motion.bone_length_error(1e-3 / motion.skeleton.meters_per_unit());
         assert!(bone_error < 0.02, "{name}: bone-length error {bone_error}");
         // A segment's speed is measured once its anchored transition (two blocks) is over:
         // the first seconds of a bow that follows a run are still the run slowing down.
@@ -60,7 +60,7 @@ fn keep_alive_holds_a_long_segment() {
     let speeds = |m: &mut GlocalModel, keep_alive: bool| -> Vec<f32> {
         let o = GenerateOptions { init: InitPose::SeedClass { class: "greeting".into(), variant: 0 }, seed: 1, variation: 0.05, keep_alive, ..opts("greeting:120") };
         let take = generate(m, &o, &mut |_| true).unwrap();
-        window_stats(&take.motion, 10.0, m.spec.class_speed[class], 1e-3 / take.motion.skeleton.meters_per_unit).iter().map(|w| w.speed_ratio).collect()
+        window_stats(&take.motion, 10.0, m.spec.class_speed[class], 1e-3 / take.motion.skeleton.meters_per_unit()).iter().map(|w| w.speed_ratio).collect()
     };
     let kept = speeds(&mut m, true);
     assert_eq!(kept.len(), 12);
@@ -85,7 +85,7 @@ fn pace_stretches_the_same_poses() {
     let (half, plain) = (generate(&mut m, &half, &mut |_| true).unwrap(), generate(&mut m, &plain, &mut |_| true).unwrap());
     // walking:2 at pace 2 shows the poses of walking:1 at pace 1, each frame twice as long.
     let (a, b) = (half.motion.frame(20)[3], plain.motion.frame(10)[3]);
-    assert!(a.distance(b) < 1e-2 * (1.0 / m.spec.layout.skeleton.meters_per_unit), "{a} vs {b}");
+    assert!(a.distance(b) < 1e-2 * (1.0 / m.spec.layout.skeleton.meters_per_unit()), "{a} vs {b}");
     let mut frac = opts("walking:3");
     frac.pace = 1.37;
     assert!(generate(&mut m, &frac, &mut |_| true).is_ok());
@@ -98,7 +98,7 @@ fn bvh_round_trip_within_a_centimetre() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("take.bvh");
     export(&take.motion, &take.segments, &path).unwrap();
-    let unit = take.motion.skeleton.meters_per_unit;
+    let unit = take.motion.skeleton.meters_per_unit();
     let back = read_bvh_with_unit(&std::fs::read_to_string(&path).unwrap(), "take.bvh", unit).unwrap();
     assert_eq!(back.frames(), take.motion.frames());
     assert!((back.fps - take.motion.fps).abs() < 1e-3);
@@ -204,7 +204,7 @@ fn an_exported_take_starts_the_next_at_the_same_height() {
     let next = GenerateOptions { init: InitPose::File { path, frame: 0 }, ..opts("walking:4") };
     let next = generate(&mut m, &next, &mut |_| true).unwrap();
     let hips = |motion: &glocal::motion::Motion, t: usize| motion.frame(t)[0].y;
-    let unit = first.motion.skeleton.meters_per_unit;
+    let unit = first.motion.skeleton.meters_per_unit();
     let gap = (hips(&next.motion, 0) - hips(&first.motion, m.spec.stride)).abs() * unit;
     assert!(gap < 0.05, "the next take starts {gap} m off the first's height");
 }

@@ -110,7 +110,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     if let Some(r) = record {
         println!(
             "{} steps; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
-            r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit
+            r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit()
         );
     }
     Ok(())

@@ -26,7 +26,7 @@ use std::sync::Arc;
 use glam::{DQuat, Quat, Vec3};
 
 use super::FormatError;
-use crate::motion::{quat_to_euler, solve_local_poses, EulerOrder, LocalPose, Motion, Skeleton};
+use crate::motion::{clipped as clip, quat_to_euler, solve_local_poses, EulerOrder, LocalPose, Motion, Skeleton};
 
 /// The channels one joint carries in a BVH file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -58,10 +58,10 @@ impl BvhLayout {
     fn default_for_poses(skeleton: &Skeleton, poses: &[LocalPose]) -> BvhLayout {
         let joints = (0..skeleton.len())
             .map(|j| {
-                let offset = skeleton.offsets[j];
+                let offset = skeleton.offsets()[j];
                 let tol = 1e-5 * (1.0 + offset.length());
                 let moves = poses.iter().any(|p| (p.translations[j] - offset).abs().max_element() > tol);
-                JointChannels { rotation_order: EulerOrder::ZXY, has_position: skeleton.parents[j].is_none() || moves }
+                JointChannels { rotation_order: EulerOrder::ZXY, has_position: skeleton.parents()[j].is_none() || moves }
             })
             .collect();
         BvhLayout { joints }
@@ -223,7 +223,7 @@ impl Reader<'_> {
             let (t, j) = (k / motion.joints(), k % motion.joints());
             return Err(self.err(
                 time_line + 1 + t,
-                format!("joint '{}' lands at a non-finite position in frame {} (values too large)", clip(&motion.skeleton.names[j]), t + 1),
+                format!("joint '{}' lands at a non-finite position in frame {} (values too large)", clip(&motion.skeleton.names()[j]), t + 1),
             ));
         }
         Ok((motion, layout))
@@ -402,7 +402,7 @@ impl Reader<'_> {
         let mut translations = Vec::with_capacity(skeleton.len());
         let mut k = 0;
         for (j, chans) in channels.iter().enumerate() {
-            let mut t = skeleton.offsets[j];
+            let mut t = skeleton.offsets()[j];
             let mut q = DQuat::IDENTITY;
             for c in chans {
                 let v = values[k];
@@ -448,13 +448,6 @@ fn number(tok: &str) -> Option<f32> {
 }
 
 /// A token shortened for error messages.
-fn clip(s: &str) -> String {
-    if s.chars().count() <= 40 {
-        s.to_string()
-    } else {
-        format!("{}...", s.chars().take(40).collect::<String>())
-    }
-}
 
 fn snap_fps(fps: f64) -> f32 {
     let r = fps.round();
@@ -516,7 +509,7 @@ pub fn write_bvh(motion: &Motion, layout: Option<&BvhLayout>) -> String {
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
     let mut roots = Vec::new();
     for j in 0..n {
-        match skeleton.parents[j] {
+        match skeleton.parents()[j] {
             Some(p) if p < j => children[p].push(j),
             _ => roots.push(j),
         }
@@ -536,12 +529,12 @@ pub fn write_bvh(motion: &Motion, layout: Option<&BvhLayout>) -> String {
             Ev::Open(j, depth) => {
                 order.push(j);
                 indent(&mut out, depth);
-                let kind = if skeleton.parents[j].is_some() && depth > 0 { "JOINT" } else { "ROOT" };
-                let _ = writeln!(out, "{kind} {}", joint_name(&skeleton.names[j], j));
+                let kind = if skeleton.parents()[j].is_some() && depth > 0 { "JOINT" } else { "ROOT" };
+                let _ = writeln!(out, "{kind} {}", joint_name(&skeleton.names()[j], j));
                 indent(&mut out, depth);
                 out.push_str("{\n");
                 indent(&mut out, depth + 1);
-                let o = skeleton.offsets[j];
+                let o = skeleton.offsets()[j];
                 let _ = writeln!(out, "OFFSET {:.6} {:.6} {:.6}", o.x, o.y, o.z);
                 indent(&mut out, depth + 1);
                 let ch = layout.joints[j];
@@ -554,7 +547,7 @@ pub fn write_bvh(motion: &Motion, layout: Option<&BvhLayout>) -> String {
                 let _ = writeln!(out, " {}rotation {}rotation {}rotation", axes[0], axes[1], axes[2]);
                 stack.push(Ev::Close(depth));
                 if children[j].is_empty() {
-                    let tip = if depth > 0 { skeleton.offsets[j] * 0.5 } else { Vec3::ZERO };
+                    let tip = if depth > 0 { skeleton.offsets()[j] * 0.5 } else { Vec3::ZERO };
                     indent(&mut out, depth + 1);
                     out.push_str("End Site\n");
                     indent(&mut out, depth + 1);
@@ -680,8 +673,8 @@ MOTION\r\nFrames:\t2\r\nFrame Time:\t0.0333333\r\n\
     fn rotation_orders_give_known_positions() {
         let (m, layout) = read_bvh_layout(HAND, "hand.bvh").unwrap();
         let s = &m.skeleton;
-        assert_eq!(s.names, vec!["root", "a", "b", "c"], "End Sites must not be joints");
-        assert_eq!(s.parents, vec![None, Some(0), Some(1), Some(0)]);
+        assert_eq!(s.names(), vec!["root", "a", "b", "c"], "End Sites must not be joints");
+        assert_eq!(s.parents(), vec![None, Some(0), Some(1), Some(0)]);
         assert_eq!(m.fps, 30.0);
         assert_eq!(m.frames(), 2);
         // Root: Rz(90) Ry(0) Rx(90); a: Rz(90) Rx(0) Ry(90) (values "90 0 90" in ZXY order).
@@ -694,7 +687,7 @@ MOTION\r\nFrames:\t2\r\nFrame Time:\t0.0333333\r\n\
         let f = m.frame(1);
         assert!(close(f[2], Vec3::new(0.0, 10.0, 5.0)), "{:?}", f[2]);
         assert!(close(f[3], Vec3::ZERO), "{:?}", f[3]);
-        assert_eq!(s.offsets[3], Vec3::splat(100.0), "the skeleton keeps the OFFSET");
+        assert_eq!(s.offsets()[3], Vec3::splat(100.0), "the skeleton keeps the OFFSET");
         let orders: Vec<_> = layout.joints.iter().map(|j| (j.rotation_order, j.has_position)).collect();
         assert_eq!(orders, vec![(EulerOrder::ZYX, true), (EulerOrder::ZXY, false), (EulerOrder::ZXY, false), (EulerOrder::ZXY, true)]);
     }
@@ -712,7 +705,7 @@ MOTION\r\nFrames:\t2\r\nFrame Time:\t0.0333333\r\n\
                 assert!(back_layout.joints[3].has_position, "c moves off its offset, so it keeps position channels");
                 assert!(!back_layout.joints[1].has_position);
             }
-            assert_eq!(back.skeleton.names, m.skeleton.names);
+            assert_eq!(back.skeleton.names(), m.skeleton.names());
             assert_eq!(back.fps, 30.0);
             for (a, b) in back.positions().iter().zip(m.positions()) {
                 assert!(close(*a, *b), "{a} vs {b}");

@@ -111,7 +111,7 @@ impl ExpmapFormat {
         let j = self.skeleton.len();
         let expmap = |k: usize| local_rotation(Vec3::new(v[3 + 3 * k], v[4 + 3 * k], v[5 + 3 * k]));
         let mut rotations: Vec<Quat> = (0..j).map(expmap).collect();
-        let mut translations = self.skeleton.offsets.clone();
+        let mut translations = self.skeleton.offsets().to_vec();
         match self.root {
             RootEncoding::Absolute => translations[0] = Vec3::new(v[0], v[1], v[2]),
             RootEncoding::Incremental => {

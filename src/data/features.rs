@@ -54,7 +54,7 @@ impl FeatureLayout {
     /// or `Hip`); falls back to the root's first two children.
     pub fn new(skeleton: Arc<Skeleton>) -> Self {
         let find = |side: &[&str]| {
-            skeleton.names.iter().position(|n| {
+            skeleton.names().iter().position(|n| {
                 let l = n.to_lowercase();
                 side.iter().any(|s| l.contains(s)) && ["upleg", "thigh", "upperleg", "hip"].iter().any(|k| l.contains(k))
             })

@@ -257,7 +257,7 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String,
                 }
                 rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
             }
-            let unit = corpus.layout.skeleton.meters_per_unit;
+            let unit = corpus.layout.skeleton.meters_per_unit();
             md.push_str(&format!(
                 "\n**{title}** ({dataset}, class `{class_name}`, {} test windows; mean joint distance in the files' own units, world positions including the root's path)\n\n{head}",
                 starts.len()
@@ -310,12 +310,12 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, V
         .iter()
         .map(|s| spec.source_joints.iter().position(|j| j == s).with_context(|| format!("major15 joint {s} is not among the model's joints")))
         .collect::<Result<_>>()?;
-    let names = &spec.source_skeleton.names;
+    let names = &spec.source_skeleton.names();
     let find = |n: &str| names.iter().position(|x| x == n).and_then(|s| spec.source_joints.iter().position(|j| *j == s));
     let hips = (find("LeftUpLeg").context("no LeftUpLeg")?, find("RightUpLeg").context("no RightUpLeg")?);
     log("h36m-mmd: loading h36m");
     let loaded = registry::load(Dataset::H36m, &opts.data)?;
-    let unit = spec.source_skeleton.meters_per_unit;
+    let unit = spec.source_skeleton.meters_per_unit();
     let skel = spec.layout.skeleton.clone();
     let (s, t) = (spec.stride, spec.block_len);
     let (n_in, n_out) = (10usize, 50usize);
@@ -651,7 +651,7 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Strin
                 }
             }
         }
-        let mm = spec.source_skeleton.meters_per_unit as f64 * 1000.0;
+        let mm = spec.source_skeleton.meters_per_unit() as f64 * 1000.0;
         let r = [ia / na as f64 * mm, la / na as f64 * mm, ib / nb.max(1) as f64 * mm, lb / nb.max(1) as f64 * mm];
         md.push_str(&format!("| {} | {} | {} | {} | {} | {} |\n", dir.display(), meta.len(), f(r[0], 1), f(r[1], 1), f(r[2], 1), f(r[3], 1)));
         rows.push(json!({"model": dir, "windows": meta.len(), "interp_all_mm": r[0], "locgen_all_mm": r[1], "interp_between_mm": r[2], "locgen_between_mm": r[3]}));

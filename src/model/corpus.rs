@@ -101,8 +101,8 @@ impl Corpus {
 /// joint where the body branches, the one that carries the pelvis.
 fn model_joints(skeleton: &Skeleton) -> Vec<usize> {
     let longest_limb = (0..skeleton.len())
-        .filter(|&j| skeleton.parents[j].is_some_and(|p| p != 0))
-        .map(|j| skeleton.offsets[j].length())
+        .filter(|&j| skeleton.parents()[j].is_some_and(|p| p != 0))
+        .map(|j| skeleton.offsets()[j].length())
         .fold(0.0, f32::max);
     let mut keep = skeleton.informative_joints(longest_limb * MIN_BONE_FRACTION);
     let root_children: Vec<usize> = skeleton.children(0).collect();

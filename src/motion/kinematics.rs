@@ -14,7 +14,7 @@ pub struct LocalPose {
 /// World positions of every joint of one frame (and, in `world_rot`, their world rotations).
 pub fn forward_kinematics(skeleton: &Skeleton, pose: &LocalPose, positions: &mut [Vec3], world_rot: &mut [Quat]) {
     for j in 0..skeleton.len() {
-        match skeleton.parents[j] {
+        match skeleton.parents()[j] {
             None => {
                 world_rot[j] = pose.rotations[j];
                 positions[j] = pose.translations[j];

@@ -10,6 +10,6 @@ mod take;
 
 pub use kinematics::{forward_kinematics, LocalPose};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
-pub use skeleton::{Skeleton, SkeletonError};
+pub use skeleton::{clipped, Skeleton, SkeletonError};
 pub use solve::solve_local_poses;
 pub use take::{floor_height, Motion};

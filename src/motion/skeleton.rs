@@ -1,15 +1,40 @@
+use std::collections::HashMap;
+
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 /// A joint hierarchy with rest offsets: joint `j` sits at `offsets[j]` in its parent's frame.
-/// Parents come before children (`parents[j] < j`), the root has no parent.
+///
+/// Invariants, checked by [`Skeleton::new`] and by deserialisation (which goes through it):
+/// at least one joint; as many names, parents and offsets; parents come before children
+/// (`parents[j] < j`) so one pass in index order is forward kinematics; exactly one root,
+/// joint 0; unique names (files and skeleton comparisons find joints by name); finite
+/// offsets and a positive, finite unit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SkeletonFields")]
 pub struct Skeleton {
-    pub names: Vec<String>,
-    pub parents: Vec<Option<usize>>,
-    pub offsets: Vec<Vec3>,
+    names: Vec<String>,
+    parents: Vec<Option<usize>>,
+    offsets: Vec<Vec3>,
     /// Metres per unit of `offsets` and of every position (mm: 0.001, cm: 0.01).
-    pub meters_per_unit: f32,
+    meters_per_unit: f32,
+}
+
+/// The serialised form, before its invariants are checked.
+#[derive(Deserialize)]
+struct SkeletonFields {
+    names: Vec<String>,
+    parents: Vec<Option<usize>>,
+    offsets: Vec<Vec3>,
+    meters_per_unit: f32,
+}
+
+impl TryFrom<SkeletonFields> for Skeleton {
+    type Error = SkeletonError;
+
+    fn try_from(f: SkeletonFields) -> Result<Self, SkeletonError> {
+        Skeleton::new(f.names, f.parents, f.offsets, f.meters_per_unit)
+    }
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -20,6 +45,25 @@ pub enum SkeletonError {
     BadParent { joint: usize, name: String, parent: usize },
     #[error("skeleton has no joints")]
     Empty,
+    #[error("joint 0 ('{name}') must be the root, but it has a parent")]
+    RootNotFirst { name: String },
+    #[error("joint {joint} ('{name}') is a second root; a skeleton has exactly one")]
+    SecondRoot { joint: usize, name: String },
+    #[error("joint {joint} and joint {first} are both named '{name}'; joint names must be unique")]
+    DuplicateName { joint: usize, first: usize, name: String },
+    #[error("joint {joint} ('{name}') has a non-finite offset")]
+    NonFiniteOffset { joint: usize, name: String },
+    #[error("meters_per_unit must be a positive finite number, found {0}")]
+    BadUnit(f32),
+}
+
+/// `s` cut to 40 characters for an error message (a hostile file can hold a 50 MB name).
+pub fn clipped(s: &str) -> String {
+    if s.chars().count() <= 40 {
+        s.to_string()
+    } else {
+        format!("{}...", s.chars().take(40).collect::<String>())
+    }
 }
 
 impl Skeleton {
@@ -39,14 +83,47 @@ impl Skeleton {
                 offsets: offsets.len(),
             });
         }
+        if !(meters_per_unit.is_finite() && meters_per_unit > 0.0) {
+            return Err(SkeletonError::BadUnit(meters_per_unit));
+        }
+        let name = |j: usize| clipped(&names[j]);
+        if parents[0].is_some() {
+            return Err(SkeletonError::RootNotFirst { name: name(0) });
+        }
+        let mut seen: HashMap<&str, usize> = HashMap::with_capacity(names.len());
         for (j, p) in parents.iter().enumerate() {
-            if let Some(p) = *p {
-                if p >= j {
-                    return Err(SkeletonError::BadParent { joint: j, name: names[j].clone(), parent: p });
-                }
+            match *p {
+                Some(p) if p >= j => return Err(SkeletonError::BadParent { joint: j, name: name(j), parent: p }),
+                None if j > 0 => return Err(SkeletonError::SecondRoot { joint: j, name: name(j) }),
+                _ => {}
+            }
+            if !offsets[j].is_finite() {
+                return Err(SkeletonError::NonFiniteOffset { joint: j, name: name(j) });
+            }
+            if let Some(first) = seen.insert(names[j].as_str(), j) {
+                return Err(SkeletonError::DuplicateName { joint: j, first, name: name(j) });
             }
         }
         Ok(Self { names, parents, offsets, meters_per_unit })
+    }
+
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Each joint's parent (`None` only for joint 0, the root).
+    pub fn parents(&self) -> &[Option<usize>] {
+        &self.parents
+    }
+
+    /// Rest offsets, each in its parent's frame.
+    pub fn offsets(&self) -> &[Vec3] {
+        &self.offsets
+    }
+
+    /// Metres per unit of the offsets and of every position (mm: 0.001, cm: 0.01).
+    pub fn meters_per_unit(&self) -> f32 {
+        self.meters_per_unit
     }
 
     pub fn len(&self) -> usize {
@@ -55,6 +132,10 @@ impl Skeleton {
 
     pub fn is_empty(&self) -> bool {
         self.names.is_empty()
+    }
+
+    fn name_index(&self) -> HashMap<&str, usize> {
+        self.names.iter().enumerate().map(|(j, n)| (n.as_str(), j)).collect()
     }
 
     pub fn index_of(&self, name: &str) -> Option<usize> {
@@ -78,9 +159,11 @@ impl Skeleton {
             .collect()
     }
 
-    /// The sub-skeleton of `keep` (ascending indices, root first). A dropped joint's offset is
-    /// folded into its kept descendants so rest positions are unchanged.
+    /// The sub-skeleton of `keep` (ascending indices, root first, as a validated model.json's
+    /// `source_joints` are). A dropped joint's offset is folded into its kept descendants so
+    /// rest positions are unchanged.
     pub fn subset(&self, keep: &[usize]) -> Skeleton {
+        debug_assert!(keep.first() == Some(&0) && keep.windows(2).all(|w| w[0] < w[1]), "subset needs ascending joints from the root");
         let rest = self.rest_positions();
         let new_index = |j: usize| keep.iter().position(|&k| k == j);
         let mut parents = Vec::with_capacity(keep.len());
@@ -117,31 +200,45 @@ impl Skeleton {
         out
     }
 
-    /// Human-readable list of how two skeletons differ (empty when they match by name and parent).
+    /// How two skeletons differ by name and parent (empty when they match), summarised: a
+    /// count and the first few names of each kind, each name clipped, so a file with
+    /// thousands of joints or a huge name still gives a one-line message.
     pub fn differences(&self, other: &Skeleton) -> Vec<String> {
         let mut out = Vec::new();
         if self.len() != other.len() {
             out.push(format!("{} joints against {}", self.len(), other.len()));
         }
-        for name in &self.names {
-            if other.index_of(name).is_none() {
-                out.push(format!("joint '{name}' is missing"));
-            }
-        }
-        for name in &other.names {
-            if self.index_of(name).is_none() {
-                out.push(format!("unexpected joint '{name}'"));
-            }
-        }
+        let (mine, theirs) = (self.name_index(), other.name_index());
+        let missing: Vec<&String> = self.names.iter().filter(|n| !theirs.contains_key(n.as_str())).collect();
+        let unexpected: Vec<&String> = other.names.iter().filter(|n| !mine.contains_key(n.as_str())).collect();
+        push_summary(&mut out, "missing joint", &missing);
+        push_summary(&mut out, "unexpected joint", &unexpected);
         if out.is_empty() {
-            for (j, name) in self.names.iter().enumerate() {
-                let mine = self.parents[j].map(|p| self.names[p].as_str());
-                let theirs = other.parents[other.index_of(name).unwrap_or(j)].map(|p| other.names[p].as_str());
-                if mine != theirs {
-                    out.push(format!("joint '{name}' has parent {mine:?} against {theirs:?}"));
-                }
-            }
+            let reparented: Vec<&String> = self
+                .names
+                .iter()
+                .enumerate()
+                .filter(|&(j, name)| {
+                    let own_parent = self.parents[j].map(|p| &self.names[p]);
+                    let other_parent = theirs.get(name.as_str()).and_then(|&k| other.parents[k]).map(|p| &other.names[p]);
+                    own_parent != other_parent
+                })
+                .map(|(_, name)| name)
+                .collect();
+            push_summary(&mut out, "joint with another parent", &reparented);
         }
         out
     }
+}
+
+/// "3 missing joints: 'a', 'b', 'c'" or "40 missing joints: 'a', 'b', 'c' and 37 more".
+fn push_summary(out: &mut Vec<String>, what: &str, names: &[&String]) {
+    const SHOWN: usize = 3;
+    if names.is_empty() {
+        return;
+    }
+    let plural = if names.len() == 1 { "" } else { "s" };
+    let listed: Vec<String> = names.iter().take(SHOWN).map(|n| format!("'{}'", clipped(n))).collect();
+    let more = if names.len() > SHOWN { format!(" and {} more", names.len() - SHOWN) } else { String::new() };
+    out.push(format!("{} {what}{plural}: {}{more}", names.len(), listed.join(", ")));
 }

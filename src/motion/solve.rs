@@ -33,14 +33,14 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
         return Vec::new();
     }
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (j, p) in skeleton.parents.iter().enumerate() {
+    for (j, p) in skeleton.parents().iter().enumerate() {
         if let Some(p) = *p {
             if p < j {
                 children[p].push(j);
             }
         }
     }
-    let scale = skeleton.offsets.iter().map(|o| o.length()).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
+    let scale = skeleton.offsets().iter().map(|o| o.length()).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
     let eps = 1e-6 * scale;
     // Frames are independent: spread them over the cores.
     positions.par_chunks_exact(n).map(|frame| solve_frame(skeleton, &children, frame, eps)).collect()
@@ -50,17 +50,17 @@ fn solve_frame(skeleton: &Skeleton, children: &[Vec<usize>], frame: &[Vec3], eps
     let n = skeleton.len();
     let mut world = vec![Quat::IDENTITY; n];
     let mut rotations = vec![Quat::IDENTITY; n];
-    let mut translations = skeleton.offsets.clone();
+    let mut translations = skeleton.offsets().to_vec();
     let mut pairs: Vec<(Vec3, Vec3)> = Vec::new();
     for j in 0..n {
-        let parent = skeleton.parents[j].filter(|&p| p < j);
+        let parent = skeleton.parents()[j].filter(|&p| p < j);
         let base = parent.map_or(Quat::IDENTITY, |p| world[p]);
         if parent.is_none() {
             translations[j] = frame[j];
         }
         pairs.clear();
         for &c in &children[j] {
-            let rest = skeleton.offsets[c];
+            let rest = skeleton.offsets()[c];
             let actual = frame[c] - frame[j];
             if rest.length() > eps && actual.length() > eps && actual.is_finite() {
                 pairs.push((rest.normalize(), actual.normalize()));
@@ -311,7 +311,7 @@ mod tests {
         for _ in 0..50 {
             let pose = LocalPose {
                 rotations: (0..s.len()).map(|_| rng.quat()).collect(),
-                translations: (0..s.len()).map(|j| if j == 0 { rng.vec() * 100.0 } else { s.offsets[j] }).collect(),
+                translations: (0..s.len()).map(|j| if j == 0 { rng.vec() * 100.0 } else { s.offsets()[j] }).collect(),
             };
             let p = fk(&s, &pose);
             frames.extend_from_slice(&p);
@@ -325,7 +325,7 @@ mod tests {
                 assert!(a.distance(*b) < 1e-3, "{a} vs {b}");
             }
             assert_eq!(pose.translations[0], want[0]);
-            assert_eq!(&pose.translations[1..], &s.offsets[1..]);
+            assert_eq!(&pose.translations[1..], &s.offsets()[1..]);
         }
     }
 

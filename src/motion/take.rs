@@ -59,7 +59,7 @@ impl Motion {
     pub fn bone_lengths(&self, t: usize) -> Vec<f32> {
         let frame = self.frame(t);
         (0..self.joints())
-            .map(|j| self.skeleton.parents[j].map_or(0.0, |p| frame[j].distance(frame[p])))
+            .map(|j| self.skeleton.parents()[j].map_or(0.0, |p| frame[j].distance(frame[p])))
             .collect()
     }
 
@@ -73,7 +73,7 @@ impl Motion {
         let mut moved = self.clone();
         moved.positions.iter_mut().for_each(|p| *p += offset);
         if let Some(poses) = moved.local_poses.as_mut() {
-            let roots: Vec<usize> = (0..self.joints()).filter(|&j| self.skeleton.parents[j].is_none()).collect();
+            let roots: Vec<usize> = (0..self.joints()).filter(|&j| self.skeleton.parents()[j].is_none()).collect();
             for pose in poses {
                 roots.iter().for_each(|&r| pose.translations[r] += offset);
             }
@@ -141,7 +141,7 @@ impl Motion {
         for t in 0..self.frames() {
             let f = self.frame(t);
             for &b in &bones {
-                let p = self.skeleton.parents[b].expect("bones have parents");
+                let p = self.skeleton.parents()[b].expect("bones have parents");
                 sum += ((f[b].distance(f[p]) - rest[b]).abs() / rest[b]) as f64;
             }
         }
@@ -180,8 +180,8 @@ mod tests {
         let keep = s.informative_joints(1e-6);
         assert_eq!(keep, vec![0, 2]);
         let sub = s.subset(&keep);
-        assert_eq!(sub.parents, vec![None, Some(0)]);
-        assert_eq!(sub.offsets[1], Vec3::new(0.0, 2.0, 0.0));
+        assert_eq!(sub.parents(), vec![None, Some(0)]);
+        assert_eq!(sub.offsets()[1], Vec3::new(0.0, 2.0, 0.0));
     }
 }
 

@@ -138,23 +138,23 @@ struct LayerInfo {
 impl LayerInfo {
     fn new(motion: &Arc<Motion>) -> Self {
         let skeleton = &motion.skeleton;
-        let mpu = skeleton.meters_per_unit;
+        let mpu = skeleton.meters_per_unit();
         let n = motion.joints();
         let frames = motion.frames();
         let ground = motion.floor_height() * mpu;
-        let first_root = skeleton.parents.iter().position(Option::is_none).unwrap_or(0);
+        let first_root = skeleton.parents().iter().position(Option::is_none).unwrap_or(0);
         // A root that stays on the floor (e.g. Bandai's `joint_Root`, fixed at the origin while
         // the hips carry the motion) is not part of the body: hide it and its bones, and take
         // the trajectory from its first child.
         let root_height = (0..frames).map(|t| (motion.frame(t)[first_root].y * mpu - ground) as f64).sum::<f64>() / frames.max(1) as f64;
         let hide_root = n > 1 && root_height < 0.15;
-        let root = if hide_root { (0..n).find(|&c| skeleton.parents[c] == Some(first_root)).unwrap_or(first_root) } else { first_root };
-        let long = |j: usize| skeleton.offsets.get(j).is_some_and(|o| o.length() * mpu >= MIN_BONE);
+        let root = if hide_root { (0..n).find(|&c| skeleton.parents()[c] == Some(first_root)).unwrap_or(first_root) } else { first_root };
+        let long = |j: usize| skeleton.offsets().get(j).is_some_and(|o| o.length() * mpu >= MIN_BONE);
         let hidden = |j: usize| hide_root && j == first_root;
         let mut joints = Vec::new();
         let mut bones = Vec::new();
         for j in 0..n {
-            match skeleton.parents[j] {
+            match skeleton.parents()[j] {
                 None => {
                     if !hidden(j) {
                         joints.push(j);
@@ -187,14 +187,14 @@ impl LayerInfo {
             (min, max) = (Vec3::ZERO, Vec3::ZERO);
         }
         let centre_height = (centre_sum / frames.max(1) as f64) as f32;
-        let names: Vec<String> = skeleton.names.iter().map(|s| s.to_lowercase()).collect();
+        let names: Vec<String> = skeleton.names().iter().map(|s| s.to_lowercase()).collect();
         let head = names
             .iter()
             .position(|s| s == "head")
             .or_else(|| names.iter().position(|s| s.contains("head") && !s.contains("end")))
             .and_then(|h| {
-                let parent = skeleton.parents[h]?;
-                let child = (0..n).find(|&c| skeleton.parents[c] == Some(h) && long(c));
+                let parent = skeleton.parents()[h]?;
+                let child = (0..n).find(|&c| skeleton.parents()[c] == Some(h) && long(c));
                 Some((h, parent, child))
             });
         Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head }
@@ -380,7 +380,7 @@ impl Viewport {
             if m.frames() == 0 || m.joints() == 0 {
                 continue;
             }
-            let p = m.frame(scene.frame.min(m.frames() - 1))[info.root] * m.skeleton.meters_per_unit + layer.offset;
+            let p = m.frame(scene.frame.min(m.frames() - 1))[info.root] * m.skeleton.meters_per_unit() + layer.offset;
             sum += Vec3::new(p.x, 0.0, p.z);
             height += info.centre_height;
             n += 1.0;
@@ -427,7 +427,7 @@ impl Viewport {
                 continue;
             }
             if scene.settings.follow_root {
-                let mpu = m.skeleton.meters_per_unit;
+                let mpu = m.skeleton.meters_per_unit();
                 let frame = m.frame(scene.frame.min(m.frames() - 1));
                 for &j in &info.joints {
                     let p = frame[j] * mpu + layer.offset;
@@ -464,7 +464,7 @@ impl Viewport {
         let mut vertices = Vec::new();
         for (layer, info) in scene.layers.iter().zip(&self.layers) {
             let m = &layer.motion;
-            let mpu = m.skeleton.meters_per_unit;
+            let mpu = m.skeleton.meters_per_unit();
             let last = m.frames().saturating_sub(1) as f32;
             let vertex = |t: usize| {
                 let p = m.frame(t)[info.root] * mpu + layer.offset;
@@ -534,7 +534,7 @@ impl Viewport {
                     poses.push((current + k * step, alpha, 0.35));
                 }
             }
-            let mpu = m.skeleton.meters_per_unit;
+            let mpu = m.skeleton.meters_per_unit();
             for (t, alpha, lighten) in poses {
                 if alpha <= 0.01 {
                     continue;

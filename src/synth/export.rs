@@ -59,9 +59,9 @@ pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<
         ExportFormat::Json => {
             let take = JsonTake {
                 fps: motion.fps,
-                meters_per_unit: motion.skeleton.meters_per_unit,
-                joints: motion.skeleton.names.clone(),
-                parents: motion.skeleton.parents.iter().map(|p| p.map_or(-1, |p| p as i64)).collect(),
+                meters_per_unit: motion.skeleton.meters_per_unit(),
+                joints: motion.skeleton.names().to_vec(),
+                parents: motion.skeleton.parents().iter().map(|p| p.map_or(-1, |p| p as i64)).collect(),
                 segments: segments.to_vec(),
                 frames: (0..motion.frames()).map(|t| motion.frame(t).iter().map(|p| p.to_array()).collect()).collect(),
             };

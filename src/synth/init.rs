@@ -75,7 +75,7 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
     let m = match ext.as_str() {
         "bvh" => {
             let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
-            let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit)?;
+            let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit())?;
             // A take this model exported is on its own joints already.
             if m.skeleton.differences(&spec.layout.skeleton).is_empty() {
                 let mut m = m.resample(spec.fps);

@@ -66,7 +66,7 @@ pub fn contact_sheet(motion: &Motion, segments: &[SegmentSpan], opts: &SheetOpti
             (cx + opts.cell as f32 * 0.5 + q.x * scale, cy + opts.cell as f32 * 0.92 - q.y * scale)
         };
         draw_line_segment_mut(&mut img, (cx + 8.0, cy + opts.cell as f32 * 0.92), (cx + opts.cell as f32 - 8.0, cy + opts.cell as f32 * 0.92), Rgb([200, 200, 195]));
-        for (j, parent) in motion.skeleton.parents.iter().enumerate() {
+        for (j, parent) in motion.skeleton.parents().iter().enumerate() {
             if let Some(p) = parent {
                 draw_line_segment_mut(&mut img, project(frame[*p]), project(frame[j]), color);
             }
