@@ -139,7 +139,7 @@ fn still_toe_heights(d: &DatasetClips, class: usize) -> Vec<f32> {
     let mut heights = Vec::new();
     for clip in d.clips.iter().filter(|c| c.class == class && c.split == registry::Split::Test) {
         let m = &clip.motion;
-        let unit = m.skeleton.meters_per_unit;
+        let unit = m.skeleton.meters_per_unit();
         let toes: Vec<usize> = ["LeftToeBase", "RightToeBase"].iter().filter_map(|n| m.skeleton.index_of(n)).collect();
         for t in 1..m.frames() {
             for &j in &toes {

@@ -211,7 +211,7 @@ fn an_exported_take_starts_the_next_at_the_same_height() {
 
 /// Largest distance between two takes' joints over all frames, in metres.
 fn largest_difference(a: &glocal::motion::Motion, b: &glocal::motion::Motion) -> f32 {
-    a.positions().iter().zip(b.positions()).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max) * a.skeleton.meters_per_unit
+    a.positions().iter().zip(b.positions()).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max) * a.skeleton.meters_per_unit()
 }
 
 /// A boundary exactly on a GloGen block seam (4 s into an h36m take: the seed's 2 s block,

@@ -12,7 +12,7 @@ use serde::Deserialize;
 
 use super::floor::fit_floor;
 use super::FormatError;
-use crate::motion::{LocalPose, Motion, Skeleton};
+use crate::motion::{JointRoles, LocalPose, Motion, Skeleton};
 
 /// How the first six values of a line place the root.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -145,7 +145,7 @@ fn level_to_vertical(motion: &Motion) -> Motion {
     }
     let by_torso = Quat::from_rotation_arc(up.normalize_or(Vec3::Y), Vec3::Y);
     let torso_levelled = rotate_about_origin(motion, by_torso, Vec3::ZERO);
-    let toes: Vec<usize> = ["LeftToeBase", "RightToeBase"].iter().filter_map(|n| motion.skeleton.index_of(n)).collect();
+    let toes: Vec<usize> = JointRoles::new(&motion.skeleton).map(|r| [r.left.toe, r.right.toe].into_iter().flatten().collect()).unwrap_or_default();
     let (fix, floor) = match fit_floor(&torso_levelled, &toes) {
         Some(floor) => (floor.levelling * by_torso, floor.height),
         None => {

@@ -21,7 +21,7 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::motion::{Motion, Skeleton};
+use crate::motion::{JointRoles, Motion, RolesError, Skeleton};
 
 /// Values per frame before the joints.
 pub const ROOT_FEATURES: usize = 4;
@@ -50,19 +50,10 @@ pub struct FeatureLayout {
 }
 
 impl FeatureLayout {
-    /// Finds the hips by name (`Left`/`Right` or `_L`/`_R` with `UpLeg`, `Thigh`, `UpperLeg`
-    /// or `Hip`); falls back to the root's first two children.
-    pub fn new(skeleton: Arc<Skeleton>) -> Self {
-        let find = |side: &[&str]| {
-            skeleton.names().iter().position(|n| {
-                let l = n.to_lowercase();
-                side.iter().any(|s| l.contains(s)) && ["upleg", "thigh", "upperleg", "hip"].iter().any(|k| l.contains(k))
-            })
-        };
-        let kids: Vec<usize> = skeleton.children(0).collect();
-        let left_hip = find(&["left", "_l", "l_"]).or(kids.first().copied()).unwrap_or(0);
-        let right_hip = find(&["right", "_r", "r_"]).or(kids.get(1).copied()).unwrap_or(0);
-        Self { skeleton, left_hip, right_hip }
+    /// Takes the hips from the skeleton's [`JointRoles`]; an error names the roles it lacks.
+    pub fn new(skeleton: Arc<Skeleton>) -> Result<Self, RolesError> {
+        let roles = JointRoles::new(&skeleton)?;
+        Ok(Self { skeleton, left_hip: roles.left.hip, right_hip: roles.right.hip })
     }
 
     pub fn joints(&self) -> usize {
@@ -247,14 +238,18 @@ mod tests {
     use super::*;
 
     fn walker() -> (FeatureLayout, Vec<Vec<Vec3>>) {
+        // Hips, then per side hip, knee, ankle, toe; head; per side hand.
+        let names = "Hips LeftUpLeg LeftLeg LeftFoot LeftToeBase RightUpLeg RightLeg RightFoot RightToeBase Head LeftHand RightHand";
+        let down = Vec3::new(0.0, -4.0, 0.0);
+        let toe = Vec3::new(0.0, 0.0, 1.0);
         let skeleton = Skeleton::new(
-            vec!["Hips".into(), "LeftUpLeg".into(), "RightUpLeg".into(), "Head".into()],
-            vec![None, Some(0), Some(0), Some(0)],
-            vec![Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0), Vec3::new(0.0, 5.0, 0.0)],
+            names.split(' ').map(String::from).collect(),
+            vec![None, Some(0), Some(1), Some(2), Some(3), Some(0), Some(5), Some(6), Some(7), Some(0), Some(0), Some(0)],
+            vec![Vec3::ZERO, Vec3::X, down, down, toe, -Vec3::X, down, down, toe, Vec3::new(0.0, 5.0, 0.0), Vec3::new(3.0, 3.0, 0.0), Vec3::new(-3.0, 3.0, 0.0)],
             0.01,
         )
         .unwrap();
-        let layout = FeatureLayout::new(Arc::new(skeleton.clone()));
+        let layout = FeatureLayout::new(Arc::new(skeleton.clone())).unwrap();
         let frames = (0..12)
             .map(|t| {
                 let turn = Quat::from_rotation_y(0.2 * t as f32);
@@ -272,8 +267,8 @@ mod tests {
         let feats = layout.encode(&refs[1..], Some(refs[0]));
         let (back, _) = layout.decode(&feats, layout.placement(refs[0]));
         for (t, f) in frames[1..].iter().enumerate() {
-            for j in 0..4 {
-                assert!(back[t * 4 + j].distance(f[j]) < 1e-4, "frame {t} joint {j}");
+            for (j, joint) in f.iter().enumerate() {
+                assert!(back[t * f.len() + j].distance(*joint) < 1e-4, "frame {t} joint {j}");
             }
         }
     }

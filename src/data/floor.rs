@@ -34,13 +34,13 @@ pub struct Floor {
 /// Fits the floor through the still samples of the `toes` joints, or `None` when the toes
 /// never stand still long enough to fix a plane.
 pub fn fit_floor(motion: &Motion, toes: &[usize]) -> Option<Floor> {
-    let still = STILL_SPEED / motion.skeleton.meters_per_unit / motion.fps;
+    let still = STILL_SPEED / motion.skeleton.meters_per_unit() / motion.fps;
     let mut points = Vec::new();
     for t in 1..motion.frames() {
         let (prev, cur) = (motion.frame(t - 1), motion.frame(t));
         points.extend(toes.iter().filter(|&&j| cur[j].distance(prev[j]) < still).map(|&j| cur[j]));
     }
-    let unit = 1.0 / motion.skeleton.meters_per_unit;
+    let unit = 1.0 / motion.skeleton.meters_per_unit();
     let mut plane = fit_plane(&points, SLOPE_PRIOR * unit)?;
     for limit in INLIER_PASSES {
         let inliers: Vec<Vec3> = points.iter().copied().filter(|p| plane.residual(*p).abs() < limit * unit).collect();

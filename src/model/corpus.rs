@@ -3,14 +3,14 @@
 
 use std::sync::Arc;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use rand::Rng;
 
 use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
-use crate::motion::{Motion, Skeleton};
+use crate::motion::{JointRoles, Motion, Skeleton};
 
 /// Bones shorter than this fraction of the skeleton's longest bone are duplicates or
 /// collapsed end sites, and their joints are left out of the model.
@@ -42,8 +42,10 @@ impl Corpus {
         let loaded = registry::load(dataset, root)?;
         let Some(first) = loaded.clips.first() else { bail!("{dataset} has no readable clips") };
         let skeleton = first.motion.skeleton.clone();
-        let source_joints = model_joints(&skeleton);
-        let layout = FeatureLayout::new(Arc::new(skeleton.subset(&source_joints)));
+        let roles = JointRoles::new(&skeleton).with_context(|| format!("{dataset}'s skeleton ({})", first.file))?;
+        let source_joints = model_joints(&skeleton, roles.body_root);
+        let layout = FeatureLayout::new(Arc::new(skeleton.subset(&source_joints)))
+            .with_context(|| format!("{dataset}'s model skeleton ({})", first.file))?;
         let fps = dataset.working_fps();
         let mut counts = vec![0usize; loaded.classes.len()];
         for c in loaded.split(Split::Train) {
@@ -96,21 +98,22 @@ impl Corpus {
 }
 
 /// The joints a model of this skeleton keeps: bones shorter than a fraction of the longest
-/// limb bone are duplicates or collapsed end sites. A root with a single child (Bandai's
-/// `joint_Root`, a placement handle under `Hips`) is dropped too, so the model's root is the
+/// limb bone are duplicates or collapsed end sites. Joints above the body root (Bandai's
+/// `joint_Root`, a placement handle above `Hips`) are dropped too, so the model's root is the
 /// joint where the body branches, the one that carries the pelvis.
-fn model_joints(skeleton: &Skeleton) -> Vec<usize> {
+fn model_joints(skeleton: &Skeleton, body_root: usize) -> Vec<usize> {
     let longest_limb = (0..skeleton.len())
         .filter(|&j| skeleton.parents()[j].is_some_and(|p| p != 0))
         .map(|j| skeleton.offsets()[j].length())
         .fold(0.0, f32::max);
     let mut keep = skeleton.informative_joints(longest_limb * MIN_BONE_FRACTION);
-    let root_children: Vec<usize> = skeleton.children(0).collect();
-    if let [body_root] = root_children[..] {
-        keep.retain(|&j| j != 0);
-        if !keep.contains(&body_root) {
-            keep.insert(0, body_root);
-        }
+    let mut above = skeleton.parents()[body_root];
+    while let Some(p) = above {
+        keep.retain(|&j| j != p);
+        above = skeleton.parents()[p];
+    }
+    if !keep.contains(&body_root) {
+        keep.insert(0, body_root);
     }
     keep
 }

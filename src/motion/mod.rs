@@ -3,12 +3,14 @@
 //! positions in the skeleton's own unit (see [`Skeleton::meters_per_unit`]).
 
 mod kinematics;
+mod roles;
 mod rotation;
 mod skeleton;
 mod solve;
 mod take;
 
 pub use kinematics::{forward_kinematics, LocalPose};
+pub use roles::{JointRoles, Leg, RolesError, Side};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError};
 pub use solve::solve_local_poses;

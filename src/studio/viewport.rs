@@ -18,7 +18,7 @@ use std::sync::Arc;
 use eframe::egui_wgpu::{self, wgpu};
 use glam::{Mat4, Quat, Vec3};
 
-use crate::motion::Motion;
+use crate::motion::{JointRoles, Motion};
 use render::{Globals, Instance, Resources, SceneCallback, TrailVertex};
 pub use render::HostPass;
 
@@ -142,15 +142,15 @@ impl LayerInfo {
         let n = motion.joints();
         let frames = motion.frames();
         let ground = motion.floor_height() * mpu;
+        let roles = JointRoles::new(skeleton).ok();
         let first_root = skeleton.parents().iter().position(Option::is_none).unwrap_or(0);
-        // A root that stays on the floor (e.g. Bandai's `joint_Root`, fixed at the origin while
-        // the hips carry the motion) is not part of the body: hide it and its bones, and take
-        // the trajectory from its first child.
-        let root_height = (0..frames).map(|t| (motion.frame(t)[first_root].y * mpu - ground) as f64).sum::<f64>() / frames.max(1) as f64;
-        let hide_root = n > 1 && root_height < 0.15;
-        let root = if hide_root { (0..n).find(|&c| skeleton.parents()[c] == Some(first_root)).unwrap_or(first_root) } else { first_root };
+        // Joints above the body root (e.g. Bandai's `joint_Root`, fixed at the origin while
+        // the hips carry the motion) are not part of the body: hide them and their bones, and
+        // take the trajectory from the body root.
+        let root = roles.as_ref().map_or(first_root, |r| r.body_root);
+        let above_root: Vec<usize> = std::iter::successors(skeleton.parents()[root], |&p| skeleton.parents()[p]).collect();
         let long = |j: usize| skeleton.offsets().get(j).is_some_and(|o| o.length() * mpu >= MIN_BONE);
-        let hidden = |j: usize| hide_root && j == first_root;
+        let hidden = |j: usize| above_root.contains(&j);
         let mut joints = Vec::new();
         let mut bones = Vec::new();
         for j in 0..n {
@@ -187,16 +187,7 @@ impl LayerInfo {
             (min, max) = (Vec3::ZERO, Vec3::ZERO);
         }
         let centre_height = (centre_sum / frames.max(1) as f64) as f32;
-        let names: Vec<String> = skeleton.names().iter().map(|s| s.to_lowercase()).collect();
-        let head = names
-            .iter()
-            .position(|s| s == "head")
-            .or_else(|| names.iter().position(|s| s.contains("head") && !s.contains("end")))
-            .and_then(|h| {
-                let parent = skeleton.parents()[h]?;
-                let child = (0..n).find(|&c| skeleton.parents()[c] == Some(h) && long(c));
-                Some((h, parent, child))
-            });
+        let head = roles.as_ref().and_then(|r| Some((r.head, skeleton.parents()[r.head]?, r.head_end.filter(|&c| long(c)))));
         Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head }
     }
 }

@@ -10,7 +10,7 @@ use imageproc::drawing::{draw_filled_circle_mut, draw_line_segment_mut};
 
 use super::SegmentSpan;
 use crate::data::write::write_atomic;
-use crate::motion::{floor_height, Motion};
+use crate::motion::{floor_height, JointRoles, Motion};
 
 /// A palette of distinct colours for classes, shared by the sheet and the studio.
 pub fn class_color(class: usize) -> [u8; 3] {
@@ -51,8 +51,7 @@ pub fn contact_sheet(motion: &Motion, segments: &[SegmentSpan], opts: &SheetOpti
     let mut img = RgbImage::from_pixel(opts.columns as u32 * opts.cell, opts.rows as u32 * opts.cell, Rgb([250, 250, 247]));
     let height = body_height(motion);
     let view = glam::Quat::from_rotation_y(-0.5);
-    let rest = motion.skeleton.rest_positions();
-    let head = (0..rest.len()).max_by(|&a, &b| rest[a].y.total_cmp(&rest[b].y)).unwrap_or(0);
+    let head = JointRoles::new(&motion.skeleton).ok().map(|r| r.head_top());
     for k in 0..n.min(motion.frames()) {
         let t = if n > 1 { k * (motion.frames() - 1) / (n - 1) } else { 0 };
         let class = segments.iter().find(|s| t >= s.start_frame && t < s.end_frame.max(s.start_frame + 1)).map_or(0, |s| s.class);
@@ -71,8 +70,10 @@ pub fn contact_sheet(motion: &Motion, segments: &[SegmentSpan], opts: &SheetOpti
                 draw_line_segment_mut(&mut img, project(frame[*p]), project(frame[j]), color);
             }
         }
-        let top = project(frame[head]);
-        draw_filled_circle_mut(&mut img, (top.0 as i32, top.1 as i32), 3, color);
+        if let Some(head) = head {
+            let top = project(frame[head]);
+            draw_filled_circle_mut(&mut img, (top.0 as i32, top.1 as i32), 3, color);
+        }
     }
     img
 }
