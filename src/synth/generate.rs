@@ -41,11 +41,15 @@ pub const DEFAULT_TRANSITION_SECONDS: f32 = 2.0;
 /// A block whose poses move less than this fraction of its class's typical motion (the mean
 /// over the seed bank) has stalled: deterministic regression drifts towards the mean pose
 /// over minutes, so keep-alive re-anchors it.
-const STALL_BELOW: f32 = 0.7;
+const STALL_BELOW: f32 = 0.9;
+
+/// A block whose poses move more than this multiple of its class's typical motion is
+/// rushing (a gesture repeated ever faster): keep-alive re-anchors it too.
+const RUSH_ABOVE: f32 = 1.5;
 
 /// Blocks a keep-alive waits after any anchoring before it may re-anchor again, so a
 /// naturally still moment (a pause in a gesture) is not cut short at once.
-const KEEP_ALIVE_GAP: usize = 2;
+const KEEP_ALIVE_GAP: usize = 1;
 
 /// Blocks over which a keep-alive eases the context towards its anchor window.
 const KEEP_ALIVE_EASE: usize = 2;
@@ -282,11 +286,13 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         let context = &sparse[sparse.len() - t * dim..];
         let mut input = context.to_vec();
         let previous = context[context.len() - 2 * dim..].to_vec();
-        let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && pose_motion(&input, dim) < STALL_BELOW * typical_motion[plan.target];
+        let motion = pose_motion(&input, dim) / typical_motion[plan.target].max(f32::EPSILON);
+        let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && !(STALL_BELOW..=RUSH_ABOVE).contains(&motion);
         let switching = plan.ease_blocks > 0 && context_class != Some(plan.target);
         if easing.is_none() && (switching || stalled) {
             let (blocks, strength) = if switching { (plan.ease_blocks, 1.0) } else { (KEEP_ALIVE_EASE, anchors.random_range(KEEP_ALIVE_STRENGTH)) };
-            easing = pick_anchor(model, plan.target, &mut anchors, last_anchor).map(|(k, anchor)| {
+            let lively = if switching { 0.0 } else { typical_motion[plan.target] };
+            easing = pick_anchor(model, plan.target, lively, &mut anchors, last_anchor).map(|(k, anchor)| {
                 last_anchor = Some(k);
                 Easing { anchor, step: 0, blocks, strength }
             });
@@ -351,20 +357,28 @@ fn segment_spans(timeline: &SparseTimeline, names: &[String], interval_starts: &
     segments
 }
 
-/// A random normalised seed-bank window of `class`, another than `avoid` where the class has
-/// more than one, with its index.
-fn pick_anchor(model: &GlocalModel, class: usize, rng: &mut StdRng, avoid: Option<usize>) -> Option<(usize, Vec<f32>)> {
-    let count = model.seeds.iter().filter(|s| s.class == class).count();
-    if count == 0 {
-        return None;
-    }
-    let mut k = rng.random_range(0..count);
-    if count > 1 && Some(k) == avoid {
-        k = (k + 1 + rng.random_range(0..count - 1)) % count;
-    }
-    let mut window = model.seed_of_class(class, k)?.features.clone();
-    model.spec.sparse_norm.normalize(&mut window);
-    Some((k, window))
+/// A random normalised seed-bank window of `class` whose [`pose_motion`] is at least
+/// `min_motion` (a keep-alive wants a window that moves: re-anchoring a stalled take on a
+/// still window of the class keeps it still), another than `avoid` where there is a choice,
+/// with its index.
+fn pick_anchor(model: &GlocalModel, class: usize, min_motion: f32, rng: &mut StdRng, avoid: Option<usize>) -> Option<(usize, Vec<f32>)> {
+    let dim = model.spec.layout.dim();
+    let windows: Vec<(usize, Vec<f32>)> = model
+        .seeds
+        .iter()
+        .filter(|s| s.class == class)
+        .map(|s| {
+            let mut w = s.features.clone();
+            model.spec.sparse_norm.normalize(&mut w);
+            w
+        })
+        .enumerate()
+        .collect();
+    let lively: Vec<&(usize, Vec<f32>)> = windows.iter().filter(|(_, w)| pose_motion(w, dim) >= min_motion).collect();
+    let pool: Vec<&(usize, Vec<f32>)> = if lively.is_empty() { windows.iter().collect() } else { lively };
+    let fresh: Vec<&&(usize, Vec<f32>)> = pool.iter().filter(|(k, _)| Some(*k) != avoid).collect();
+    let choice = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
+    Some(choice.clone())
 }
 
 /// Mean distance between consecutive poses of a normalised sparse window, over the joint
