@@ -246,7 +246,9 @@ impl SparseTimeline {
     }
 }
 
-/// A context being eased towards a real window of its class.
+/// A context being eased towards a real window of its class: by `strength * step / blocks`
+/// at the `step`-th of `blocks` blocks, so a class change ends on a real window of the new
+/// class (the seam join keeps the replacement from popping).
 struct Easing {
     anchor: Vec<f32>,
     step: usize,
@@ -302,7 +304,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         since_anchor += 1;
         if let Some(e) = easing.as_mut() {
             e.step += 1;
-            let alpha = e.strength * e.step as f32 / (e.blocks + 1) as f32;
+            let alpha = e.strength * e.step as f32 / e.blocks as f32;
             input.iter_mut().zip(&e.anchor).for_each(|(v, a)| *v += alpha * (a - *v));
             if e.step == e.blocks {
                 easing = None;
