@@ -185,11 +185,19 @@ impl Finder<'_> {
     /// its nearest named ancestor (else its parent) and the lower as its nearest named
     /// descendant.
     fn fill_limb(&self, keys: &mut KeyJoints, side: Side, [upper, middle, lower]: [Key; 3], [upper_words, middle_words, lower_words]: [&[&str]; 3]) {
+        let first_named = |words: &[&str]| (0..self.skeleton.len()).find(|&j| self.is(j, side, words));
         if keys.get(middle).is_none() {
-            let found = (0..self.skeleton.len()).find(|&j| self.is(j, side, middle_words));
-            keys.set(middle, found);
+            keys.set(middle, first_named(middle_words));
         }
-        let Some(m) = keys.get(middle) else { return };
+        let Some(m) = keys.get(middle) else {
+            // Without the middle joint the others are still worth finding (for the message).
+            for (key, words) in [(upper, upper_words), (lower, lower_words)] {
+                if keys.get(key).is_none() {
+                    keys.set(key, first_named(words));
+                }
+            }
+            return;
+        };
         if keys.get(upper).is_none() {
             let mut a = self.skeleton.parents()[m];
             let mut found = None;

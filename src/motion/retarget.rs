@@ -211,9 +211,12 @@ pub struct Retarget {
     links: Vec<Link>,
     /// The target reduced to the mapped joints, for solving their rotations.
     mapped_skeleton: Skeleton,
-    /// For each target joint, the link whose rotation carries it (its nearest mapped
-    /// ancestor-or-self); None above the hips (e.g. Bandai's placement handle `joint_Root`).
-    carried_by: Vec<Option<usize>>,
+    /// For each target joint, its link when it is a mapped joint.
+    link_of: Vec<Option<usize>>,
+    /// For the first unmapped joint on the way from one mapped joint to the next (an extra
+    /// spine joint, CMU's buttock joint between hips and thigh), the link it turns towards, so
+    /// the chain reaches where the next mapped joint should be.
+    aims: Vec<Option<usize>>,
     /// Target units of hips motion per source unit: the ratio of leg lengths.
     root_scale: f32,
     pub source_rest: RestPose,
@@ -228,6 +231,9 @@ impl Retarget {
                 return Err(RetargetError::MissingKeys { side, keys: missing });
             }
         }
+        // A source key on its mapped parent (the CMU database's zero-length lowerneck and
+        // clavicle joints) hands on no direction: its goal sits on its parent's, which the
+        // solver then leaves out of the parent's fit, and the bone after it still points right.
         let mut pairs: Vec<(usize, usize, Key)> =
             Key::ALL.into_iter().filter_map(|k| Some((target_keys.get(k)?, source_keys.get(k)?, k))).collect();
         pairs.sort_by_key(|p| p.0);
@@ -241,9 +247,20 @@ impl Retarget {
             let length = parent.map_or(0.0, |p| target_rest[t].distance(target_rest[links[p].target]));
             links.push(Link { key, target: t, source: s, parent, length });
         }
-        let carried_by = (0..target.len())
-            .map(|j| links.iter().position(|l| l.target == j).or_else(|| nearest_ancestor(&target, j, |a| links.iter().position(|l| l.target == a))))
-            .collect();
+        let link_of: Vec<Option<usize>> = (0..target.len()).map(|j| links.iter().position(|l| l.target == j)).collect();
+        let mut aims = vec![None; target.len()];
+        for (i, link) in links.iter().enumerate() {
+            let Some(parent) = link.parent.map(|p| links[p].target) else { continue };
+            let mut first = None;
+            let mut j = link.target;
+            while let Some(p) = target.parents()[j].filter(|&p| p != parent) {
+                first = Some(p);
+                j = p;
+            }
+            if let Some(f) = first.filter(|&f| aims[f].is_none()) {
+                aims[f] = Some(i);
+            }
+        }
         let keep: Vec<usize> = links.iter().map(|l| l.target).collect();
         let root_scale = leg_length(&target, target_keys) / leg_length(source, source_keys).max(f32::MIN_POSITIVE);
         Ok(Retarget {
@@ -252,7 +269,8 @@ impl Retarget {
             target_rest: RestPose::detect(&target, target_keys),
             target,
             links,
-            carried_by,
+            link_of,
+            aims,
             root_scale,
         })
     }
@@ -286,40 +304,64 @@ impl Retarget {
             }
         }
         let solved = solve_local_poses(&self.mapped_skeleton, &mapped);
-        let poses = solved.iter().map(|pose| self.full_pose(pose)).collect();
+        let poses = solved.iter().zip(mapped.chunks_exact(self.links.len())).map(|(pose, goals)| self.full_pose(pose, goals)).collect();
         Motion::from_local_poses(self.target.clone(), motion.fps, poses)
     }
 
-    /// The target's whole pose from the mapped joints' solved pose: every joint takes the world
-    /// rotation of the link that carries it, so unmapped joints move rigidly with it.
-    fn full_pose(&self, mapped: &LocalPose) -> LocalPose {
+    /// The target's whole pose from the mapped joints' solved pose and where they should be
+    /// (`goals`, one per link): a mapped joint takes its solved world rotation, the first joint
+    /// of an unmapped stretch turns towards the next mapped joint's goal, every other joint
+    /// moves rigidly with its parent.
+    fn full_pose(&self, mapped: &LocalPose, goals: &[Vec3]) -> LocalPose {
         let mut link_world = vec![Quat::IDENTITY; self.links.len()];
         for (i, link) in self.links.iter().enumerate() {
             let base = link.parent.map_or(Quat::IDENTITY, |p| link_world[p]);
             link_world[i] = base * mapped.rotations[i];
         }
         let skeleton = &*self.target;
-        let world: Vec<Quat> = self.carried_by.iter().map(|c| c.map_or(Quat::IDENTITY, |i| link_world[i])).collect();
+        let rest = skeleton.rest_positions();
+        let hips = self.links[0].target;
+        let translations: Vec<Vec3> = (0..skeleton.len())
+            .map(|j| match skeleton.parents()[j] {
+                Some(_) => skeleton.offsets()[j],
+                // A root above the hips does not rotate: place it so the hips land right.
+                None if j == hips => goals[0],
+                None if is_ancestor(skeleton, j, hips) => goals[0] - (rest[hips] - rest[j]),
+                None => skeleton.offsets()[j],
+            })
+            .collect();
+        let mut world = vec![Quat::IDENTITY; skeleton.len()];
+        let mut position = vec![Vec3::ZERO; skeleton.len()];
+        for j in 0..skeleton.len() {
+            let (base, at) = match skeleton.parents()[j] {
+                Some(p) => (world[p], position[p] + world[p] * translations[j]),
+                None => (Quat::IDENTITY, translations[j]),
+            };
+            position[j] = at;
+            world[j] = match (self.link_of[j], self.aims[j]) {
+                (Some(i), _) => link_world[i],
+                (None, Some(k)) => turn_towards(base, rest[self.links[k].target] - rest[j], goals[k] - at),
+                (None, None) => base,
+            };
+        }
         let rotations = (0..skeleton.len())
             .map(|j| match skeleton.parents()[j] {
                 Some(p) => (world[p].inverse() * world[j]).normalize(),
                 None => world[j],
             })
             .collect();
-        let hips = self.links[0].target;
-        let hips_position = mapped.translations[0];
-        let rest = skeleton.rest_positions();
-        let translations = (0..skeleton.len())
-            .map(|j| match skeleton.parents()[j] {
-                Some(_) => skeleton.offsets()[j],
-                // A root above the hips does not rotate: place it so the hips land right.
-                None if j == hips => hips_position,
-                None if is_ancestor(skeleton, j, hips) => hips_position - (rest[hips] - rest[j]),
-                None => skeleton.offsets()[j],
-            })
-            .collect();
         LocalPose { rotations, translations }
     }
+}
+
+/// `base` followed by the shortest rotation taking `base * rest` onto `wanted`.
+fn turn_towards(base: Quat, rest: Vec3, wanted: Vec3) -> Quat {
+    let from = (base * rest).normalize_or_zero();
+    let to = wanted.normalize_or_zero();
+    if from == Vec3::ZERO || to == Vec3::ZERO {
+        return base;
+    }
+    (Quat::from_rotation_arc(from, to) * base).normalize()
 }
 
 /// The nearest strict ancestor of `joint` for which `pick` gives something.
@@ -346,15 +388,23 @@ fn leg_length(skeleton: &Skeleton, keys: &KeyJoints) -> f32 {
     (leg(Key::LeftUpLeg, Key::LeftLeg, Key::LeftFoot) + leg(Key::RightUpLeg, Key::RightLeg, Key::RightFoot)) / 2.0
 }
 
-/// Bones between mapped key joints, as (key, parent key): the bones a retargeted take should
-/// point the same way as its source on.
-pub fn mapped_bones(a: &KeyJoints, a_skeleton: &Skeleton, b: &KeyJoints) -> Vec<(Key, Key)> {
+/// Bones between key joints both skeletons map, as (key, parent key) with the parent the
+/// nearest mapped ancestor on skeleton `a`: the bones a retargeted take should point the same
+/// way as its source on. Bones of no rest length on either skeleton have no direction and are
+/// left out.
+pub fn mapped_bones(a: &KeyJoints, a_skeleton: &Skeleton, b: &KeyJoints, b_skeleton: &Skeleton) -> Vec<(Key, Key)> {
     let both: Vec<(Key, usize)> = a.mapped().filter(|(k, _)| b.get(*k).is_some()).collect();
+    let (rest_a, rest_b) = (a_skeleton.rest_positions(), b_skeleton.rest_positions());
+    let has_length = |rest: &[Vec3], keys: &KeyJoints, skeleton: &Skeleton, key: Key, parent: Key| {
+        let (Some(j), Some(p)) = (keys.get(key), keys.get(parent)) else { return false };
+        rest[j].distance(rest[p]) > 1e-3 * leg_length(skeleton, keys)
+    };
     both.iter()
         .filter_map(|&(key, joint)| {
             let parent = nearest_ancestor(a_skeleton, joint, |p| both.iter().find(|(_, j)| *j == p).map(|(k, _)| *k))?;
             Some((key, parent))
         })
+        .filter(|&(key, parent)| has_length(&rest_a, a, a_skeleton, key, parent) && has_length(&rest_b, b, b_skeleton, key, parent))
         .collect()
 }
 
@@ -429,7 +479,7 @@ mod tests {
         let out = r.apply(&source);
         assert_eq!((out.frames(), out.fps, out.joints()), (1, 30.0, dst.len()));
         let (s, d) = (source.frame(0), out.frame(0));
-        for (key, parent) in mapped_bones(&sk, &src, &dk) {
+        for (key, parent) in mapped_bones(&sk, &src, &dk, &dst) {
             let bone = |f: &[Vec3], k: &KeyJoints| (f[k.get(key).unwrap()] - f[k.get(parent).unwrap()]).normalize();
             let angle = bone(s, &sk).dot(bone(d, &dk)).clamp(-1.0, 1.0).acos().to_degrees();
             // Hips and chest fit several bones at once (least squares); single bones are exact.
