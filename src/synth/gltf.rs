@@ -4,7 +4,7 @@
 //!   the bind pose, so every inverse bind matrix is a translation.
 //! - Mesh: a mannequin of capsules, one per bone longer than 1 cm, from the parent joint to
 //!   the joint, each bound wholly to the parent (rigid limbs need no weight painting), plus a
-//!   head; one grey material.
+//!   trunk, pelvis and head when the skeleton is a humanoid; one blue material.
 //! - Animation "take": per joint a rotation channel (the local rotations BVH export writes,
 //!   kept on one hemisphere from frame to frame so interpolation takes the short way), and a
 //!   translation channel for the root and any joint that leaves its rest offset; keyframe k
@@ -23,12 +23,14 @@ use json::validation::Checked::Valid;
 use json::validation::USize64;
 
 use crate::data::joint_map::key_joints;
-use crate::motion::{solve_local_poses, Key, LocalPose, Motion, Skeleton};
+use crate::motion::{solve_local_poses, Key, KeyJoints, LocalPose, Motion, Skeleton};
 
 /// Capsule radius as a fraction of its bone's length, and its bounds in metres.
 const LIMB_THICKNESS: f32 = 0.16;
 const LIMB_RADIUS: (f32, f32) = (0.02, 0.06);
 const HEAD_RADIUS: f32 = 0.09;
+const TRUNK_RADIUS: f32 = 0.1;
+const PELVIS_RADIUS: f32 = 0.07;
 /// Bones shorter than this (metres) get no capsule: duplicate joints, collapsed end sites.
 const MIN_BONE: f32 = 0.01;
 /// Segments around a capsule and rings per half-sphere.
@@ -171,18 +173,29 @@ impl Document {
     /// Capsule limbs in the bind pose, each bound to the joint whose rotation moves it.
     fn mannequin(&mut self, skeleton: &Skeleton, scale: f32) -> json::Index<json::Mesh> {
         let rest: Vec<Vec3> = skeleton.rest_positions().iter().map(|p| *p * scale).collect();
+        // A humanoid (most skeletons) gets a trunk, a pelvis and a head; any other skeleton
+        // plain limbs.
+        let keys = key_joints(skeleton, None, "").ok();
+        let trunk: Vec<usize> = keys.as_ref().map_or(Vec::new(), |k| trunk_joints(skeleton, k));
+        let hips = keys.as_ref().and_then(|k| k.get(Key::Hips));
         let mut mesh = CapsuleMesh::default();
         for j in 0..skeleton.len() {
             if let Some(p) = skeleton.parents()[j] {
                 let length = rest[j].distance(rest[p]);
                 if length >= MIN_BONE {
-                    let radius = (LIMB_THICKNESS * length).clamp(LIMB_RADIUS.0, LIMB_RADIUS.1);
+                    let radius = if trunk.contains(&j) {
+                        TRUNK_RADIUS
+                    } else if Some(p) == hips {
+                        PELVIS_RADIUS
+                    } else {
+                        (LIMB_THICKNESS * length).clamp(LIMB_RADIUS.0, LIMB_RADIUS.1)
+                    };
                     mesh.capsule(rest[p], rest[j], radius, p);
                 }
             }
         }
         // The head: a ball continuing the neck above the head joint.
-        if let Ok(keys) = key_joints(skeleton, None, "") {
+        if let Some(keys) = &keys {
             if let (Some(head), Some(neck)) = (keys.get(Key::Head), keys.get(Key::Neck).or(keys.get(Key::Chest))) {
                 let up = (rest[head] - rest[neck]).normalize_or_zero();
                 mesh.capsule(rest[head] + up * HEAD_RADIUS, rest[head] + up * 1.4 * HEAD_RADIUS, HEAD_RADIUS, head);
@@ -198,7 +211,7 @@ impl Document {
         let material = self.root.push(json::Material {
             name: Some("Mannequin".into()),
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-                base_color_factor: json::material::PbrBaseColorFactor([0.62, 0.64, 0.68, 1.0]),
+                base_color_factor: json::material::PbrBaseColorFactor([0.22, 0.42, 0.72, 1.0]),
                 metallic_factor: json::material::StrengthFactor(0.0),
                 roughness_factor: json::material::StrengthFactor(0.7),
                 ..Default::default()
@@ -287,6 +300,22 @@ impl Document {
         };
         Ok(glb.to_vec()?)
     }
+}
+
+/// The joints on the way up from the chest to the hips (not the hips): their bones are the
+/// trunk.
+fn trunk_joints(skeleton: &Skeleton, keys: &KeyJoints) -> Vec<usize> {
+    let (Some(hips), Some(chest)) = (keys.get(Key::Hips), keys.get(Key::Chest)) else { return Vec::new() };
+    let mut out = Vec::new();
+    let mut j = chest;
+    while j != hips {
+        out.push(j);
+        match skeleton.parents[j] {
+            Some(p) => j = p,
+            None => return Vec::new(),
+        }
+    }
+    out
 }
 
 /// Capsule triangles with per-vertex joint bindings (one joint, full weight).
