@@ -18,7 +18,7 @@ fn take(name: &str) -> (Generated, f32) {
     let mut m = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap();
     let timeline = format!("{}:2,{}:2", m.spec.classes[0], m.spec.classes[2]);
     let take = generate(&mut m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
-    let unit = take.motion.skeleton.meters_per_unit;
+    let unit = take.motion.skeleton.meters_per_unit();
     (take, unit)
 }
 
@@ -80,9 +80,9 @@ fn read_glb(bytes: &[u8]) -> Animated {
 
 fn check_against_json(glb: &Path, json: &Path, what: &str) -> f32 {
     let (motion, _) = read_take(json, None).unwrap();
-    let unit = motion.skeleton.meters_per_unit;
+    let unit = motion.skeleton.meters_per_unit();
     let got = read_glb(&std::fs::read(glb).unwrap());
-    assert_eq!(got.joints, motion.skeleton.names, "{what}: skin joints");
+    assert_eq!(got.joints, motion.skeleton.names(), "{what}: skin joints");
     assert!(got.skinned_vertices > 100 * motion.joints() / 2, "{what}: {} mesh vertices", got.skinned_vertices);
     assert_eq!(got.times.len(), motion.frames(), "{what}: frame count");
     let step = got.times[1] - got.times[0];
@@ -96,7 +96,7 @@ fn check_against_json(glb: &Path, json: &Path, what: &str) -> f32 {
         .fold(0.0, f32::max)
         * unit;
     let (mut worst, mut lowest) = (0.0f32, f32::INFINITY);
-    for (j, name) in motion.skeleton.names.iter().enumerate() {
+    for (j, name) in motion.skeleton.names().iter().enumerate() {
         for (t, p) in got.positions[name].iter().enumerate() {
             worst = worst.max(p.distance(motion.frame(t)[j] * unit));
             lowest = lowest.min(p.y);

@@ -94,7 +94,7 @@ fn mixamo_from_bandai(dir: &Path, renamed: &[(&str, &str)]) -> PathBuf {
         format!("mixamorig:{to}")
     });
     let offsets = s.names().iter().zip(&lengths).enumerate().map(|(j, (n, l))| if j == 0 { s.offsets()[0] } else { a_pose(n) * *l });
-    let rig = Arc::new(Skeleton::new(names.collect(), s.parents().clone(), offsets.collect(), 0.01).unwrap());
+    let rig = Arc::new(Skeleton::new(names.collect(), s.parents().to_vec(), offsets.collect(), 0.01).unwrap());
     let poses = solve_local_poses(&rig, on_hips.positions());
     let text = write_bvh(&Motion::from_local_poses(rig, on_hips.fps, poses), None);
     write(dir, "mixamo-dance.bvh", &text)
@@ -112,10 +112,10 @@ fn cmu_asf(dir: &Path) -> PathBuf {
     let format = expmap_format(Dataset::CmuExpmap, &DataRoot::resolve(None)).unwrap();
     let path = "cmu-expmap/test/soccer/soccer_1.txt";
     let mut motion = format.read(&archive_text("cmu-expmap", path), path).unwrap();
-    let mut skeleton = motion.skeleton.as_ref().clone();
-    assert_eq!(skeleton.len(), ASF.len());
-    skeleton.names() = ASF.map(String::from).to_vec();
-    motion.skeleton = Arc::new(skeleton);
+    let s = &motion.skeleton;
+    assert_eq!(s.len(), ASF.len());
+    let named = Skeleton::new(ASF.map(String::from).to_vec(), s.parents().to_vec(), s.offsets().to_vec(), s.meters_per_unit()).unwrap();
+    motion.skeleton = Arc::new(named);
     write(dir, "cmu-asf-soccer.bvh", &write_bvh(&motion, None))
 }
 
@@ -190,7 +190,7 @@ fn a_take_retargeted_onto_the_cmu_skeleton_reads_back() {
         let cmu = read_bvh(&std::fs::read_to_string(&rig).unwrap(), "rig").unwrap();
         assert_eq!(back.skeleton.names(), cmu.skeleton.names(), "{name}: the CMU hierarchy");
         assert_eq!(back.skeleton.parents(), cmu.skeleton.parents());
-        assert!(back.skeleton.offsets().iter().zip(&cmu.skeleton.offsets()).all(|(a, b)| a.distance(*b) < 1e-4), "{name}: the CMU rest pose");
+        assert!(back.skeleton.offsets().iter().zip(cmu.skeleton.offsets()).all(|(a, b)| a.distance(*b) < 1e-4), "{name}: the CMU rest pose");
         assert_eq!((back.frames(), back.fps), (take.motion.frames(), take.motion.fps), "{name}: frames and rate");
         let (tk, ck) = (keys_of(&take.motion.skeleton), keys_of(&back.skeleton));
         let bones = mapped_bones(&ck, &back.skeleton, &tk, &take.motion.skeleton);

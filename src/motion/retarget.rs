@@ -468,7 +468,7 @@ mod tests {
         let (src, sk) = figure(0, 45.0, 1.0);
         let (dst, dk) = figure(3, 0.0, 1.2);
         let turn = Quat::from_rotation_y(0.7) * Quat::from_rotation_x(0.3);
-        let mut pose = LocalPose { rotations: vec![Quat::IDENTITY; src.len()], translations: src.offsets().clone() };
+        let mut pose = LocalPose { rotations: vec![Quat::IDENTITY; src.len()], translations: src.offsets().to_vec() };
         pose.rotations[0] = turn;
         pose.rotations[sk.get(Key::LeftForeArm).unwrap()] = Quat::from_rotation_z(1.1);
         pose.rotations[sk.get(Key::RightLeg).unwrap()] = Quat::from_rotation_x(-0.8);

@@ -310,7 +310,7 @@ fn trunk_joints(skeleton: &Skeleton, keys: &KeyJoints) -> Vec<usize> {
     let mut j = chest;
     while j != hips {
         out.push(j);
-        match skeleton.parents[j] {
+        match skeleton.parents()[j] {
             Some(p) => j = p,
             None => return Vec::new(),
         }
