@@ -1,3 +1,4 @@
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -5,7 +6,10 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::data::bvh::{read_bvh, write_bvh};
+use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
+use crate::synth::rig::{onto_model, onto_skeleton_file};
 use crate::synth::export::{export, ExportFormat};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::TransitionArg;
@@ -52,10 +56,20 @@ pub struct GenerateArgs {
     /// Let a long segment's motion stall instead of re-anchoring it on the class's seed windows.
     #[arg(long)]
     pub no_keep_alive: bool,
+    /// Output file: .bvh, .json, .npy, or .glb (a skinned glTF character).
     #[arg(long)]
     pub out: PathBuf,
     #[arg(long)]
     pub json: bool,
+    /// Write the take on another humanoid skeleton: a BVH whose hierarchy and rest pose the
+    /// output takes (e.g. a Mixamo or CMU rig), joints mapped by name.
+    #[arg(long)]
+    pub retarget_to: Option<PathBuf>,
+    /// A JSON file {"joint name": "Key", ...} naming key joints (Hips, LeftArm, LeftForeArm,
+    /// ...) of the foreign BVH (--init clip:FILE.bvh or --retarget-to) where the built-in name
+    /// table does not find them.
+    #[arg(long)]
+    pub joint_map: Option<PathBuf>,
 }
 
 /// `seed:CLASS`, `seed:N` or `clip:PATH@FRAME`.
@@ -78,10 +92,23 @@ pub fn parse_init(s: &str) -> Result<InitPose> {
 
 pub fn run_generate(args: GenerateArgs) -> Result<()> {
     ExportFormat::from_path(&args.out)?;
+    let joint_map = args.joint_map.as_deref().map(UserJointMap::read).transpose()?;
+    let mut model = GlocalModel::load(&args.model)?;
+    // Kept until generation is over: a foreign BVH retargeted with the user's joint map.
+    let mut retargeted_init = None;
+    let init = match (parse_init(&args.init)?, &joint_map) {
+        (InitPose::File { path, frame }, Some(map)) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) => {
+            let file = retarget_init_file(&model, &path, map)?;
+            let path = file.path().to_path_buf();
+            retargeted_init = Some(file);
+            InitPose::File { path, frame }
+        }
+        (init, _) => init,
+    };
     let mut opts = GenerateOptions {
         timeline: args.timeline.parse()?,
         pace: args.pace,
-        init: parse_init(&args.init)?,
+        init,
         locgen: !args.no_locgen,
         transition: args.transition.into(),
         transition_seconds: args.transition_seconds,
@@ -95,7 +122,6 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     if args.paper {
         opts = opts.paper();
     }
-    let mut model = GlocalModel::load(&args.model)?;
     let start = Instant::now();
     let bar = ProgressBar::new(1000);
     bar.set_style(ProgressStyle::with_template("{bar:30} {percent}% {elapsed}")?);
@@ -108,8 +134,13 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     })?;
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    export(&take.motion, &take.segments, &args.out)?;
-    let m = &take.motion;
+    drop(retargeted_init);
+    let motion = match &args.retarget_to {
+        Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, joint_map.as_ref())?,
+        None => take.motion.clone(),
+    };
+    export(&motion, &take.segments, &args.out)?;
+    let m = &motion;
     if args.json {
         let summary = serde_json::json!({
             "frames": m.frames(),
@@ -127,6 +158,18 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A foreign BVH brought onto the model's joints with the user's joint map, in a temporary
+/// BVH file that `--init clip:` reads like a take the model exported.
+fn retarget_init_file(model: &GlocalModel, path: &Path, map: &UserJointMap) -> Result<tempfile::NamedTempFile> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+    let source = read_bvh(&text, &name)?;
+    let motion = onto_model(&model.spec, &source, &name, Some(map))?;
+    let mut file = tempfile::Builder::new().suffix(".bvh").tempfile()?;
+    file.write_all(write_bvh(&motion, None).as_bytes())?;
+    Ok(file)
 }
 
 #[derive(Args, Debug)]

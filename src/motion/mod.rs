@@ -3,6 +3,7 @@
 //! positions in the skeleton's own unit (see [`Skeleton::meters_per_unit`]).
 
 mod kinematics;
+mod retarget;
 mod roles;
 mod rotation;
 mod skeleton;
@@ -10,6 +11,7 @@ mod solve;
 mod take;
 
 pub use kinematics::{forward_kinematics, LocalPose};
+pub use retarget::{mapped_bones, Key, KeyJoints, RestPose, Retarget, RetargetError};
 pub use roles::{JointRoles, Leg, RolesError, Side};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError};

@@ -1,4 +1,5 @@
-//! Writing a take for other tools: BVH (Blender, game engines), JSON and NPY. Every write
+//! Writing a take for other tools: BVH (Blender, game engines), JSON, NPY and glTF (`.glb`, a
+//! skinned character, see [`super::gltf`]). Every write
 //! is atomic: a failed export leaves no half-written file behind.
 
 use std::path::Path;
@@ -21,6 +22,7 @@ pub enum ExportFormat {
     Bvh,
     Json,
     Npy,
+    Glb,
 }
 
 impl ExportFormat {
@@ -30,7 +32,8 @@ impl ExportFormat {
             Some("bvh") => Ok(Self::Bvh),
             Some("json") => Ok(Self::Json),
             Some("npy") => Ok(Self::Npy),
-            _ => bail!("{}: the file name must end in .bvh, .json or .npy", path.display()),
+            Some("glb") => Ok(Self::Glb),
+            _ => bail!("{}: the file name must end in .bvh, .json or .npy, or .glb for a glTF character", path.display()),
         }
     }
 }
@@ -56,6 +59,7 @@ pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<
     let bytes = match ExportFormat::from_path(path)? {
         ExportFormat::Bvh => write_bvh(motion, None).into_bytes(),
         ExportFormat::Npy => motion_to_npy(motion),
+        ExportFormat::Glb => super::gltf::glb_bytes(motion)?,
         ExportFormat::Json => {
             let take = JsonTake {
                 fps: motion.fps,
@@ -105,6 +109,7 @@ pub fn read_take(path: &Path, model_dir: Option<&Path>) -> Result<(Motion, Vec<S
             let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
             Ok((read_bvh(&text, &name)?, Vec::new()))
         }
+        ExportFormat::Glb => bail!("{name}: a .glb take cannot be read back; export it as JSON or BVH too"),
         ExportFormat::Npy => {
             let dir = model_dir.with_context(|| format!("{name}: an NPY take has no skeleton; give the model folder it came from"))?;
             let spec = ModelSpec::read(dir)?;

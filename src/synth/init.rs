@@ -1,5 +1,5 @@
 //! The first sparse poses of a take: from the model's seed bank, or from a motion file on
-//! the model's skeleton.
+//! the model's skeleton (or a BVH of another humanoid skeleton, retargeted).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use glam::Vec3;
 
+use super::rig::onto_model;
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
 use crate::data::features::Placement;
@@ -66,7 +67,7 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
 }
 
 /// Reads a BVH, NPY or exponential-map file and brings it onto the model's joints and
-/// frame rate; a file of another skeleton is an error that says how they differ.
+/// frame rate; a BVH of another humanoid skeleton is retargeted onto the model's joints.
 pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion> {
     let spec = &model.spec;
     let name = path.display().to_string();
@@ -82,9 +83,9 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
                 m.skeleton = spec.layout.skeleton.clone();
                 return Ok(m);
             }
-            let diff = m.skeleton.differences(&spec.source_skeleton);
-            if !diff.is_empty() {
-                bail!("{name}: its skeleton does not match the model's ({}): {}", spec.dataset, diff.join("; "));
+            if !m.skeleton.differences(&spec.source_skeleton).is_empty() {
+                // Another humanoid skeleton: retargeted by its joint names.
+                return onto_model(spec, &m, &name, None);
             }
             m
         }

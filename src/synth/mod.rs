@@ -2,8 +2,10 @@
 
 pub mod export;
 pub mod generate;
+pub mod gltf;
 pub mod init;
 pub mod render;
+pub mod rig;
 pub mod timeline;
 
 pub use generate::{generate, GenerateOptions, Generated, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
