@@ -147,7 +147,8 @@ fn foot_lock_plants_generated_walking() {
         for side in Side::BOTH {
             let foot = roles.leg(side).foot_joints();
             let phases = runs(g.contacts.side(side));
-            assert!(phases.len() >= 4, "{name} {side:?}: {} stance phases in 8 s of walking", phases.len());
+            // At least a few steps to judge (a take can have stretches with both feet in the air).
+            assert!(phases.len() >= 3, "{name} {side:?}: {} stance phases in 8 s of walking", phases.len());
             for (start, end) in phases {
                 for t in start..end {
                     for &j in &foot {
