@@ -39,9 +39,11 @@ pub fn foot_lock(motion: Motion, enabled: bool) -> Result<FootLocked> {
         let contacts = foot_contacts(&motion, &roles, &cfg);
         return Ok(FootLocked { motion, contacts });
     }
-    let levelled = levelled(&motion, &roles, &cfg);
+    let (levelled, floor) = levelled(&motion, &roles, &cfg);
     let contacts = foot_contacts(&levelled, &roles, &cfg);
-    let positions = locked_positions(&levelled, &roles, &contacts);
+    let mut positions = locked_positions(&levelled, &roles, &contacts);
+    // Back to the model's world (Human3.6M's hips near 0, its floor near -0.9 m).
+    positions.iter_mut().for_each(|p| p.y += floor);
     let skeleton = motion.skeleton.clone();
     let motion = if motion.local_poses.is_some() {
         let poses = solve_local_poses(&skeleton, &positions);
@@ -52,8 +54,9 @@ pub fn foot_lock(motion: Motion, enabled: bool) -> Result<FootLocked> {
     Ok(FootLocked { motion, contacts })
 }
 
-/// The take moved up or down per frame so the floor under its stance feet is at height 0.
-fn levelled(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> Motion {
+/// The take moved up or down per frame so the floor under its stance feet is at height 0,
+/// and the mean height of that floor before.
+fn levelled(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> (Motion, f32) {
     let half = (cfg.floor_window * motion.fps).round() as usize;
     let floor = smoothed(&local_floor(&lowest_foot_heights(motion, roles), half), (LEVEL_SMOOTH_SECONDS * motion.fps / 2.0).round() as usize);
     let j = motion.joints();
@@ -61,7 +64,8 @@ fn levelled(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> Motion 
     for (frame, lift) in positions.chunks_exact_mut(j).zip(&floor) {
         frame.iter_mut().for_each(|p| p.y -= lift);
     }
-    Motion::from_positions(motion.skeleton.clone(), motion.fps, positions)
+    let mean = floor.iter().sum::<f32>() / floor.len().max(1) as f32;
+    (Motion::from_positions(motion.skeleton.clone(), motion.fps, positions), mean)
 }
 
 /// A foot's joints (the ankle and everything below it), in index order.
