@@ -50,6 +50,9 @@ pub enum BenchCommand {
         /// 1 does the PyTorch reference's work (no classifier-free guidance pass).
         #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
         class_strength: f32,
+        /// Without the foot lock (its cost is the difference).
+        #[arg(long)]
+        no_foot_lock: bool,
         #[arg(long)]
         json: bool,
     },
@@ -129,8 +132,8 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 })
             }
         },
-        BenchCommand::Generate { model, repeats, class_strength, json } => {
-            let r = bench_generate(&model, repeats, class_strength)?;
+        BenchCommand::Generate { model, repeats, class_strength, no_foot_lock, json } => {
+            let r = bench_generate(&model, repeats, class_strength, !no_foot_lock)?;
             print(&r, json, || {
                 r.runs
                     .iter()
@@ -164,12 +167,13 @@ pub struct GenerateBench {
     pub model: String,
     pub locgen: bool,
     pub class_strength: f32,
+    pub foot_lock: bool,
     pub runs: Vec<GenerateRun>,
 }
 
 /// Best-of-`repeats` wall time of whole takes (GloGen + LocGen + pace + bone projection)
 /// cycling through the model's classes in 10 s segments.
-pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32) -> Result<GenerateBench> {
+pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32, foot_lock: bool) -> Result<GenerateBench> {
     let mut model = GlocalModel::load(dir)?;
     let classes = model.spec.classes.clone();
     let mut runs = Vec::new();
@@ -177,7 +181,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32) -> Result
         let segments = (0..(seconds / 10.0) as usize)
             .map(|k| Segment::new(classes[k % classes.len()].clone(), 10.0))
             .collect();
-        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, ..Default::default() };
+        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, foot_lock, ..Default::default() };
         let mut best = f64::INFINITY;
         let mut frames = 0;
         for _ in 0..repeats.max(1) {
@@ -188,7 +192,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32) -> Result
         }
         runs.push(GenerateRun { seconds, frames, ms: best });
     }
-    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, runs })
+    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, foot_lock, runs })
 }
 
 /// Runs `glocal bench studio --only WHICH` in a child process (a process can open only one

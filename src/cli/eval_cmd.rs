@@ -13,7 +13,7 @@ use crate::synth::DEFAULT_CLASS_STRENGTH;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, or all.
+    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, motion, or all.
     #[arg(long)]
     suite: String,
     /// Write the suite's numbers here as JSON (for `all`: one file per suite, NAME inserted
@@ -47,6 +47,9 @@ pub struct EvalArgs {
     /// The paper's GlocalNet: `--transition cut --class-strength 1 --no-keep-alive --no-seam-join`.
     #[arg(long)]
     paper: bool,
+    /// Fewer and shorter takes (the motion suite), for a quick look.
+    #[arg(long)]
+    quick: bool,
 }
 
 pub fn run(args: EvalArgs) -> Result<()> {
@@ -58,6 +61,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         class_strength: if args.paper { 1.0 } else { args.class_strength },
         keep_alive: !(args.no_keep_alive || args.paper),
         join_seams: !(args.no_seam_join || args.paper),
+        quick: args.quick,
         ..Default::default()
     };
     if let Some(c) = args.cache {

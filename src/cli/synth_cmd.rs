@@ -10,7 +10,7 @@ use crate::data::bvh::{read_bvh, write_bvh};
 use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
 use crate::synth::rig::{onto_model, onto_skeleton_file};
-use crate::synth::export::{export, ExportFormat};
+use crate::synth::export::{export_with_contacts, ExportFormat};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::TransitionArg;
 use crate::synth::{generate, GenerateOptions, InitPose, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
@@ -56,6 +56,9 @@ pub struct GenerateArgs {
     /// Let a long segment's motion stall instead of re-anchoring it on the class's seed windows.
     #[arg(long)]
     pub no_keep_alive: bool,
+    /// Leave planted feet as the network made them (no contact locking with leg IK).
+    #[arg(long)]
+    pub no_foot_lock: bool,
     /// Output file: .bvh, .json, .npy, or .glb (a skinned glTF character).
     #[arg(long)]
     pub out: PathBuf,
@@ -116,6 +119,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         project_bones: !args.no_projection,
         keep_alive: !args.no_keep_alive,
         join_seams: !args.no_seam_join,
+        foot_lock: !args.no_foot_lock,
         ..Default::default()
     }
     .varied(args.seed);
@@ -139,7 +143,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, joint_map.as_ref())?,
         None => take.motion.clone(),
     };
-    export(&motion, &take.segments, &args.out)?;
+    export_with_contacts(&motion, &take.segments, Some(&take.contacts), &args.out)?;
     let m = &motion;
     if args.json {
         let summary = serde_json::json!({

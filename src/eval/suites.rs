@@ -13,6 +13,7 @@ use serde_json::{json, Value};
 use super::baselines::{ArConfig, ArKind, ArModel};
 use super::classifier::{cache_dir, real_windows, Classifier, ClassifierConfig};
 use super::metrics::{self, HORIZONS_MS};
+use super::motion::{motion_suite, MotionSuiteConfig};
 use super::rollout::{densify, glogen_forecast};
 use crate::data::archive::DataRoot;
 use crate::data::expmap::front_view_2d;
@@ -24,7 +25,7 @@ use crate::model::train::{train, Stage, TrainOptions};
 use crate::motion::Motion;
 use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, Transition, DEFAULT_CLASS_STRENGTH};
 
-pub const SUITES: [&str; 6] = ["cmu-euclid", "h36m-mmd", "h36m", "bandai", "locgen", "long-term"];
+pub const SUITES: [&str; 7] = ["cmu-euclid", "h36m-mmd", "h36m", "bandai", "locgen", "long-term", "motion"];
 
 #[derive(Clone, Debug)]
 pub struct SuiteOptions {
@@ -41,11 +42,13 @@ pub struct SuiteOptions {
     pub keep_alive: bool,
     /// GloGen's blocks joined at their seams ([`crate::model::glocal::GlocalModel::rollout_block`]).
     pub join_seams: bool,
+    /// A reduced setting (fewer and shorter takes) where a suite has one.
+    pub quick: bool,
 }
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true, quick: false }
     }
 }
 
@@ -64,6 +67,7 @@ pub fn run_suite(name: &str, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> 
         "bandai" => class_generation(Dataset::Bandai, opts, log)?,
         "locgen" => locgen_suite(opts, log)?,
         "long-term" => long_term(opts, log)?,
+        "motion" => motion_suite(opts, &if opts.quick { MotionSuiteConfig::quick() } else { MotionSuiteConfig::full() }, log)?,
         _ => bail!("unknown suite '{name}'; valid: {}", SUITES.join(", ")),
     };
     json["suite"] = json!(name);
@@ -71,7 +75,7 @@ pub fn run_suite(name: &str, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> 
     Ok(SuiteReport { name: name.to_string(), markdown, json })
 }
 
-fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {
+pub(crate) fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {
     opts.model.clone().unwrap_or_else(|| {
         let here = PathBuf::from("models").join(dataset.name());
         if here.exists() {

@@ -2,6 +2,8 @@
 //! Conventions: y is up, column vectors (a joint's world rotation is `parent_world * local`),
 //! positions in the skeleton's own unit (see [`Skeleton::meters_per_unit`]).
 
+pub mod contacts;
+pub mod ik;
 mod kinematics;
 mod retarget;
 mod roles;

@@ -15,6 +15,7 @@ use crate::data::bvh::{read_bvh, write_bvh};
 use crate::data::npy::{motion_from_npy, motion_to_npy};
 use crate::model::spec::ModelSpec;
 use crate::data::write::write_atomic;
+use crate::motion::contacts::FootContacts;
 use crate::motion::{Motion, Skeleton};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,6 +48,15 @@ struct JsonTake {
     segments: Vec<SegmentSpan>,
     /// frames x joints x [x, y, z]
     frames: Vec<Vec<[f32; 3]>>,
+    /// Per foot and frame, whether the foot stands on the floor (takes from `generate`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    contacts: Option<JsonContacts>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonContacts {
+    left_foot: Vec<bool>,
+    right_foot: Vec<bool>,
 }
 
 /// Writes `motion` (already cut to the range to export) to `path` in the format its
@@ -55,6 +65,11 @@ struct JsonTake {
 /// the floor (its lowest joint at height 0), as animation tools expect: the models' own
 /// worlds keep the dataset's origin (Human3.6M's hips at 0, its feet near -0.9 m).
 pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<()> {
+    export_with_contacts(motion, segments, None, path)
+}
+
+/// [`export`], with the per-foot contact arrays (as long as the take) in the JSON format.
+pub fn export_with_contacts(motion: &Motion, segments: &[SegmentSpan], contacts: Option<&FootContacts>, path: &Path) -> Result<()> {
     let motion = &motion.translated(Vec3::new(0.0, -motion.floor_height(), 0.0));
     let bytes = match ExportFormat::from_path(path)? {
         ExportFormat::Bvh => write_bvh(motion, None).into_bytes(),
@@ -68,6 +83,7 @@ pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<
                 parents: motion.skeleton.parents().iter().map(|p| p.map_or(-1, |p| p as i64)).collect(),
                 segments: segments.to_vec(),
                 frames: (0..motion.frames()).map(|t| motion.frame(t).iter().map(|p| p.to_array()).collect()).collect(),
+                contacts: contacts.map(|c| JsonContacts { left_foot: c.left.clone(), right_foot: c.right.clone() }),
             };
             serde_json::to_vec(&take)?
         }

@@ -8,10 +8,12 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use super::foot_lock::{foot_lock, FootLocked};
 use super::init::{initial_features, InitPose};
 use super::timeline::Timeline;
 use crate::data::features::ROOT_FEATURES;
 use crate::model::glocal::GlocalModel;
+use crate::motion::contacts::FootContacts;
 use crate::motion::{solve_local_poses, Motion};
 
 /// How GloGen's class prior changes at a segment boundary.
@@ -84,6 +86,8 @@ pub struct GenerateOptions {
     /// Join each GloGen block onto the poses before it (see [`GlocalModel::rollout_block`]);
     /// off, the blocks pop at every seam as in the paper.
     pub join_seams: bool,
+    /// Lock planted feet in place with leg IK (see [`super::foot_lock`]).
+    pub foot_lock: bool,
 }
 
 impl Default for GenerateOptions {
@@ -101,6 +105,7 @@ impl Default for GenerateOptions {
             project_bones: true,
             keep_alive: true,
             join_seams: true,
+            foot_lock: true,
         }
     }
 }
@@ -117,13 +122,14 @@ impl GenerateOptions {
     }
 
     /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks
-    /// that pop at their seams.
+    /// that pop at their seams, feet as the network made them.
     pub fn paper(mut self) -> Self {
         self.transition = Transition::Cut;
         self.transition_seconds = 0.0;
         self.class_strength = 1.0;
         self.keep_alive = false;
         self.join_seams = false;
+        self.foot_lock = false;
         self
     }
 }
@@ -144,6 +150,8 @@ pub struct Generated {
     pub block_embeddings: Vec<Vec<f32>>,
     /// Class (segment) of each block.
     pub block_classes: Vec<usize>,
+    /// Per foot and frame, whether the foot stands on the floor.
+    pub contacts: FootContacts,
 }
 
 /// What one GloGen block is asked for, decided from the timeline before the rollout.
@@ -340,8 +348,9 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         Motion::from_positions(skeleton, spec.fps, positions)
     };
     let segments = segment_spans(&timeline, &spec.classes, &interval_starts, motion.frames());
+    let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock)?;
     progress(1.0);
-    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes })
+    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts })
 }
 
 /// Where each segment falls in the paced take.

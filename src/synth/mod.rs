@@ -1,6 +1,7 @@
 //! Synthesis: timelines of activities, pace, long-term generation and export.
 
 pub mod export;
+pub mod foot_lock;
 pub mod generate;
 pub mod gltf;
 pub mod init;

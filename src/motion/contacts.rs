@@ -1,0 +1,149 @@
+//! Foot contacts: per foot and frame, whether the foot stands on the floor. A foot is its
+//! ankle, toe and toe tip ([`Leg::foot_joints`]); its height is its lowest joint's above the
+//! floor and its speed its slowest joint's (so a heel rising at toe-off still counts as
+//! standing on the toe). Contact begins when the foot is low and slow, and ends only when it
+//! is clearly high or fast (hysteresis); runs and gaps shorter than a few frames are removed,
+//! so contacts do not flicker.
+
+use super::{JointRoles, Leg, Motion, Side};
+
+/// Thresholds in metres and metres per second (scaled by the skeleton's unit).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactConfig {
+    /// A foot this low and this slow starts a contact...
+    pub height_on: f32,
+    pub speed_on: f32,
+    /// ...which lasts until it is higher or faster than these.
+    pub height_off: f32,
+    pub speed_off: f32,
+    /// Contacts and gaps shorter than this many seconds are dropped (filled).
+    pub min_seconds: f32,
+    /// Half-width of the window whose lowest foot height is the local floor, seconds: wider
+    /// than a swing phase, so every window holds a standing foot.
+    pub floor_window: f32,
+}
+
+impl Default for ContactConfig {
+    fn default() -> Self {
+        Self { height_on: 0.05, speed_on: 0.35, height_off: 0.08, speed_off: 0.6, min_seconds: 0.1, floor_window: 1.0 }
+    }
+}
+
+/// Per-foot contact flags over a take's frames.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FootContacts {
+    pub left: Vec<bool>,
+    pub right: Vec<bool>,
+}
+
+impl FootContacts {
+    pub fn side(&self, side: Side) -> &[bool] {
+        match side {
+            Side::Left => &self.left,
+            Side::Right => &self.right,
+        }
+    }
+}
+
+/// The height of each frame's lowest foot joint, in the motion's units.
+pub fn lowest_foot_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
+    let joints: Vec<usize> = Side::BOTH.iter().flat_map(|&s| roles.leg(s).foot_joints()).collect();
+    (0..motion.frames()).map(|t| joints.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min)).collect()
+}
+
+/// The floor under each frame: the lowest foot height within `half_window` frames either
+/// side, so a take that rises or sinks (or real data on a tilted floor) keeps its contacts.
+pub fn local_floor(lowest: &[f32], half_window: usize) -> Vec<f32> {
+    (0..lowest.len())
+        .map(|t| lowest[t.saturating_sub(half_window)..(t + half_window + 1).min(lowest.len())].iter().copied().fold(f32::INFINITY, f32::min))
+        .collect()
+}
+
+/// Contacts of both feet over the local floor.
+pub fn foot_contacts(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> FootContacts {
+    let half = (cfg.floor_window * motion.fps).round() as usize;
+    let floor = local_floor(&lowest_foot_heights(motion, roles), half);
+    FootContacts { left: leg_contacts(motion, &roles.left, &floor, cfg), right: leg_contacts(motion, &roles.right, &floor, cfg) }
+}
+
+/// One foot's contacts over `floor` (one height per frame).
+pub fn leg_contacts(motion: &Motion, leg: &Leg, floor: &[f32], cfg: &ContactConfig) -> Vec<bool> {
+    let unit = motion.skeleton.meters_per_unit();
+    let joints = leg.foot_joints();
+    let frames = motion.frames();
+    let mut out = Vec::with_capacity(frames);
+    let mut on = false;
+    for t in 0..frames {
+        let height = joints.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - floor[t];
+        let speed = joints.iter().map(|&j| joint_speed(motion, j, t)).fold(f32::INFINITY, f32::min);
+        let (h, v) = (height * unit, speed * unit);
+        on = if on { h <= cfg.height_off && v <= cfg.speed_off } else { h <= cfg.height_on && v <= cfg.speed_on };
+        out.push(on);
+    }
+    let min_frames = (cfg.min_seconds * motion.fps).round().max(1.0) as usize;
+    fill_short_runs(&mut out, false, min_frames);
+    fill_short_runs(&mut out, true, min_frames);
+    out
+}
+
+/// Speed of joint `j` at frame `t` (central difference, one-sided at the ends), units/s.
+fn joint_speed(motion: &Motion, j: usize, t: usize) -> f32 {
+    let frames = motion.frames();
+    if frames < 2 {
+        return 0.0;
+    }
+    let (a, b) = (t.saturating_sub(1), (t + 1).min(frames - 1));
+    motion.frame(b)[j].distance(motion.frame(a)[j]) * motion.fps / (b - a) as f32
+}
+
+/// Runs of `value` shorter than `min` frames between two runs of the other value take the
+/// other value (gaps in contact are filled, then blips of contact dropped).
+fn fill_short_runs(flags: &mut [bool], value: bool, min: usize) {
+    let mut t = 0;
+    while t < flags.len() {
+        if flags[t] != value {
+            t += 1;
+            continue;
+        }
+        let start = t;
+        while t < flags.len() && flags[t] == value {
+            t += 1;
+        }
+        let inner = start > 0 && t < flags.len();
+        if inner && t - start < min {
+            flags[start..t].iter_mut().for_each(|f| *f = !value);
+        }
+    }
+}
+
+/// The `[start, end)` frame ranges where `flags` is set.
+pub fn runs(flags: &[bool]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut t = 0;
+    while t < flags.len() {
+        if flags[t] {
+            let start = t;
+            while t < flags.len() && flags[t] {
+                t += 1;
+            }
+            out.push((start, t));
+        } else {
+            t += 1;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_gaps_and_blips_go() {
+        let mut f = vec![true, true, false, true, true, true, false, false, false, true, false, false, false];
+        fill_short_runs(&mut f, false, 2);
+        fill_short_runs(&mut f, true, 2);
+        assert_eq!(f, vec![true, true, true, true, true, true, false, false, false, false, false, false, false]);
+        assert_eq!(runs(&f), vec![(0, 6)]);
+    }
+}

@@ -1,0 +1,219 @@
+//! Joint roles on every dataset's skeleton, foot contacts on real walking, the foot lock on
+//! generated takes, and the motion suite's measures on real clips.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+use glocal::data::archive::DataRoot;
+use glocal::data::bvh::read_bvh;
+use glocal::data::registry::{expmap_format, Dataset};
+use glocal::eval::motion::{longest_repeat, real_pools, BlockGrid, COMMON_FPS};
+use glocal::model::corpus::Corpus;
+use glocal::model::glocal::GlocalModel;
+use glocal::motion::contacts::{foot_contacts, runs, ContactConfig};
+use glocal::motion::{JointRoles, Motion, Side, Skeleton};
+use glocal::synth::{generate, GenerateOptions, InitPose};
+
+fn data() -> DataRoot {
+    DataRoot::resolve(None)
+}
+
+fn model(name: &str) -> GlocalModel {
+    GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"))
+}
+
+/// One file of a dataset archive, as text.
+fn archive_text(dataset: &str, file: &str) -> String {
+    let files = data().read_archive(dataset, |p| p == file).unwrap_or_else(|e| panic!("{dataset}: {e:#}"));
+    let (_, bytes) = files.into_iter().next().unwrap_or_else(|| panic!("{file} is not in {dataset}"));
+    String::from_utf8(bytes).unwrap()
+}
+
+fn h36m_clip(file: &str) -> Motion {
+    let format = expmap_format(Dataset::H36m, &data()).unwrap();
+    format.read(&archive_text("h36m", file), file).unwrap()
+}
+
+fn names(s: &Skeleton, joints: &[usize]) -> Vec<String> {
+    joints.iter().map(|&j| s.names()[j].clone()).collect()
+}
+
+#[test]
+fn roles_on_every_dataset_skeleton() {
+    let h36m = expmap_format(Dataset::H36m, &data()).unwrap().skeleton;
+    let r = JointRoles::new(&h36m).unwrap();
+    assert_eq!(names(&h36m, &[r.body_root, r.left.hip, r.left.knee, r.left.ankle, r.left.toe.unwrap()]), ["Hips", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"]);
+    assert_eq!(names(&h36m, &[r.right.toe_end.unwrap(), r.head, r.head_end.unwrap(), r.left_hand, r.right_hand]), ["RightToeSite", "Head", "HeadSite", "LeftHand", "RightHand"]);
+
+    let bandai = read_bvh(&archive_text("bandai", "bandai/data/dataset-1_walk_normal_001.bvh"), "walk").unwrap().skeleton;
+    let r = JointRoles::new(&bandai).unwrap();
+    assert_eq!(names(&bandai, &[r.body_root, r.left.hip, r.left.knee, r.left.ankle, r.left.toe.unwrap()]), ["Hips", "UpperLeg_L", "LowerLeg_L", "Foot_L", "Toes_L"]);
+    assert_eq!(names(&bandai, &[r.right.hip, r.head, r.left_hand, r.right_hand]), ["UpperLeg_R", "Head", "Hand_L", "Hand_R"]);
+
+    // CMU BVH: lThigh / rShin style names, and no toe joint.
+    let cmu = read_bvh(&archive_text("cmu-dance", "cmu-dance/standard.bvh"), "standard").unwrap().skeleton;
+    let r = JointRoles::new(&cmu).unwrap();
+    assert_eq!(names(&cmu, &[r.body_root, r.left.hip, r.left.knee, r.left.ankle, r.right.hip, r.head, r.left_hand]), ["hip", "lThigh", "lShin", "lFoot", "rThigh", "head", "lHand"]);
+    assert_eq!(r.left.toe, None);
+
+    // The CMU exponential maps have no names: the shape finds the legs (joints 2-6 on +x,
+    // the side of up x the toes' direction, so the left), the arms and the head.
+    let cmu_expmap = expmap_format(Dataset::CmuExpmap, &data()).unwrap().skeleton;
+    let r = JointRoles::new(&cmu_expmap).unwrap();
+    assert_eq!((r.left.hip, r.left.knee, r.left.ankle, r.left.toe, r.left.toe_end), (2, 3, 4, Some(5), Some(6)));
+    assert_eq!((r.right.hip, r.right.ankle), (8, 10));
+    assert_eq!((r.left_hand, r.right_hand, r.head), (23, 32, 19));
+}
+
+#[test]
+fn missing_roles_are_named() {
+    let s = Skeleton::new(
+        vec!["Hips".into(), "Spine".into(), "Head".into()],
+        vec![None, Some(0), Some(1)],
+        vec![Vec3::ZERO, Vec3::new(0.0, 30.0, 0.0), Vec3::new(0.0, 30.0, 0.0)],
+        0.01,
+    )
+    .unwrap();
+    let e = JointRoles::new(&s).unwrap_err().to_string();
+    for role in ["body root", "left hip", "right knee", "left hand"] {
+        assert!(e.contains(role), "{e}");
+    }
+    assert!(!e.contains("head"), "{e}");
+}
+
+/// S11 walking at 50 fps: the detector's contacts are where the feet really stand. Walking
+/// has no flight phase, so some foot stands almost always; each foot stands 50-80% of the
+/// time (stance is about 60% of a gait cycle) in one phase per step; and a detected stance
+/// foot's toe really stays put (under 5 cm of travel over the phase, where the swing foot
+/// travels a stride).
+#[test]
+fn contacts_on_real_walking() {
+    let clip = h36m_clip("h36m/S11/walking_1.txt");
+    let m = clip.slice(0, 500);
+    let roles = JointRoles::new(&m.skeleton).unwrap();
+    let c = foot_contacts(&m, &roles, &ContactConfig::default());
+    let supported = (0..m.frames()).filter(|&t| c.left[t] || c.right[t]).count() as f32 / m.frames() as f32;
+    assert!(supported > 0.95, "some foot stands in {supported:.2} of the frames");
+    for side in Side::BOTH {
+        let flags = c.side(side);
+        let fraction = flags.iter().filter(|&&f| f).count() as f32 / flags.len() as f32;
+        assert!((0.5..0.8).contains(&fraction), "{side:?} stands {fraction:.2} of the time");
+        let phases = runs(flags);
+        // 10 s of walking at about one stride a second.
+        assert!((7..=13).contains(&phases.len()), "{side:?}: {} stance phases", phases.len());
+        // Speeds (m/s, horizontal) of the foot's slowest joint in stance and of the toe in swing.
+        let foot = roles.leg(side).foot_joints();
+        let unit = m.skeleton.meters_per_unit();
+        let flat_speed = |t: usize, j: usize| {
+            let d = m.frame(t + 1)[j] - m.frame(t)[j];
+            Vec3::new(d.x, 0.0, d.z).length() * unit * m.fps
+        };
+        let (mut stance, mut swing) = (Vec::new(), Vec::new());
+        for t in 0..m.frames() - 1 {
+            if flags[t] {
+                stance.push(foot.iter().map(|&j| flat_speed(t, j)).fold(f32::INFINITY, f32::min));
+            } else {
+                swing.push(flat_speed(t, roles.leg(side).toe.unwrap()));
+            }
+        }
+        let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+        assert!(mean(&stance) < 0.1, "{side:?}: the standing foot moves {:.3} m/s", mean(&stance));
+        assert!(mean(&swing) > 1.0, "{side:?}: the swinging toe moves only {:.3} m/s", mean(&swing));
+    }
+}
+
+/// A generated walking take after the foot lock: each stance foot stays within 1 cm over
+/// its stance phase, its lowest joint on the floor (no floating, no penetration anywhere),
+/// bone lengths exact; and the lock leaves far less slide than the network's own take.
+#[test]
+fn foot_lock_plants_generated_walking() {
+    for (name, class) in [("h36m", "walking"), ("bandai", "walk")] {
+        let mut m = model(name);
+        let opts = GenerateOptions { timeline: format!("{class}:8").parse().unwrap(), init: InitPose::SeedClass { class: class.into(), variant: 0 }, seed: 1, variation: 0.05, ..Default::default() };
+        assert!(opts.foot_lock, "the foot lock is on by default");
+        let g = generate(&mut m, &opts, &mut |_| true).unwrap();
+        let motion = &g.motion;
+        let unit = motion.skeleton.meters_per_unit();
+        let roles = JointRoles::new(&motion.skeleton).unwrap();
+        assert_eq!(g.contacts.left.len(), motion.frames());
+        let rest = motion.skeleton.rest_bone_lengths();
+        for t in 0..motion.frames() {
+            for (j, length) in motion.bone_lengths(t).iter().enumerate() {
+                assert!((length - rest[j]).abs() * unit < 1e-5, "{name}: bone {j} at frame {t}: {length} against {}", rest[j]);
+            }
+        }
+        let floor = motion.floor_height();
+        for side in Side::BOTH {
+            let foot = roles.leg(side).foot_joints();
+            let phases = runs(g.contacts.side(side));
+            // At least a few steps to judge (a take can have stretches with both feet in the air).
+            assert!(phases.len() >= 3, "{name} {side:?}: {} stance phases in 8 s of walking", phases.len());
+            for (start, end) in phases {
+                for t in start..end {
+                    for &j in &foot {
+                        let moved = motion.frame(t)[j].distance(motion.frame(start)[j]) * unit;
+                        assert!(moved < 0.01, "{name} {side:?}: joint {j} moved {moved:.4} m by frame {t} of stance {start}..{end}");
+                    }
+                    let lowest = foot.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min);
+                    assert!((lowest - floor).abs() * unit < 0.005, "{name} {side:?}: stance foot {:.3} m off the floor at {t}", (lowest - floor) * unit);
+                }
+            }
+        }
+        let unlocked = generate(&mut m, &GenerateOptions { foot_lock: false, ..opts }, &mut |_| true).unwrap();
+        let slide = |m: &Motion| {
+            let mut pool = glocal::eval::motion::Pool::default();
+            pool.add_take(&m.resample(COMMON_FPS), &roles, None);
+            pool.summary()["support_speed_median_cm_s"]
+        };
+        let (before, after) = (slide(&unlocked.motion), slide(motion));
+        assert!(after < 0.5 * before, "{name}: support point {after:.1} cm/s with the lock, {before:.1} without");
+    }
+}
+
+/// Bandai's real test split through the suite's measures: the figures real motion has
+/// (feet on the floor almost always, planted feet nearly still, a flat block-phase
+/// profile, no exact repeats); and a real clip played twice is found repeating at its length.
+#[test]
+fn suite_measures_reproduce_real_figures() {
+    let corpus = Corpus::load(Dataset::Bandai, &data(), 3, 3).unwrap();
+    let roles = JointRoles::new(&corpus.layout.skeleton).unwrap();
+    let pools = real_pools(&corpus, &roles, BlockGrid::new(10, 3, 30.0), 10.0);
+    let at = |class: &str, key: &str| pools[corpus.classes.iter().position(|c| c == class).unwrap()].summary()[key];
+    for class in ["walk", "bow", "bye", "guide"] {
+        assert!(at(class, "contact_fraction") > 0.95, "{class}: contact {}", at(class, "contact_fraction"));
+        assert!(at(class, "floating") < 0.05, "{class}: floating {}", at(class, "floating"));
+        assert!((0.8..1.25).contains(&at(class, "seam_ratio")), "{class}: seam ratio {}", at(class, "seam_ratio"));
+        assert_eq!(at(class, "longest_repeat_s"), 0.0, "{class}: real motion repeats");
+    }
+    for class in ["bow", "bye", "guide"] {
+        assert!(at(class, "support_speed_median_cm_s") < 2.0, "{class}: a standing support point moves {} cm/s", at(class, "support_speed_median_cm_s"));
+        assert!(at(class, "skating_ratio") < 0.15, "{class}: skating {}", at(class, "skating_ratio"));
+    }
+    let walk = at("walk", "skating_ratio");
+    assert!((0.05..0.5).contains(&walk), "walk: skating {walk}");
+    assert!((0.8..1.6).contains(&at("walk", "joint_speed")), "walk: joint speed {}", at("walk", "joint_speed"));
+
+    let clip = corpus.test.iter().find(|t| corpus.classes[t.class] == "bow").unwrap().motion.resample(COMMON_FPS);
+    let twice: Vec<Vec3> = clip.positions().iter().chain(clip.positions()).copied().collect();
+    let twice = Motion::from_positions(Arc::new((*clip.skeleton).clone()), COMMON_FPS, twice);
+    let (seconds, lag) = longest_repeat(&twice);
+    assert!((lag - clip.seconds()).abs() < 0.05, "lag {lag} s against a {} s clip", clip.seconds());
+    assert!(seconds > 0.9 * clip.seconds(), "repeat of {seconds} s");
+}
+
+/// The JSON export carries the per-foot contact arrays of a generated take.
+#[test]
+fn json_export_has_contacts() {
+    let mut m = model("h36m");
+    let g = generate(&mut m, &GenerateOptions { timeline: "walking:3".parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("take.json");
+    glocal::synth::export::export_with_contacts(&g.motion, &g.segments, Some(&g.contacts), &path).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let left: Vec<bool> = serde_json::from_value(json["contacts"]["left_foot"].clone()).unwrap();
+    assert_eq!(left, g.contacts.left);
+    assert_eq!(json["contacts"]["right_foot"].as_array().unwrap().len(), g.motion.frames());
+    let (back, _) = glocal::synth::export::read_take(&path, None).unwrap();
+    assert_eq!(back.frames(), g.motion.frames());
+}
