@@ -86,12 +86,21 @@ pub struct ModelSpec {
     pub dense_norm: Normalizer,
     /// Mean joint speed of each class in the training data, units per second.
     pub class_speed: Vec<f32>,
+    /// Whether the foot lock suits this model's takes (measured with `glocal eval --suite
+    /// motion`): on Bandai, whose generated feet slide faster than a contact is detected, the
+    /// few locks that engage doubled the peak jerk, so its takes are left unlocked.
+    #[serde(default = "locks_feet")]
+    pub foot_lock: bool,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
     #[serde(default)]
     pub glogen_training: Option<StageRecord>,
     #[serde(default)]
     pub locgen_training: Option<StageRecord>,
+}
+
+fn locks_feet() -> bool {
+    true
 }
 
 impl ModelSpec {

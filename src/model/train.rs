@@ -251,6 +251,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         sparse_norm,
         dense_norm,
         class_speed: corpus.class_speeds(),
+        foot_lock: true,
         glogen,
         locgen,
         glogen_training: None,

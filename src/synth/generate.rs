@@ -86,7 +86,8 @@ pub struct GenerateOptions {
     /// Join each GloGen block onto the poses before it (see [`GlocalModel::rollout_block`]);
     /// off, the blocks pop at every seam as in the paper.
     pub join_seams: bool,
-    /// Lock planted feet in place with leg IK (see [`super::foot_lock`]).
+    /// Lock planted feet in place with leg IK (see [`super::foot_lock`]), on models whose
+    /// takes it suits ([`crate::model::spec::ModelSpec::foot_lock`]).
     pub foot_lock: bool,
 }
 
@@ -348,7 +349,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         Motion::from_positions(skeleton, spec.fps, positions)
     };
     let segments = segment_spans(&timeline, &spec.classes, &interval_starts, motion.frames());
-    let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock)?;
+    let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock && spec.foot_lock)?;
     progress(1.0);
     Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts })
 }
