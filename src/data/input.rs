@@ -41,9 +41,9 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String> {
 }
 
 /// Farthest any joint may be from the world origin: 100 km.
-const MAX_DISTANCE_M: f32 = 1e5;
+pub const MAX_DISTANCE_M: f32 = 1e5;
 /// Fastest the root may move between frames: 100 m/s, ten times a sprint.
-const MAX_ROOT_SPEED_M_S: f32 = 100.0;
+pub const MAX_ROOT_SPEED_M_S: f32 = 100.0;
 /// How far a joint may be from the root, against the farthest joint of the rest pose: a
 /// real pose stretches a little past its rest extent, never to four times it.
 const MAX_REACH: f32 = 4.0;
