@@ -312,7 +312,7 @@ fn l7_l8_l17_bad_files_say_what_is_wrong_in_a_line() {
     let init = format!("clip:{}@0", s(&npy));
     refused(&["generate", "--model", s(&model), "--init", &init, "--timeline", "walk:3", "--out", s(&out)], &["start.npy", "not finite"]);
 
-    // 60 joints with 10 000-character names: the mismatch is summarised.
+    // 60 joints with 10 000-character names: the mismatch is summarised, names clipped.
     let name = "x".repeat(10_000);
     let mut bvh = String::from("HIERARCHY\n");
     for k in 0..60 {
@@ -324,7 +324,7 @@ fn l7_l8_l17_bad_files_say_what_is_wrong_in_a_line() {
     let wide = t.path().join("wide.bvh");
     std::fs::write(&wide, bvh).unwrap();
     let init = format!("clip:{}@0", s(&wide));
-    let line = refused(&["generate", "--model", s(&model), "--init", &init, "--timeline", "walk:3", "--out", s(&out)], &["does not match", "and 57 more"]);
+    let line = refused(&["generate", "--model", s(&model), "--init", &init, "--timeline", "walk:3", "--out", s(&out)], &["wide.bvh", "cannot map this skeleton", "60 in all"]);
     assert!(line.len() < 1000, "{} characters", line.len());
 
     let json = take(&model, t.path(), "take.json");
