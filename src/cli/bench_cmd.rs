@@ -82,7 +82,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
         BenchCommand::Studio { seconds, only, json } => match only.as_deref() {
             Some(which) => {
                 let stats = crate::studio::bench::measure(which == "empty", seconds)?;
-                println!("{}", serde_json::to_string(&stats)?);
+                say!("{}", serde_json::to_string(&stats)?);
                 Ok(())
             }
             None => {
@@ -147,9 +147,9 @@ pub fn run(command: BenchCommand) -> Result<()> {
 
 fn print<T: Serialize>(value: &T, json: bool, text: impl FnOnce() -> String) -> Result<()> {
     if json {
-        println!("{}", serde_json::to_string(value)?);
+        say!("{}", serde_json::to_string(value)?);
     } else {
-        println!("{}", text());
+        say!("{}", text());
     }
     Ok(())
 }

@@ -73,7 +73,7 @@ pub fn run(command: DataCommand) -> Result<()> {
             let loaded = registry::load(dataset, &DataRoot::resolve(data.as_deref()))?;
             let s = stats(&loaded);
             if json {
-                println!("{}", serde_json::to_string_pretty(&s)?);
+                say!("{}", serde_json::to_string_pretty(&s)?);
             } else {
                 print_stats(&s);
             }
@@ -83,16 +83,16 @@ pub fn run(command: DataCommand) -> Result<()> {
 }
 
 fn print_stats(s: &Stats) {
-    println!("{}: {} clips, {} frames at {} fps, {} joints", s.dataset, s.clips, s.frames, s.fps, s.joints);
-    println!("{:<20} {:>6} {:>9}", "class", "clips", "frames");
+    say!("{}: {} clips, {} frames at {} fps, {} joints", s.dataset, s.clips, s.frames, s.fps, s.joints);
+    say!("{:<20} {:>6} {:>9}", "class", "clips", "frames");
     for c in &s.classes {
-        println!("{:<20} {:>6} {:>9}", c.name, c.clips, c.frames);
+        say!("{:<20} {:>6} {:>9}", c.name, c.clips, c.frames);
     }
     if s.skipped.is_empty() {
-        println!("no files skipped");
+        say!("no files skipped");
     }
     for k in &s.skipped {
-        println!("skipped {}: {}", k.file, k.reason);
+        say!("skipped {}: {}", k.file, k.reason);
     }
 }
 
@@ -104,9 +104,9 @@ pub fn bench_load(args: &DatasetArgs) -> Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     let s = stats(&loaded);
     if json {
-        println!("{}", serde_json::json!({"dataset": s.dataset, "seconds": seconds, "clips": s.clips, "frames": s.frames}));
+        say!("{}", serde_json::json!({"dataset": s.dataset, "seconds": seconds, "clips": s.clips, "frames": s.frames}));
     } else {
-        println!("loaded {} ({} clips, {} frames) in {:.2} s", s.dataset, s.clips, s.frames, seconds);
+        say!("loaded {} ({} clips, {} frames) in {:.2} s", s.dataset, s.clips, s.frames, seconds);
     }
     Ok(())
 }

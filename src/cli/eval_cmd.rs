@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::Args;
 
 use crate::data::archive::DataRoot;
+use crate::data::write::write_atomic;
 use crate::eval::{run_suite, SuiteOptions, SUITES};
 use super::args::TransitionArg;
 use crate::synth::DEFAULT_CLASS_STRENGTH;
@@ -70,8 +71,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let names: Vec<&str> = if args.suite == "all" { SUITES.to_vec() } else { vec![args.suite.as_str()] };
     for name in &names {
         let report = run_suite(name, &opts, &mut |m| eprintln!("{m}"))?;
-        println!("## {}\n\n{}", report.name, report.markdown);
-        println!("(suite took {:.0} s)\n", report.json["seconds"].as_f64().unwrap_or(0.0));
+        say!("## {}\n\n{}", report.name, report.markdown);
+        say!("(suite took {:.0} s)\n", report.json["seconds"].as_f64().unwrap_or(0.0));
         if let Some(path) = &args.json {
             let path = if names.len() > 1 {
                 let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("eval");
@@ -79,7 +80,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             } else {
                 path.clone()
             };
-            std::fs::write(&path, serde_json::to_string_pretty(&report.json)?)?;
+            write_atomic(&path, serde_json::to_string_pretty(&report.json)?.as_bytes())?;
             eprintln!("wrote {}", path.display());
         }
     }

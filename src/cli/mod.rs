@@ -1,5 +1,15 @@
 //! The `glocal` command line: every subcommand is a thin layer over the library.
 
+/// `println!` that does not panic when stdout is gone (`glocal generate ... | head`): the
+/// work is done and its files written by then; a reader that left early misses only the
+/// summary.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 mod args;
 mod bench_cmd;
 mod data_cmd;

@@ -8,12 +8,14 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::data::bvh::{read_bvh, write_bvh};
 use crate::data::joint_map::UserJointMap;
+use crate::data::input::{read_text, MAX_MOTION_BYTES};
+use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
 use crate::synth::rig::{onto_model, onto_skeleton_file};
 use crate::synth::export::{export_with_contacts, ExportFormat};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::TransitionArg;
-use crate::synth::{generate, GenerateOptions, InitPose, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+use crate::synth::{generate, GenerateOptions, InitPose, SegmentSpan, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
@@ -99,7 +101,13 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     let mut model = GlocalModel::load(&args.model)?;
     // Kept until generation is over: a foreign BVH retargeted with the user's joint map.
     let mut retargeted_init = None;
-    let init = match (parse_init(&args.init)?, &joint_map) {
+    let parsed = parse_init(&args.init)?;
+    let input = match &parsed {
+        InitPose::File { path, .. } => Some(path.clone()),
+        _ => None,
+    };
+    check_output(&args.out, &input.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    let init = match (parsed, &joint_map) {
         (InitPose::File { path, frame }, Some(map)) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) => {
             let file = retarget_init_file(&model, &path, map)?;
             let path = file.path().to_path_buf();
@@ -144,6 +152,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         None => take.motion.clone(),
     };
     export_with_contacts(&motion, &take.segments, Some(&take.contacts), &args.out)?;
+    note_rounded_durations(&opts, &take.segments, take.motion.fps);
     let m = &motion;
     if args.json {
         let summary = serde_json::json!({
@@ -154,11 +163,11 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
             "elapsed_ms": elapsed.as_secs_f64() * 1e3,
             "out": args.out,
         });
-        println!("{summary}");
+        say!("{summary}");
     } else {
-        println!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, args.out.display());
+        say!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, args.out.display());
         for s in &take.segments {
-            println!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
+            say!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
         }
     }
     Ok(())
@@ -168,12 +177,22 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
 /// BVH file that `--init clip:` reads like a take the model exported.
 fn retarget_init_file(model: &GlocalModel, path: &Path, map: &UserJointMap) -> Result<tempfile::NamedTempFile> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
-    let source = read_bvh(&text, &name)?;
+    let source = read_bvh(&read_text(path, MAX_MOTION_BYTES)?, &name)?;
     let motion = onto_model(&model.spec, &source, &name, Some(map))?;
     let mut file = tempfile::Builder::new().suffix(".bvh").tempfile()?;
     file.write_all(write_bvh(&motion, None).as_bytes())?;
     Ok(file)
+}
+
+/// Segments last whole sparse steps (`stride * pace` frames), so a duration that is not a
+/// multiple of one is rounded; say so rather than let a take run longer or shorter unseen.
+fn note_rounded_durations(opts: &GenerateOptions, segments: &[SegmentSpan], fps: f32) {
+    for (asked, got) in opts.timeline.segments.iter().zip(segments) {
+        let seconds = (got.end_frame - got.start_frame) as f32 / fps;
+        if (seconds - asked.seconds).abs() > 1.5 / fps {
+            eprintln!("note: segment '{}' lasts {seconds:.2} s, not {} s: durations are rounded to whole sparse steps", asked.class, asked.seconds);
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -192,9 +211,19 @@ pub struct RenderArgs {
     pub rows: usize,
 }
 
+/// Cells per side of a contact sheet: 64 x 160 px is a 10240 px image.
+const MAX_SHEET_CELLS: usize = 64;
+
 pub fn run_render(args: RenderArgs) -> Result<()> {
+    for (flag, v) in [("columns", args.columns), ("rows", args.rows)] {
+        if !(1..=MAX_SHEET_CELLS).contains(&v) {
+            bail!("--{flag} must be between 1 and {MAX_SHEET_CELLS}, got {v}");
+        }
+    }
+    check_extension(&args.out, &["png"])?;
+    check_output(&args.out, &[&args.input])?;
     let (motion, segments) = crate::synth::export::read_take(&args.input, Some(&args.model).filter(|p| p.exists()).map(Path::new))?;
     write_contact_sheet(&motion, &segments, &args.out, &SheetOptions { columns: args.columns, rows: args.rows, cell: 160 })?;
-    println!("{} frames -> {}", motion.frames(), args.out.display());
+    say!("{} frames -> {}", motion.frames(), args.out.display());
     Ok(())
 }

@@ -1,8 +1,8 @@
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -61,6 +61,19 @@ pub struct TrainArgs {
     fine_tune: bool,
 }
 
+/// The first Ctrl-C asks training to stop after the current step and save a checkpoint; a
+/// second one exits at once (losing only the steps since the last checkpoint).
+fn stop_on_interrupt(cancel: Arc<AtomicBool>) -> Result<()> {
+    ctrlc::set_handler(move || {
+        if cancel.swap(true, Ordering::SeqCst) {
+            eprintln!("\ninterrupted again: exiting without a checkpoint");
+            std::process::exit(130);
+        }
+        eprintln!("\ninterrupted: saving a checkpoint after this step (Ctrl-C again to exit at once)");
+    })
+    .context("cannot install the Ctrl-C handler")
+}
+
 pub fn run(args: TrainArgs) -> Result<()> {
     let mut opts = TrainOptions::new(args.dataset.parse()?, args.stage, args.out);
     opts.data = DataRoot::resolve(args.data.as_deref());
@@ -89,6 +102,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let bar = ProgressBar::new(opts.steps as u64);
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")?);
     let cancel = Arc::new(AtomicBool::new(false));
+    stop_on_interrupt(cancel.clone())?;
     let mut last_val = f32::NAN;
     let spec = train(
         &opts,
@@ -103,12 +117,21 @@ pub fn run(args: TrainArgs) -> Result<()> {
         &cancel,
     )?;
     bar.finish();
+    if cancel.load(Ordering::SeqCst) {
+        let steps = match args.stage {
+            Stage::Glogen => spec.glogen_training.as_ref(),
+            Stage::Locgen => spec.locgen_training.as_ref(),
+        }
+        .map_or(0, |r| r.steps);
+        eprintln!("interrupted: checkpoint at step {steps} saved in {}; continue with --resume", opts.out.display());
+        std::process::exit(130);
+    }
     let record = match args.stage {
         Stage::Glogen => spec.glogen_training,
         Stage::Locgen => spec.locgen_training,
     };
     if let Some(r) = record {
-        println!(
+        say!(
             "{} steps; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
             r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit()
         );

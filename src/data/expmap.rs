@@ -12,7 +12,8 @@ use serde::Deserialize;
 
 use super::floor::fit_floor;
 use super::FormatError;
-use crate::motion::{JointRoles, LocalPose, Motion, Skeleton};
+use super::input::{MAX_DISTANCE_M, MAX_ROOT_SPEED_M_S};
+use crate::motion::{clipped, JointRoles, LocalPose, Motion, Skeleton};
 
 /// How the first six values of a line place the root.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,7 +82,7 @@ impl ExpmapFormat {
             values.clear();
             for token in line.split(',') {
                 let v: f32 = token.trim().parse().map_err(|_| {
-                    FormatError::at_line(file, i + 1, format!("'{}' is not a number", token.trim()))
+                    FormatError::at_line(file, i + 1, format!("'{}' is not a number", clipped(token.trim())))
                 })?;
                 if !v.is_finite() {
                     return Err(FormatError::at_line(file, i + 1, format!("value {v} is not finite")));
@@ -91,6 +92,7 @@ impl ExpmapFormat {
             if values.len() != width {
                 return Err(FormatError::at_line(file, i + 1, format!("expected {width} values, found {}", values.len())));
             }
+            self.check_root(&values, file, i + 1)?;
             poses.push(self.pose(&values, &mut root_rot, &mut root_pos));
         }
         if poses.is_empty() {
@@ -105,6 +107,22 @@ impl ExpmapFormat {
             return Err(FormatError::new(file, format!("frame {} gives a joint a non-finite position (values too large)", frame + 1)));
         }
         Ok(motion)
+    }
+
+    /// The root's translation on a line within a body's reach: a position within
+    /// [`MAX_DISTANCE_M`] of the origin, or a step of at most [`MAX_ROOT_SPEED_M_S`]. Checked
+    /// where the value enters, so the error names its line (levelling the take spreads one
+    /// bad frame over all of them).
+    fn check_root(&self, v: &[f32], file: &str, line: usize) -> Result<(), FormatError> {
+        let metres = Vec3::new(v[0], v[1], v[2]).length() * self.skeleton.meters_per_unit();
+        let (limit, what) = match self.root {
+            RootEncoding::Absolute => (MAX_DISTANCE_M, "from the origin"),
+            RootEncoding::Incremental => (MAX_ROOT_SPEED_M_S / self.fps, "in one frame"),
+        };
+        if metres > limit {
+            return Err(FormatError::at_line(file, line, format!("the root moves {metres} m {what}, more than {limit} m; the file is damaged")));
+        }
+        Ok(())
     }
 
     fn pose(&self, v: &[f32], root_rot: &mut Quat, root_pos: &mut Vec3) -> LocalPose {

@@ -149,7 +149,8 @@ pub fn key_joints(skeleton: &Skeleton, user: Option<&UserJointMap>, file: &str) 
     let missing = keys.missing_required();
     if !missing.is_empty() {
         let names: Vec<&str> = missing.iter().map(|k| k.name()).collect();
-        let shown: Vec<&str> = skeleton.names().iter().take(12).map(String::as_str).collect();
+        // Clipped: a hostile file's joint name can be megabytes long.
+        let shown: Vec<String> = skeleton.names().iter().take(12).map(|n| crate::motion::clipped(n)).collect();
         let more = if skeleton.len() > shown.len() { format!(", ... ({} in all)", skeleton.len()) } else { String::new() };
         bail!(
             "{file}: cannot map this skeleton onto a humanoid: no joint found for {} (its joints: {}{more}); name them in a --joint-map file",

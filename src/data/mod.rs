@@ -6,6 +6,7 @@ mod error;
 pub mod expmap;
 pub mod features;
 pub mod floor;
+pub mod input;
 pub mod joint_map;
 pub mod npy;
 pub mod registry;

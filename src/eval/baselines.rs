@@ -27,7 +27,9 @@ use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use crate::data::features::Normalizer;
+use crate::data::write::write_atomic;
 use crate::model::corpus::{sample_window, Corpus};
+use crate::model::train::save_weights;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ArKind {
@@ -164,8 +166,9 @@ impl ArModel {
     pub fn save(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir)?;
         let (w, j) = cache_paths(dir, &self.record.dataset, self.record.config.kind);
-        self.varmap.save(&w)?;
-        std::fs::write(&j, serde_json::to_string_pretty(&self.record)?)?;
+        // Weights first: the record is what marks the pair complete.
+        save_weights(&self.varmap, &w)?;
+        write_atomic(&j, serde_json::to_string_pretty(&self.record)?.as_bytes())?;
         Ok(())
     }
 

@@ -19,7 +19,9 @@ use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 
 use crate::data::features::{FeatureLayout, Normalizer};
+use crate::data::write::write_atomic;
 use crate::model::corpus::{sample_window, Corpus, Track};
+use crate::model::train::save_weights;
 use crate::motion::Motion;
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -117,8 +119,9 @@ impl Classifier {
         }
         let c = Self::train(corpus, cfg, log)?;
         std::fs::create_dir_all(dir)?;
-        c.varmap.save(&weights)?;
-        std::fs::write(&json, serde_json::to_string_pretty(&c.record)?)?;
+        // Weights first: the record is what marks the pair complete.
+        save_weights(&c.varmap, &weights)?;
+        write_atomic(&json, serde_json::to_string_pretty(&c.record)?.as_bytes())?;
         Ok(c)
     }
 

@@ -32,10 +32,7 @@ impl GlocalModel {
     /// Loads a model folder; every file is checked, and a missing or mismatched one is an
     /// error that names it. A folder without LocGen still generates (plain interpolation).
     pub fn load(dir: &Path) -> Result<Self> {
-        if !dir.is_dir() {
-            bail!("model folder {} does not exist", dir.display());
-        }
-        let spec = ModelSpec::read(dir)?;
+        let spec = ModelSpec::read_verified(dir)?;
         let glogen = load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?;
         let locgen_path = dir.join(LOCGEN_FILE);
         let locgen = if locgen_path.exists() { Some(load_block(&locgen_path, &spec.locgen.block)?.freeze()?) } else { None };

@@ -2,15 +2,19 @@
 //! self-contained: skeleton, classes, frame rate, feature layout and normalisation,
 //! hyperparameters, how it was trained and how well it validated.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::block::BlockConfig;
+use super::glocal::{GLOGEN_FILE, LOCGEN_FILE};
 use crate::data::features::{FeatureLayout, Interpolation, Normalizer};
+use crate::data::input::{read_bytes, read_text};
+use crate::data::registry::Dataset;
 use crate::data::write::write_atomic;
-use crate::motion::Skeleton;
+use crate::motion::{clipped, Skeleton};
 
 pub const FORMAT_VERSION: u32 = 1;
 
@@ -97,6 +101,93 @@ pub struct ModelSpec {
     pub glogen_training: Option<StageRecord>,
     #[serde(default)]
     pub locgen_training: Option<StageRecord>,
+    /// SHA-256 of each weight file (by file name), written with it and checked at load.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub weights_sha256: BTreeMap<String, String>,
+}
+
+/// A model.json field that is wrong, and how.
+#[derive(Debug, thiserror::Error)]
+#[error("field `{field}` {problem}")]
+pub struct SpecError {
+    pub field: String,
+    pub problem: String,
+}
+
+impl SpecError {
+    fn field(field: &str, problem: String) -> Self {
+        Self { field: field.to_string(), problem }
+    }
+}
+
+// Limits far above any model this project trains, low enough that a hostile or damaged
+// model.json cannot ask for more memory than the machine has.
+const MAX_SPEC_BYTES: u64 = 256 << 20;
+const MAX_WEIGHTS_BYTES: u64 = 2 << 30;
+const MAX_CLASSES: usize = 1000;
+const MAX_JOINTS: usize = 1000;
+const MIN_FPS: f32 = 1.0;
+const MAX_FPS: f32 = 1000.0;
+const MAX_STRIDE: usize = 100;
+const MAX_BLOCK_LEN: usize = 1000;
+const MAX_ROLLOUT: usize = 100;
+const MAX_LOCGEN_WINDOW: usize = 1000;
+const MAX_HIDDEN: usize = 4096;
+/// Parameters of one block (about 4 bytes each, several copies while loading).
+const MAX_BLOCK_PARAMETERS: usize = 100_000_000;
+
+fn in_range(field: &str, v: f32, lo: f32, hi: f32) -> Result<(), SpecError> {
+    if !(v.is_finite() && (lo..=hi).contains(&v)) {
+        return Err(SpecError::field(field, format!("is {v}; it must be between {lo} and {hi}")));
+    }
+    Ok(())
+}
+
+fn whole_in_range(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), SpecError> {
+    if !(lo..=hi).contains(&v) {
+        return Err(SpecError::field(field, format!("is {v}; it must be between {lo} and {hi}")));
+    }
+    Ok(())
+}
+
+fn validate_norm(field: &str, norm: &Normalizer, dim: usize) -> Result<(), SpecError> {
+    for (part, values) in [("mean", &norm.mean), ("std", &norm.std)] {
+        if values.len() != dim {
+            return Err(SpecError::field(&format!("{field}.{part}"), format!("has {} values; the feature layout needs {dim}", values.len())));
+        }
+    }
+    if let Some(k) = norm.mean.iter().position(|v| !v.is_finite()) {
+        return Err(SpecError::field(&format!("{field}.mean[{k}]"), "is not finite".into()));
+    }
+    if let Some(k) = norm.std.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err(SpecError::field(&format!("{field}.std[{k}]"), format!("is {}; a standard deviation must be positive and finite", norm.std[k])));
+    }
+    Ok(())
+}
+
+fn validate_block(field: &str, b: &BlockConfig, dim: usize, cond: usize) -> Result<(), SpecError> {
+    for (name, v, want) in [("in_dim", b.in_dim, dim), ("out_dim", b.out_dim, dim), ("cond_dim", b.cond_dim, cond)] {
+        if v != want {
+            return Err(SpecError::field(&format!("{field}.{name}"), format!("is {v}; the layout and classes need {want}")));
+        }
+    }
+    whole_in_range(&format!("{field}.hidden"), b.hidden, 1, MAX_HIDDEN)?;
+    if !(b.dropout.is_finite() && (0.0..1.0).contains(&b.dropout)) {
+        return Err(SpecError::field(&format!("{field}.dropout"), format!("is {}; it must be at least 0 and below 1", b.dropout)));
+    }
+    // Encoder and decoder, two directions each: 4 gates x hidden x (input + hidden + bias).
+    let h = b.hidden;
+    let per_direction = 4 * h * (b.in_dim + b.cond_dim + 2 * h + 2);
+    let parameters = 2 * 2 * per_direction + (2 * h + 1) * b.out_dim;
+    if parameters > MAX_BLOCK_PARAMETERS {
+        return Err(SpecError::field(&format!("{field}.hidden"), format!("{h} makes a block of {parameters} parameters, more than {MAX_BLOCK_PARAMETERS}")));
+    }
+    Ok(())
+}
+
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 fn locks_feet() -> bool {
@@ -104,21 +195,125 @@ fn locks_feet() -> bool {
 }
 
 impl ModelSpec {
+    /// Reads and validates `dir/model.json` (see [`ModelSpec::validate`]). A missing folder, a
+    /// file given as the folder and an unreadable file are each named as such.
     pub fn read(dir: &Path) -> Result<Self> {
         let path = dir.join("model.json");
-        let text = std::fs::read_to_string(&path).with_context(|| format!("model folder {} has no readable model.json", dir.display()))?;
-        let spec: ModelSpec = serde_json::from_str(&text).with_context(|| format!("{} is not a valid model description", path.display()))?;
-        if spec.format_version > FORMAT_VERSION {
-            bail!("{} has format version {}, newer than this build understands ({FORMAT_VERSION})", path.display(), spec.format_version);
+        if dir.is_file() {
+            bail!("{} is a file; --model takes the model folder (the one holding model.json)", dir.display());
         }
-        let dim = spec.layout.dim();
-        if spec.sparse_norm.mean.len() != dim || spec.dense_norm.mean.len() != dim {
-            bail!("{}: normalisation has {} values, the feature layout needs {dim}", path.display(), spec.sparse_norm.mean.len());
+        if !dir.is_dir() {
+            bail!("model folder {} does not exist", dir.display());
         }
-        if spec.class_speed.len() != spec.classes.len() {
-            bail!("{}: {} class speeds for {} classes", path.display(), spec.class_speed.len(), spec.classes.len());
+        let text = read_text(&path, MAX_SPEC_BYTES).with_context(|| format!("model folder {} has no readable model.json", dir.display()))?;
+        Self::from_json(&text, &path.display().to_string())
+    }
+
+    /// Parses and validates the text of a model.json; errors start with `name`.
+    pub fn from_json(text: &str, name: &str) -> Result<Self> {
+        let spec: ModelSpec = serde_json::from_str(text).map_err(|e| anyhow::anyhow!("{name}: line {}: {e}", e.line()))?;
+        spec.validate().map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        Ok(spec)
+    }
+
+    /// Reads `dir/model.json` and checks each weight file's checksum against it, for
+    /// loading a model to generate with. A model.json without checksums (written before
+    /// they existed) is accepted as it is.
+    pub fn read_verified(dir: &Path) -> Result<Self> {
+        let spec = Self::read(dir)?;
+        for (file, expected) in &spec.weights_sha256 {
+            let path = dir.join(file);
+            let Ok(bytes) = read_bytes(&path, MAX_WEIGHTS_BYTES) else { continue };
+            let found = sha256_hex(&bytes);
+            if &found != expected {
+                bail!("{}: checksum {found} does not match the {expected} in model.json: the file is damaged, or training was stopped between writing it and model.json (finish it with `glocal train --resume`)", path.display());
+            }
         }
         Ok(spec)
+    }
+
+    /// Every field checked against the others and against sane limits, before anything is
+    /// allocated from it: the first problem found, naming its field.
+    pub fn validate(&self) -> Result<(), SpecError> {
+        use SpecError as E;
+        if self.format_version == 0 || self.format_version > FORMAT_VERSION {
+            return Err(E::field("format_version", format!("is {}; this build understands 1 to {FORMAT_VERSION}", self.format_version)));
+        }
+        self.dataset.parse::<Dataset>().map_err(|e| E::field("dataset", e.to_string()))?;
+        self.validate_classes()?;
+        in_range("fps", self.fps, MIN_FPS, MAX_FPS)?;
+        whole_in_range("stride", self.stride, 1, MAX_STRIDE)?;
+        whole_in_range("block_len", self.block_len, 1, MAX_BLOCK_LEN)?;
+        self.validate_skeletons()?;
+        let dim = self.layout.dim();
+        validate_norm("sparse_norm", &self.sparse_norm, dim)?;
+        validate_norm("dense_norm", &self.dense_norm, dim)?;
+        if self.class_speed.len() != self.classes.len() {
+            return Err(E::field("class_speed", format!("has {} entries for {} classes", self.class_speed.len(), self.classes.len())));
+        }
+        if let Some(k) = self.class_speed.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(E::field(&format!("class_speed[{k}]"), format!("is {}; it must be a finite speed of 0 or more", self.class_speed[k])));
+        }
+        let cond = if self.glogen.use_class { self.classes.len() } else { 0 };
+        validate_block("glogen.block", &self.glogen.block, dim, cond)?;
+        in_range("glogen.class_dropout", self.glogen.class_dropout, 0.0, 1.0)?;
+        whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;
+        validate_block("locgen.block", &self.locgen.block, dim, 0)?;
+        whole_in_range("locgen.window", self.locgen.window, 1, MAX_LOCGEN_WINDOW)?;
+        for file in self.weights_sha256.keys() {
+            if ![GLOGEN_FILE, LOCGEN_FILE].contains(&file.as_str()) {
+                return Err(E::field("weights_sha256", format!("names '{}', which is not a weight file of a model", clipped(file))));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_classes(&self) -> Result<(), SpecError> {
+        if self.classes.is_empty() || self.classes.len() > MAX_CLASSES {
+            return Err(SpecError::field("classes", format!("has {} names; a model has 1 to {MAX_CLASSES}", self.classes.len())));
+        }
+        for (k, c) in self.classes.iter().enumerate() {
+            if c.trim().is_empty() {
+                return Err(SpecError::field(&format!("classes[{k}]"), "is empty".into()));
+            }
+            // Class names are looked up ignoring case, so two that differ only in case clash.
+            if let Some(first) = self.classes[..k].iter().position(|o| o.eq_ignore_ascii_case(c)) {
+                return Err(SpecError::field(&format!("classes[{k}]"), format!("'{}' repeats classes[{first}]", clipped(c))));
+            }
+        }
+        Ok(())
+    }
+
+    /// The model's skeleton must be the source skeleton's `source_joints`, and small enough.
+    fn validate_skeletons(&self) -> Result<(), SpecError> {
+        let (layout, source) = (&self.layout, &self.source_skeleton);
+        let joints = layout.joints();
+        if !(2..=MAX_JOINTS).contains(&joints) {
+            return Err(SpecError::field("layout.skeleton", format!("has {joints} joints; a model has 2 to {MAX_JOINTS}")));
+        }
+        if source.len() > MAX_JOINTS {
+            return Err(SpecError::field("source_skeleton", format!("has {} joints, more than {MAX_JOINTS}", source.len())));
+        }
+        for (field, hip) in [("layout.left_hip", layout.left_hip), ("layout.right_hip", layout.right_hip)] {
+            if hip >= joints {
+                return Err(SpecError::field(field, format!("is joint {hip}; the skeleton has {joints}")));
+            }
+        }
+        let keep = &self.source_joints;
+        if keep.len() != joints || keep.windows(2).any(|w| w[0] >= w[1]) || keep.iter().any(|&j| j >= source.len()) {
+            return Err(SpecError::field("source_joints", format!("must be {joints} ascending joints of source_skeleton ({} joints)", source.len())));
+        }
+        // One root: every kept joint but the first descends from another kept joint.
+        let kept: std::collections::HashSet<usize> = keep.iter().copied().collect();
+        let has_kept_ancestor = |j: usize| std::iter::successors(source.parents()[j], |&p| source.parents()[p]).any(|p| kept.contains(&p));
+        if let Some(&j) = keep[1..].iter().find(|&&j| !has_kept_ancestor(j)) {
+            return Err(SpecError::field("source_joints", format!("keeps joint {j} but none of its ancestors, which would make a second root")));
+        }
+        let diff = source.subset(keep).differences(&layout.skeleton);
+        if !diff.is_empty() {
+            return Err(SpecError::field("layout.skeleton", format!("is not source_skeleton's source_joints: {}", diff.join("; "))));
+        }
+        Ok(())
     }
 
     pub fn write(&self, dir: &Path) -> Result<()> {

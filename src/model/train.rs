@@ -20,11 +20,13 @@ use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{interpolated_window, sample_window, Corpus, Track};
 use super::glocal::{load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
-use super::spec::{GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
+use super::spec::{sha256_hex, GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{FeatureLayout, Interpolation, Normalizer, Placement};
 use crate::data::registry::Dataset;
-use crate::data::write::write_atomic;
+use crate::data::input::read_bytes;
+use crate::data::write::{write_atomic, FolderLock};
+use crate::motion::clipped;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Stage {
@@ -102,6 +104,47 @@ impl TrainOptions {
     }
 }
 
+impl TrainOptions {
+    /// The stage's published weights.
+    pub fn weights_path(&self) -> PathBuf {
+        self.out.join(self.stage.file())
+    }
+
+    /// The stage's training checkpoint, the one file `--resume` reads.
+    pub fn state_path(&self) -> PathBuf {
+        self.out.join(format!("{}{TRAIN_STATE_SUFFIX}", self.stage.file().trim_end_matches(".safetensors")))
+    }
+
+    /// Every option in its range before anything is loaded: each problem names its flag.
+    pub fn validate(&self) -> Result<()> {
+        let whole = |flag: &str, v: usize, lo: usize, hi: usize| -> Result<()> {
+            if !(lo..=hi).contains(&v) {
+                bail!("--{flag} must be between {lo} and {hi}, got {v}");
+            }
+            Ok(())
+        };
+        whole("steps", self.steps, 1, 100_000_000)?;
+        whole("batch", self.batch, 1, 4096)?;
+        whole("hidden", self.hidden, 1, 4096)?;
+        whole("stride", self.stride, 1, 100)?;
+        whole("rollout", self.rollout_blocks, 1, 100)?;
+        whole("eval-every", self.eval_every, 1, usize::MAX)?;
+        whole("checkpoint-every", self.checkpoint_every, 1, usize::MAX)?;
+        whole("block-len", self.block_len, 1, 1000)?;
+        whole("locgen-window", self.locgen_window, 1, 1000)?;
+        if !(self.class_dropout.is_finite() && (0.0..=1.0).contains(&self.class_dropout)) {
+            bail!("--class-dropout must be a probability between 0 and 1, got {}", self.class_dropout);
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            bail!("the learning rate must be a positive number, got {}", self.lr);
+        }
+        if self.out.is_file() {
+            bail!("--out {} is a file; training writes a model folder", self.out.display());
+        }
+        Ok(())
+    }
+}
+
 /// What the progress callback sees.
 #[derive(Clone, Debug)]
 pub struct Progress {
@@ -117,11 +160,22 @@ const VALIDATION_WINDOWS: usize = 256;
 
 /// Trains one stage into `opts.out`, creating `model.json` and the seed bank when absent.
 pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel: &AtomicBool) -> Result<ModelSpec> {
+    opts.validate()?;
+    let (weights_path, state_path) = (opts.weights_path(), opts.state_path());
+    if opts.resume && !state_path.exists() && weights_path.exists() {
+        bail!(
+            "--resume: {} has trained {} weights but no training state ({}) to resume from; to train on from those weights with a fresh optimiser use --fine-tune",
+            opts.out.display(),
+            opts.stage.file(),
+            state_path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        );
+    }
     let corpus = Corpus::load(opts.dataset, &opts.data, opts.stride, opts.min_clips)?;
     if corpus.classes.is_empty() || corpus.train.is_empty() {
         bail!("{} has no class with at least {} training clips", opts.dataset, opts.min_clips);
     }
     std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
+    let _lock = FolderLock::acquire(&opts.out)?;
     let mut spec = prepare_spec(opts, &corpus)?;
     let (cfg, norm) = match opts.stage {
         Stage::Glogen => (spec.glogen.block.clone(), spec.sparse_norm.clone()),
@@ -136,19 +190,19 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     }
     let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
     let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
-    let weights_path = opts.out.join(opts.stage.file());
-    let state_path = opts.out.join(format!("{}{TRAIN_STATE_SUFFIX}", opts.stage.file().trim_end_matches(".safetensors")));
     let mut record = StageRecord { seed: opts.seed, ..Default::default() };
-    if opts.resume && weights_path.exists() && state_path.exists() {
-        load_weights(&weights_path, &varmap)?;
-        let state = candle_core::safetensors::load(&state_path, &Device::Cpu)?;
-        let step = state.get("step").context("training state has no step")?.to_vec1::<f32>()?[0] as usize;
-        opt.load_state(&state, step)?;
-        if let Some(prev) = match opts.stage {
-            Stage::Glogen => spec.glogen_training.clone(),
-            Stage::Locgen => spec.locgen_training.clone(),
-        } {
-            record = prev;
+    if opts.resume {
+        if state_path.exists() {
+            let previous = match opts.stage {
+                Stage::Glogen => spec.glogen_training.clone(),
+                Stage::Locgen => spec.locgen_training.clone(),
+            };
+            let checkpoint = Checkpoint::read(&state_path, &varmap, Legacy { weights: &weights_path, record: previous })?;
+            opt.load_state(&checkpoint.optimiser, checkpoint.step)?;
+            record = checkpoint.record;
+            // A run killed between the checkpoint and its published copies left them a step
+            // behind; publish them again from the one consistent file.
+            publish(&varmap, &mut spec, opts, &record, &weights_path)?;
         }
     }
     let frozen_spec = spec.clone();
@@ -182,17 +236,13 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         if step % opts.checkpoint_every == 0 || done {
             record.steps = step;
             record.seconds = seconds_before + start.elapsed().as_secs_f64();
-            save_checkpoint(&varmap, &opt, &weights_path, &state_path)?;
-            match opts.stage {
-                Stage::Glogen => spec.glogen_training = Some(record.clone()),
-                Stage::Locgen => spec.locgen_training = Some(record.clone()),
-            }
-            spec.write(&opts.out)?;
+            checkpoint(&varmap, &opt, &mut spec, opts, &record, &weights_path, &state_path)?;
         }
     }
-    if cancel.load(Ordering::Relaxed) {
+    if cancel.load(Ordering::Relaxed) && opt.step > record.steps {
         record.steps = opt.step;
-        save_checkpoint(&varmap, &opt, &weights_path, &state_path)?;
+        record.seconds = seconds_before + start.elapsed().as_secs_f64();
+        checkpoint(&varmap, &opt, &mut spec, opts, &record, &weights_path, &state_path)?;
     }
     Ok(spec)
 }
@@ -256,6 +306,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         locgen,
         glogen_training: None,
         locgen_training: None,
+        weights_sha256: Default::default(),
     };
     spec.write(&opts.out)?;
     write_seed_bank(&opts.out, &spec, corpus)?;
@@ -314,22 +365,133 @@ pub fn seeded_init(varmap: &VarMap, seed: u64, gates: usize) -> Result<()> {
     Ok(())
 }
 
-fn save_checkpoint(varmap: &VarMap, opt: &AdamW, weights: &Path, state: &Path) -> Result<()> {
-    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
-    let tensors: HashMap<String, Tensor> = vars.iter().map(|(k, v)| (k.clone(), v.as_tensor().clone())).collect();
-    drop(vars);
-    save_safetensors(&tensors, weights)?;
-    let mut st: HashMap<String, Tensor> = opt.state_tensors()?.into_iter().collect();
-    st.insert("step".into(), Tensor::new(&[opt.step as f32], &Device::Cpu)?);
-    save_safetensors(&st, state)
+/// Commits one checkpoint. The training state file is the unit `--resume` reads: weights,
+/// optimiser moments, step and the stage's record in one file, renamed into place at once,
+/// so a kill at any moment leaves either the previous checkpoint or this one. Only then are
+/// the published copies (the weights a model loads, model.json with their checksum) replaced.
+fn checkpoint(
+    varmap: &VarMap,
+    opt: &AdamW,
+    spec: &mut ModelSpec,
+    opts: &TrainOptions,
+    record: &StageRecord,
+    weights_path: &Path,
+    state_path: &Path,
+) -> Result<()> {
+    let mut tensors = named_tensors(varmap, WEIGHT_PREFIX)?;
+    tensors.extend(opt.state_tensors()?.into_iter().map(|(k, v)| (format!("{OPTIMISER_PREFIX}{k}"), v)));
+    let metadata = HashMap::from([
+        (STEP_KEY.to_string(), opt.step.to_string()),
+        (RECORD_KEY.to_string(), serde_json::to_string(record)?),
+    ]);
+    write_atomic(state_path, &safetensors_bytes(&tensors, Some(metadata), state_path)?)
+        .with_context(|| format!("cannot write the training checkpoint {}", state_path.display()))?;
+    publish(varmap, spec, opts, record, weights_path)
 }
 
-fn save_safetensors(tensors: &HashMap<String, Tensor>, path: &Path) -> Result<()> {
-    let tmp = path.with_extension("safetensors.tmp");
-    candle_core::safetensors::save(tensors, &tmp).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot replace {}", path.display()))?;
-    Ok(())
+/// Writes the stage's weights and model.json (its record and the weights' checksum).
+fn publish(varmap: &VarMap, spec: &mut ModelSpec, opts: &TrainOptions, record: &StageRecord, weights_path: &Path) -> Result<()> {
+    let bytes = save_weights(varmap, weights_path)?;
+    spec.weights_sha256.insert(opts.stage.file().to_string(), sha256_hex(&bytes));
+    match opts.stage {
+        Stage::Glogen => spec.glogen_training = Some(record.clone()),
+        Stage::Locgen => spec.locgen_training = Some(record.clone()),
+    }
+    spec.write(&opts.out)
 }
+
+/// Writes every variable of `varmap` to a safetensors file, atomically; returns its bytes.
+pub fn save_weights(varmap: &VarMap, path: &Path) -> Result<Vec<u8>> {
+    let bytes = safetensors_bytes(&named_tensors(varmap, "")?, None, path)?;
+    write_atomic(path, &bytes).with_context(|| format!("cannot write the weights {}", path.display()))?;
+    Ok(bytes)
+}
+
+const WEIGHT_PREFIX: &str = "weight.";
+const OPTIMISER_PREFIX: &str = "optimiser.";
+const STEP_KEY: &str = "step";
+const RECORD_KEY: &str = "record";
+
+fn named_tensors(varmap: &VarMap, prefix: &str) -> Result<Vec<(String, Tensor)>> {
+    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
+    Ok(vars.iter().map(|(k, v)| (format!("{prefix}{k}"), v.as_tensor().clone())).collect())
+}
+
+fn safetensors_bytes(tensors: &[(String, Tensor)], metadata: Option<HashMap<String, String>>, path: &Path) -> Result<Vec<u8>> {
+    let mut data = Vec::with_capacity(tensors.len());
+    for (name, t) in tensors {
+        let values = t.flatten_all()?.to_vec1::<f32>()?;
+        data.push((name.clone(), t.dims().to_vec(), values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>()));
+    }
+    let views = data
+        .iter()
+        .map(|(name, shape, bytes)| Ok((name.as_str(), safetensors::tensor::TensorView::new(safetensors::Dtype::F32, shape.clone(), bytes)?)))
+        .collect::<Result<Vec<_>, safetensors::SafeTensorError>>()
+        .with_context(|| format!("cannot encode {}", path.display()))?;
+    safetensors::serialize(views, metadata).with_context(|| format!("cannot encode {}", path.display()))
+}
+
+/// What `--resume` reads back from a training state file.
+struct Checkpoint {
+    step: usize,
+    record: StageRecord,
+    optimiser: HashMap<String, Tensor>,
+}
+
+impl Checkpoint {
+    /// Reads the state file and fills `varmap` with its weights; every problem names the file.
+    fn read(path: &Path, varmap: &VarMap, legacy: Legacy) -> Result<Self> {
+        let name = path.display();
+        let bytes = read_bytes(path, MAX_CHECKPOINT_BYTES).with_context(|| format!("cannot read the training checkpoint {name}"))?;
+        let (_, header) = safetensors::SafeTensors::read_metadata(&bytes).with_context(|| format!("{name} is not a training checkpoint"))?;
+        let meta = header.metadata().clone().unwrap_or_default();
+        let mut tensors = candle_core::safetensors::load_buffer(&bytes, &Device::Cpu).with_context(|| format!("{name} is not a training checkpoint"))?;
+        if let Some((k, _)) = tensors.iter().find(|(_, t)| t.flatten_all().and_then(|t| t.to_vec1::<f32>()).map_or(true, |v| v.iter().any(|x| !x.is_finite()))) {
+            bail!("{name}: tensor '{}' is not finite f32 values", clipped(k));
+        }
+        let (Some(step), Some(record)) = (meta.get(STEP_KEY), meta.get(RECORD_KEY)) else {
+            return Self::read_legacy(path, tensors, varmap, legacy);
+        };
+        let step: usize = step.parse().with_context(|| format!("{name}: step '{}' is not a whole number", clipped(step)))?;
+        let record: StageRecord = serde_json::from_str(record).with_context(|| format!("{name}: the stage record is damaged"))?;
+        if record.steps != step {
+            bail!("{name}: its record says step {}, its optimiser step {step}; the file is damaged", record.steps);
+        }
+        let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
+        for (var_name, var) in vars.iter() {
+            let t = tensors.remove(&format!("{WEIGHT_PREFIX}{var_name}")).with_context(|| format!("{name} has no weights '{var_name}': it was saved for a different model"))?;
+            if t.dims() != var.dims() {
+                bail!("{name}: weights '{var_name}' have shape {:?}, the model needs {:?}", t.dims(), var.dims());
+            }
+            var.set(&t).with_context(|| format!("{name}: cannot load '{var_name}'"))?;
+        }
+        let optimiser = tensors.into_iter().filter_map(|(k, v)| k.strip_prefix(OPTIMISER_PREFIX).map(|k| (k.to_string(), v))).collect();
+        Ok(Self { step, record, optimiser })
+    }
+
+    /// A state file from before checkpoints were one unit: moments and a `step` tensor, with
+    /// the weights and record in their published files (kept readable so a run under way
+    /// when this changed can still be resumed).
+    fn read_legacy(path: &Path, mut tensors: HashMap<String, Tensor>, varmap: &VarMap, legacy: Legacy) -> Result<Self> {
+        let name = path.display();
+        let step = tensors.remove(STEP_KEY).with_context(|| format!("{name} has no step: not a training checkpoint"))?;
+        let step = step.to_vec1::<f32>().ok().and_then(|v| v.first().copied()).with_context(|| format!("{name}: the step is damaged"))?;
+        let record = legacy.record.with_context(|| format!("{name}: model.json has no record of this stage to resume"))?;
+        if record.steps != step as usize {
+            bail!("{name} is at step {step}, model.json's record at {}; they were written by different checkpoints", record.steps);
+        }
+        load_weights(legacy.weights, varmap).with_context(|| format!("cannot resume from {}", legacy.weights.display()))?;
+        Ok(Self { step: record.steps, record, optimiser: tensors })
+    }
+}
+
+/// Where a legacy state file's weights and record are.
+struct Legacy<'a> {
+    weights: &'a Path,
+    record: Option<StageRecord>,
+}
+
+const MAX_CHECKPOINT_BYTES: u64 = 8 << 30;
 
 /// A held-out window: inputs, targets and where it starts, all fixed for the whole run.
 struct ValWindow {

@@ -159,11 +159,11 @@ impl Skeleton {
             .collect()
     }
 
-    /// The sub-skeleton of `keep` (ascending indices, root first, as a validated model.json's
-    /// `source_joints` are). A dropped joint's offset is folded into its kept descendants so
-    /// rest positions are unchanged.
+    /// The sub-skeleton of `keep`: ascending indices, each but the first descending from
+    /// another kept joint (as a validated model.json's `source_joints` are), so it has one
+    /// root. A dropped joint's offset is folded into its kept descendants so rest positions
+    /// are unchanged.
     pub fn subset(&self, keep: &[usize]) -> Skeleton {
-        debug_assert!(keep.first() == Some(&0) && keep.windows(2).all(|w| w[0] < w[1]), "subset needs ascending joints from the root");
         let rest = self.rest_positions();
         let new_index = |j: usize| keep.iter().position(|&k| k == j);
         let mut parents = Vec::with_capacity(keep.len());

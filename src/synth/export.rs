@@ -14,6 +14,7 @@ use super::SegmentSpan;
 use crate::data::bvh::{read_bvh, write_bvh};
 use crate::data::npy::{motion_from_npy, motion_to_npy};
 use crate::model::spec::ModelSpec;
+use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::write::write_atomic;
 use crate::motion::contacts::FootContacts;
 use crate::motion::{Motion, Skeleton};
@@ -70,6 +71,10 @@ pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<
 
 /// [`export`], with the per-foot contact arrays (as long as the take) in the JSON format.
 pub fn export_with_contacts(motion: &Motion, segments: &[SegmentSpan], contacts: Option<&FootContacts>, path: &Path) -> Result<()> {
+    // Whatever went wrong upstream, no NaN, inf or null reaches a file.
+    if let Some(bad) = motion.positions().iter().position(|p| !p.is_finite()) {
+        bail!("{}: not written: the take has a non-finite position at frame {}", path.display(), bad / motion.joints().max(1) + 1);
+    }
     let motion = &motion.translated(Vec3::new(0.0, -motion.floor_height(), 0.0));
     let bytes = match ExportFormat::from_path(path)? {
         ExportFormat::Bvh => write_bvh(motion, None).into_bytes(),
@@ -105,32 +110,51 @@ pub fn read_take(path: &Path, model_dir: Option<&Path>) -> Result<(Motion, Vec<S
     let name = path.display().to_string();
     match ExportFormat::from_path(path)? {
         ExportFormat::Json => {
-            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
-            let take: JsonTake = serde_json::from_slice(&bytes).with_context(|| format!("{name} is not a take written by glocal"))?;
-            let parents = take.parents.iter().map(|&p| usize::try_from(p).ok()).collect();
-            let rest = take.frames.first().with_context(|| format!("{name} has no frames"))?;
-            let offsets = rest
-                .iter()
-                .zip(&take.parents)
-                .map(|(p, &parent)| Vec3::from_array(*p) - usize::try_from(parent).ok().and_then(|q| rest.get(q)).map_or(Vec3::ZERO, |q| Vec3::from_array(*q)))
-                .collect();
-            let skeleton = Skeleton::new(take.joints, parents, offsets, take.meters_per_unit).with_context(|| format!("{name}: bad skeleton"))?;
-            if let Some(bad) = take.frames.iter().position(|f| f.len() != skeleton.len()) {
-                bail!("{name}: frame {bad} has {} joints, expected {}", take.frames[bad].len(), skeleton.len());
-            }
-            let positions = take.frames.iter().flatten().map(|p| Vec3::from_array(*p)).collect();
-            Ok((Motion::from_positions(Arc::new(skeleton), take.fps, positions), take.segments))
+            parse_json_take(&read_bytes(path, MAX_MOTION_BYTES)?, &name)
         }
         ExportFormat::Bvh => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
-            Ok((read_bvh(&text, &name)?, Vec::new()))
+            let motion = read_bvh(&read_text(path, MAX_MOTION_BYTES)?, &name)?;
+            check_plausible(&motion, &name, &motion.skeleton)?;
+            Ok((motion, Vec::new()))
         }
         ExportFormat::Glb => bail!("{name}: a .glb take cannot be read back; export it as JSON or BVH too"),
         ExportFormat::Npy => {
             let dir = model_dir.with_context(|| format!("{name}: an NPY take has no skeleton; give the model folder it came from"))?;
             let spec = ModelSpec::read(dir)?;
-            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
-            Ok((motion_from_npy(&bytes, &name, spec.layout.skeleton.clone(), spec.fps)?, Vec::new()))
+            let motion = motion_from_npy(&read_bytes(path, MAX_MOTION_BYTES)?, &name, spec.layout.skeleton.clone(), spec.fps)?;
+            check_plausible(&motion, &name, &motion.skeleton)?;
+            Ok((motion, Vec::new()))
         }
     }
+}
+
+/// A JSON take's bytes as a motion, its frame rate, skeleton, frames and segments checked.
+pub fn parse_json_take(bytes: &[u8], name: &str) -> Result<(Motion, Vec<SegmentSpan>)> {
+    let take: JsonTake = serde_json::from_slice(bytes).map_err(|e| anyhow::anyhow!("{name}: line {}: not a take written by glocal: {e}", e.line()))?;
+    if !(take.fps.is_finite() && (1.0..=1000.0).contains(&take.fps)) {
+        bail!("{name}: fps is {}; a take has 1 to 1000 frames per second", take.fps);
+    }
+    let rest = take.frames.first().with_context(|| format!("{name} has no frames"))?;
+    if let Some(bad) = take.frames.iter().position(|f| f.len() != rest.len()) {
+        bail!("{name}: frame {} has {} joints, frame 1 has {}", bad + 1, take.frames[bad].len(), rest.len());
+    }
+    let parents = take.parents.iter().map(|&p| usize::try_from(p).ok()).collect();
+    // The skeleton's rest offsets are the first frame's bones.
+    let offsets = rest
+        .iter()
+        .zip(&take.parents)
+        .map(|(p, &parent)| Vec3::from_array(*p) - usize::try_from(parent).ok().and_then(|q| rest.get(q)).map_or(Vec3::ZERO, |q| Vec3::from_array(*q)))
+        .collect();
+    let skeleton = Skeleton::new(take.joints, parents, offsets, take.meters_per_unit).with_context(|| format!("{name}: bad skeleton"))?;
+    if rest.len() != skeleton.len() {
+        bail!("{name}: frames have {} joints, the skeleton {}", rest.len(), skeleton.len());
+    }
+    let frames = take.frames.len();
+    if let Some((k, s)) = take.segments.iter().enumerate().find(|(_, s)| s.start_frame > s.end_frame || s.end_frame > frames) {
+        bail!("{name}: segment {} spans frames {}..{}, outside the take's {frames}", k + 1, s.start_frame, s.end_frame);
+    }
+    let positions = take.frames.iter().flatten().map(|p| Vec3::from_array(*p)).collect();
+    let motion = Motion::from_positions(Arc::new(skeleton), take.fps, positions);
+    check_plausible(&motion, name, &motion.skeleton)?;
+    Ok((motion, take.segments))
 }

@@ -12,7 +12,8 @@ use super::rig::onto_model;
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
 use crate::data::features::Placement;
-use crate::data::npy::motion_from_npy;
+use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
+use crate::data::npy::{motion_from_npy, read_npy};
 use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
 use crate::motion::Motion;
@@ -50,7 +51,7 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
         }
         InitPose::File { path, frame } => {
             let motion = read_on_model_skeleton(model, path)?;
-            let needed = frame + spec.stride * spec.block_len;
+            let needed = frame.saturating_add(spec.stride * spec.block_len);
             if motion.frames() <= needed {
                 bail!(
                     "{}: {} frames at {} fps from frame {frame} are too few: a start needs {} frames ({} sparse poses {} frames apart)",
@@ -75,8 +76,9 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
     let source = Arc::new(spec.source_skeleton.clone());
     let m = match ext.as_str() {
         "bvh" => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+            let text = read_text(path, MAX_MOTION_BYTES)?;
             let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit())?;
+            check_plausible(&m, &name, &spec.source_skeleton)?;
             // A take this model exported is on its own joints already.
             if m.skeleton.differences(&spec.layout.skeleton).is_empty() {
                 let mut m = m.resample(spec.fps);
@@ -90,16 +92,22 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
             m
         }
         "npy" => {
-            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
-            let model_joints = spec.layout.joints();
-            // An array on the model's own joints needs no subsetting.
-            match motion_from_npy(&bytes, &name, spec.layout.skeleton.clone(), spec.fps) {
-                Ok(m) => return Ok(m),
-                Err(e) if spec.source_skeleton.len() == model_joints => return Err(e.into()),
-                Err(_) => motion_from_npy(&bytes, &name, source.clone(), spec.fps).with_context(|| {
-                    format!("{name}: expected (T, {model_joints}, 3) or (T, {}, 3)", spec.source_skeleton.len())
-                })?,
+            let bytes = read_bytes(path, MAX_MOTION_BYTES)?;
+            // The joint count picks the skeleton: the model's own joints need no subsetting.
+            let shape = read_npy(&bytes, &name)?.shape;
+            let (model_joints, source_joints) = (spec.layout.joints(), spec.source_skeleton.len());
+            let on_model = shape.get(1) == Some(&model_joints);
+            let skeleton = match shape.get(1) {
+                _ if on_model => spec.layout.skeleton.clone(),
+                Some(&j) if j == source_joints => source.clone(),
+                _ => bail!("{name}: array has shape {shape:?}; expected (T, {model_joints}, 3) or (T, {source_joints}, 3)"),
+            };
+            let m = motion_from_npy(&bytes, &name, skeleton, spec.fps)?;
+            check_plausible(&m, &name, &m.skeleton)?;
+            if on_model {
+                return Ok(m);
             }
+            m
         }
         "txt" => {
             let dataset: Dataset = spec.dataset.parse()?;
@@ -107,8 +115,10 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
                 .root_encoding()
                 .with_context(|| format!("{name}: a {dataset} model takes BVH or NPY, not exponential-map text"))?;
             let format = ExpmapFormat { skeleton: source.clone(), root, fps: dataset.source_fps(), major15: None };
-            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
-            format.read(&text, &name)?
+            let text = read_text(path, MAX_MOTION_BYTES)?;
+            let m = format.read(&text, &name)?;
+            check_plausible(&m, &name, &spec.source_skeleton)?;
+            m
         }
         _ => bail!("{name}: unsupported file type '{ext}' (use .bvh, .npy or an exponential-map .txt)"),
     };

@@ -6,7 +6,13 @@ use std::str::FromStr;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
+use crate::data::input::MAX_MOTION_SECONDS;
+
 pub const MIN_PACE: f32 = 0.1;
+
+/// The longest take: one hour. Checked before anything is generated; memory for a take of
+/// this length is measured in docs/BENCHMARKS.md.
+pub const MAX_TAKE_SECONDS: f32 = MAX_MOTION_SECONDS as f32;
 pub const MAX_PACE: f32 = 10.0;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -43,6 +49,10 @@ impl Timeline {
         check_pace(global_pace, "global pace")?;
         if self.segments.is_empty() {
             bail!("the timeline is empty: add at least one segment, e.g. \"walk:5\"");
+        }
+        let total = self.segments.iter().map(|s| s.seconds as f64).sum::<f64>();
+        if total > MAX_TAKE_SECONDS as f64 {
+            bail!("the timeline lasts {total} s; a take lasts at most {MAX_TAKE_SECONDS} s (one hour): split it into several takes");
         }
         self.segments
             .iter()
@@ -158,5 +168,7 @@ mod tests {
         assert!(err("walking", 1.0).contains("CLASS:SECONDS"));
         assert!(err("walking:3", 11.0).contains("between 0.1 and 10"));
         assert!(err("walking:3@0.05", 1.0).contains("pace"));
+        assert!(err("walking:3000,sitting:601", 1.0).contains("at most 3600 s"));
+        assert!(err("walking:1e9", 1.0).contains("at most 3600 s"));
     }
 }
