@@ -36,6 +36,9 @@ pub enum Transition {
 /// moves FID and poses away from the data (seated hips 5-9 cm higher in one take).
 pub const DEFAULT_CLASS_STRENGTH: f32 = 1.5;
 
+/// Guidance at least this strong in the blocks of an anchored class change.
+const CHANGE_CLASS_STRENGTH: f32 = 2.5;
+
 /// The default length of a class change, centred on the boundary (one h36m block, two
 /// Bandai blocks).
 pub const DEFAULT_TRANSITION_SECONDS: f32 = 2.0;
@@ -259,6 +262,8 @@ impl SparseTimeline {
 /// at the `step`-th of `blocks` blocks, so a class change ends on a real window of the new
 /// class (the seam join keeps the replacement from popping).
 struct Easing {
+    /// A class change (not a keep-alive).
+    change: bool,
     anchor: Vec<f32>,
     step: usize,
     blocks: usize,
@@ -300,12 +305,13 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         let motion = pose_motion(&input, dim) / typical_motion[plan.target].max(f32::EPSILON);
         let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && !(STALL_BELOW..=RUSH_ABOVE).contains(&motion);
         let switching = plan.ease_blocks > 0 && context_class != Some(plan.target);
+        let changing = switching || easing.as_ref().is_some_and(|e| e.change);
         if easing.is_none() && (switching || stalled) {
             let (blocks, strength) = if switching { (plan.ease_blocks, 1.0) } else { (KEEP_ALIVE_EASE, anchors.random_range(KEEP_ALIVE_STRENGTH)) };
             let lively = if switching { 0.0 } else { typical_motion[plan.target] };
             easing = pick_anchor(model, plan.target, lively, &mut anchors, last_anchor).map(|(k, anchor)| {
                 last_anchor = Some(k);
-                Easing { anchor, step: 0, blocks, strength }
+                Easing { change: switching, anchor, step: 0, blocks, strength }
             });
             context_class = Some(plan.target);
             since_anchor = 0;
@@ -313,7 +319,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         since_anchor += 1;
         if let Some(e) = easing.as_mut() {
             e.step += 1;
-            let alpha = e.strength * e.step as f32 / e.blocks as f32;
+            let alpha = (e.strength * e.step as f32 / (e.blocks - 1).max(1) as f32).min(1.0);
             input.iter_mut().zip(&e.anchor).for_each(|(v, a)| *v += alpha * (a - *v));
             if e.step == e.blocks {
                 easing = None;
@@ -323,7 +329,10 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             input.iter_mut().for_each(|v| *v += opts.variation * noise.random_range(-1.0f32..1.0));
         }
         block_classes.push(plan.target);
-        embeddings.push(model.rollout_block(&input, &previous, &plan.class, opts.class_strength, opts.join_seams, &mut out));
+        // A class change is where the prior must beat the context's momentum most: its blocks
+        // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`].
+        let strength = if changing { opts.class_strength.max(CHANGE_CLASS_STRENGTH) } else { opts.class_strength };
+        embeddings.push(model.rollout_block(&input, &previous, &plan.class, strength, opts.join_seams, &mut out));
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
         }
