@@ -74,7 +74,7 @@ fn harness_with(options: StudioOptions, size: egui::Vec2) -> Harness<'static, St
 fn wait(h: &mut Harness<'_, StudioApp>, what: &str, done: impl Fn(&StudioApp) -> bool) {
     let start = Instant::now();
     while !done(h.state()) {
-        assert!(start.elapsed() < Duration::from_secs(120), "timed out waiting for {what}; messages: {:?}", h.state().messages().all());
+        assert!(start.elapsed() < Duration::from_secs(120), "timed out waiting for {what}; messages: {:?}", h.state().messages().log());
         h.step();
         std::thread::sleep(Duration::from_millis(15));
     }
@@ -321,7 +321,7 @@ fn a_stale_take_is_flagged_and_not_exported() {
     let dir = temp_dir("stale");
     let mut h = harness("stale");
     wait_take(&mut h);
-    h.get_by_label("Regenerate after every edit").click();
+    h.get_by_label("Regenerate after every edit").click_accesskit();
     h.run_ok();
     h.state_mut().add_segment();
     h.run_ok();
@@ -334,7 +334,7 @@ fn a_stale_take_is_flagged_and_not_exported() {
     assert!(!out.exists(), "nothing was written");
 
     // Generated: current again, and the export is of the take on screen.
-    h.get_by_label("Generate").click();
+    h.get_by_label("Generate").click_accesskit();
     wait(&mut h, "the new take", |a| a.stale_reason().is_none() && !a.is_busy());
     assert!(!shows(&h, "Not exported"), "the refusal went away with its cause");
     h.state_mut().export_to(out.clone());
@@ -364,7 +364,7 @@ fn a_range_export_writes_the_frames_its_label_names() {
     let label = h.state().range_label().unwrap();
     assert_eq!(label, "Range 56–117 (62 frames)");
     assert!(shows(&h, &label), "the transport bar shows it");
-    h.get_by_label_contains("Selected range 56–117").click();
+    h.get_by_label_contains("Selected range 56–117").click_accesskit();
     h.run_ok();
     let out = dir.join("range.json");
     h.state_mut().fields_mut().export_path = out.display().to_string();
@@ -386,10 +386,10 @@ fn by_class_starts_from_a_pose_of_that_class() {
     let mut h = harness("byclass");
     wait_take(&mut h);
     let standing = hip_height(&h.state().take().unwrap().motion, 0);
-    h.get_by_label("By class").click();
+    h.get_by_label("By class").click_accesskit();
     h.run_ok();
     assert!(matches!(h.state().project().init, glocal::synth::InitPose::SeedClass { .. }), "choosing the tab applies it");
-    h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "Start class").click();
+    h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "Start class").click_accesskit();
     h.run_ok();
     h.get_by_role_and_label(egui::accesskit::Role::Button, "sitting").click();
     h.run_ok();
@@ -409,7 +409,7 @@ fn ctrl_z_in_a_text_field_undoes_the_typing_only() {
     h.state_mut().add_segment();
     h.run_ok();
     let field = "Export file (.bvh, .json or .npy)";
-    h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).click();
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).focus();
     h.run_ok();
     h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).type_text("xyz");
     h.run_ok();
@@ -446,6 +446,8 @@ fn new_and_open_ask_before_discarding_unsaved_work() {
     // Open with unsaved work: "Save first" saves, then opens.
     let other = dir.join("other.json");
     h.state_mut().save_project(&other);
+    menu(&mut h);
+    assert!(!shows(&h, "Unsaved changes"), "nothing to lose: no question");
     let mine = dir.join("mine.json");
     h.state_mut().add_segment();
     h.state_mut().fields_mut().project_path = mine.display().to_string();
@@ -474,7 +476,7 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     h.state_mut().fields_mut().new_class = sitting;
     h.state_mut().add_segment();
     // An initial pose from a file of this model (an exported take, in metres).
-    wait_take(&mut h);
+    wait(&mut h, "three segments", |a| a.take().is_some_and(|t| t.segments.len() == 3) && !a.is_busy());
     let clip = dir.join("h36m.bvh");
     h.state_mut().export_to(clip.clone());
     wait(&mut h, "the export", |_| clip.exists());
@@ -482,14 +484,14 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     wait(&mut h, "the file start", |a| matches!(a.project().init, glocal::synth::InitPose::File { .. }));
     let before: Vec<f32> = h.state().project().timeline.segments.iter().map(|s| s.seconds).collect();
 
-    h.get_by_label("bandai").click();
+    h.get_by_label("bandai").click_accesskit();
     wait(&mut h, "bandai and its take", |a| a.model_info().is_some_and(|m| m.spec.dataset == "bandai") && a.take().is_some_and(|t| t.model_dir.ends_with("bandai")) && !a.is_busy());
     let app = h.state();
     let classes: Vec<&str> = app.project().timeline.segments.iter().map(|s| s.class.as_str()).collect();
     assert_eq!(classes, ["walk", "guide", "guide"]);
     let after: Vec<f32> = app.project().timeline.segments.iter().map(|s| s.seconds).collect();
     assert_eq!(after, before, "durations are kept");
-    assert!(has_message(app, "Classes carried over to bandai: walking → walk, directions → guide, sitting → guide (3 segments"), "{:?}", app.messages().log());
+    assert!(has_message(app, "Classes carried over to bandai: walking -> walk, directions -> guide, sitting -> guide (3 segments"), "{:?}", app.messages().log());
     assert!(has_message(app, "does not fit the bandai model"), "the h36m file start is reset: {:?}", app.messages().log());
     assert!(matches!(app.project().init, glocal::synth::InitPose::SeedClass { .. }));
     assert_eq!(app.messages().errors().count(), 0, "no unknown-class errors: {:?}", app.messages().all());
@@ -497,7 +499,7 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
 
     // A pairing edited by the user.
     h.state_mut().set_mapping("directions", "bow");
-    wait_take(&mut h);
+    wait(&mut h, "the retagged take", |a| a.take().is_some() && a.stale_reason().is_none() && !a.is_busy());
     assert_eq!(h.state().project().timeline.segments[1].class, "bow");
 
     // Bandai in centimetres at 60 fps with its source root joint.
@@ -513,7 +515,7 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     assert_eq!(written, 2 * n - 1, "{n} frames at 30 fps resampled to 60");
 
     // And back: the table maps the other way.
-    h.get_by_label("h36m").click();
+    h.get_by_label("h36m").click_accesskit();
     wait(&mut h, "h36m again", |a| a.model_info().is_some_and(|m| m.spec.dataset == "h36m") && a.take().is_some_and(|t| t.model_dir.ends_with("h36m")) && !a.is_busy());
     let classes: Vec<String> = h.state().project().timeline.segments.iter().map(|s| s.class.clone()).collect();
     assert_eq!(classes, ["walking", "greeting", "directions"]);
@@ -598,9 +600,9 @@ fn without_a_system_dialog_export_opens_a_typed_path_dialog() {
     wait_take(&mut h);
     let out = dir.join("typed.bvh");
     h.state_mut().fields_mut().export_path = out.display().to_string();
-    h.get_by_label("Export…").click();
+    h.get_by_label("Export…").click_accesskit();
     h.run_ok();
-    assert!(shows(&h, "No system file dialog is available"));
+    assert!(shows(&h, "No system file dialog is available here"), "the in-app dialog is open");
     let field = h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Path");
     assert!(field.is_focused(), "the path field is focused");
     assert_eq!(field.value().as_deref(), Some(out.display().to_string().as_str()));

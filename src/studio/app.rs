@@ -208,7 +208,7 @@ impl StudioApp {
         let shipped = scan_models(&options.model_roots);
         if shipped.is_empty() {
             let looked: Vec<String> = options.model_roots.iter().map(|r| project::shown_path(r)).collect();
-            messages.set(Topic::Model, Level::Error, format!("No shipped models found; looked in {}. Open a model folder with File ▸ Open model folder…", looked.join(", ")));
+            messages.set(Topic::Model, Level::Error, format!("No shipped models found; looked in {}. Open a model folder with File > Open model folder…", looked.join(", ")));
         }
         let fields = Fields {
             model_path: doc.model.display().to_string(),
@@ -499,6 +499,8 @@ impl StudioApp {
     // ---- files ----
 
     pub fn load_model(&mut self, dir: PathBuf) {
+        // A generation asked for on the current model would only fail on the next one.
+        self.cancel();
         self.fields.model_path = dir.display().to_string();
         self.model_loading = Some(dir.clone());
         self.worker.load_model(dir);
@@ -597,7 +599,7 @@ impl StudioApp {
             return;
         };
         if let Some(why) = self.stale_reason() {
-            self.messages.set(Topic::Export, Level::Error, format!("Not exported: the take on screen is out of date ({why}). Generate it first (or undo the edit), then export."));
+            self.messages.set(Topic::Stale, Level::Error, format!("Not exported: the take on screen is out of date ({why}). Generate it first (or undo the edit), then export."));
             return;
         }
         if let Err(e) = ExportFormat::from_path(&path) {
@@ -741,6 +743,7 @@ impl StudioApp {
                     }
                     self.generation_error = None;
                     self.messages.resolve(Topic::Generation);
+                    self.messages.resolve(Topic::Stale);
                     let frames = take.motion.frames();
                     if let Some(old) = self.take.replace(take) {
                         let white = Arc::new(vec![PREVIOUS_TAKE_COLOR; old.motion.frames()]);
@@ -858,7 +861,7 @@ impl StudioApp {
         self.messages.set(
             Topic::Classes,
             Level::Info,
-            format!("Classes carried over to {}: {described} ({changed} segments, durations kept). Edit ▸ Class mapping… changes a pairing.", info.spec.dataset),
+            format!("Classes carried over to {}: {described} ({changed} segments, durations kept). Edit > Class mapping… changes a pairing.", info.spec.dataset),
         );
         self.mapping = Some(MappingNote { map, classes: classes.clone(), segments, timeline: self.doc.timeline.clone() });
     }
@@ -910,7 +913,8 @@ impl StudioApp {
     /// Asks for a new take when the options changed and the pause is over.
     fn schedule(&mut self, ctx: &egui::Context) {
         let Some(model) = &self.model else { return };
-        if model.dir != self.doc.model {
+        // Not before the initial-pose file has been checked against a new model.
+        if model.dir != self.doc.model || self.init_after_switch {
             return;
         }
         let options = self.doc.options();
@@ -1090,10 +1094,10 @@ fn first_line(text: &str) -> &str {
     text.lines().next().unwrap_or("")
 }
 
-/// Creates the folder a file is about to be written in (the default work folder may not
-/// exist yet).
+/// Creates the default work folder when a file is about to be written in it (it may not
+/// exist yet); other folders are the user's to create.
 fn ensure_parent(path: &Path) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty() && !d.exists()) {
+    if let Some(dir) = path.parent().filter(|d| *d == project::default_work_folder() && !d.exists()) {
         std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create the folder {}: {e}", dir.display()))?;
     }
     Ok(())

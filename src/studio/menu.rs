@@ -19,7 +19,7 @@ const CONTROLS: &[(&str, &str)] = &[
     ("Viewport: right or middle drag, Shift+drag", "pan"),
     ("Viewport: scroll or pinch", "zoom"),
     ("Viewport: double-click", "frame the take"),
-    ("View ▸ Reset camera", "the starting view"),
+    ("View > Reset camera", "the starting view"),
 ];
 
 impl StudioApp {
@@ -175,7 +175,7 @@ impl StudioApp {
         egui::Grid::new("class_mapping").striped(true).show(ui, |ui| {
             for p in &pairs {
                 ui.label(&p.from);
-                ui.label("→");
+                ui.label("->");
                 egui::ComboBox::from_id_salt(("map", &p.from)).selected_text(&p.to).height(400.0).show_ui(ui, |ui| {
                     for c in &classes {
                         if ui.selectable_label(*c == p.to, c).clicked() {

@@ -21,6 +21,8 @@ pub enum Topic {
     Generation,
     Init,
     Export,
+    /// An export refused because the take on screen is out of date.
+    Stale,
     Project,
     Classes,
     Autosave,
@@ -42,7 +44,7 @@ impl Message {
         let first = self.text.lines().next().unwrap_or("");
         let short: String = first.chars().take(Messages::SUMMARY_CHARS).collect();
         if short.len() < self.text.len() {
-            format!("{short}… (full text in Help ▸ Message log)")
+            format!("{short}… (full text in Help > Message log)")
         } else {
             short
         }

@@ -136,7 +136,7 @@ impl ClassMap {
         (out, changed)
     }
 
-    /// "walking → walk, sitting → guide" for the pairs that occur in `timeline` and change.
+    /// "walking -> walk, sitting -> guide" for the pairs that occur in `timeline` and change.
     pub fn describe(&self, timeline: &Timeline) -> String {
         let mut used: Vec<&ClassPair> = Vec::new();
         for s in &timeline.segments {
@@ -146,7 +146,7 @@ impl ClassMap {
                 }
             }
         }
-        used.iter().map(|p| format!("{} → {}", p.from, p.to)).collect::<Vec<_>>().join(", ")
+        used.iter().map(|p| format!("{} -> {}", p.from, p.to)).collect::<Vec<_>>().join(", ")
     }
 }
 
@@ -184,6 +184,6 @@ mod tests {
         assert_eq!(changed, 2);
         assert_eq!(mapped.segments[0].seconds, 3.5);
         assert_eq!(mapped.segments[1].pace, Some(1.5));
-        assert_eq!(map.describe(&t), "Walking → walk, xyz → walk");
+        assert_eq!(map.describe(&t), "Walking -> walk, xyz -> walk");
     }
 }
