@@ -103,6 +103,15 @@ fn snapshot_options() -> SnapshotOptions {
     SnapshotOptions::default()
 }
 
+/// Paths that depend on the machine (home folder, test folder) replaced by fixed ones, so
+/// that snapshots compare.
+fn fixed_paths(h: &mut Harness<'_, StudioApp>) {
+    let f = h.state_mut().fields_mut();
+    f.project_path = "project.glocal.json".into();
+    f.export_path = "take.bvh".into();
+    h.run_ok();
+}
+
 /// The window as eframe shows it: kittest clears to transparent, eframe to the app's clear
 /// colour, which the studio's panels leave as their background.
 fn render_on_clear_color(h: &mut Harness<'_, StudioApp>) -> image::RgbaImage {
@@ -145,6 +154,7 @@ fn whole_app_with_a_generated_take_and_the_seed_map() {
     assert!(shows(&h, "Segment 1: walking") && shows(&h, "Segment 2:"));
     // The Project section is on screen at 1280x800 without scrolling.
     assert!(h.get_by_label("Save as…").rect().bottom() < 800.0);
+    fixed_paths(&mut h);
     egui_kittest::image_snapshot_options(&render_on_clear_color(&mut h), "studio_app", &snapshot_options());
 }
 
@@ -163,6 +173,7 @@ fn the_layout_holds_at_900x600() {
         let r = h.get_by_label(label).rect();
         assert!(r.right() <= 900.0 && r.bottom() <= 600.0, "{label} is at {r:?}");
     }
+    fixed_paths(&mut h);
     egui_kittest::image_snapshot_options(&render_on_clear_color(&mut h), "studio_app_900x600", &snapshot_options());
 }
 

@@ -296,7 +296,9 @@ impl StudioApp {
             }
         });
         let status = if self.has_unsaved_work() { "unsaved changes" } else { "saved" };
-        let autosave = self.autosave.as_ref().map_or_else(String::new, |p| format!(" · autosave: {}", p.display()));
-        ui.label(RichText::new(format!("{status}{autosave}")).weak().small());
+        let label = ui.label(RichText::new(format!("{status} · autosaved")).weak().small());
+        if let Some(p) = &self.autosave {
+            label.on_hover_text(format!("Autosave: {}", p.display()));
+        }
     }
 }
