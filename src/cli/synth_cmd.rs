@@ -101,6 +101,9 @@ pub fn parse_init(s: &str) -> Result<InitPose> {
 
 pub fn run_generate(args: GenerateArgs) -> Result<()> {
     ExportFormat::from_path(&args.out)?;
+    if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
+        bail!("--fps {fps}: expected a frame rate from 1 to 1000");
+    }
     let joint_map = args.joint_map.as_deref().map(UserJointMap::read).transpose()?;
     let mut model = GlocalModel::load(&args.model)?;
     // Kept until generation is over: a foreign BVH retargeted with the user's joint map.
