@@ -486,9 +486,9 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     let sitting = h.state().model_info().unwrap().spec.class_index("sitting").unwrap();
     h.state_mut().fields_mut().new_class = sitting;
     h.state_mut().add_segment();
-    // An initial pose from a file of this model (an exported take, in metres).
+    // An initial pose from a file only this model can read (an NPY on its 27 joints).
     wait(&mut h, "three segments", |a| a.take().is_some_and(|t| t.segments.len() == 3) && !a.is_busy());
-    let clip = dir.join("h36m.bvh");
+    let clip = dir.join("h36m.npy");
     h.state_mut().export_to(clip.clone());
     wait(&mut h, "the export", |_| clip.exists());
     h.state_mut().use_init_file(clip.clone(), 0);

@@ -913,8 +913,9 @@ impl StudioApp {
     /// Asks for a new take when the options changed and the pause is over.
     fn schedule(&mut self, ctx: &egui::Context) {
         let Some(model) = &self.model else { return };
-        // Not before the initial-pose file has been checked against a new model.
-        if model.dir != self.doc.model || self.init_after_switch {
+        // Not while another model loads (the request would reach it), nor before the
+        // initial-pose file has been checked against a new model.
+        if model.dir != self.doc.model || self.model_loading.is_some() || self.init_after_switch {
             return;
         }
         let options = self.doc.options();
