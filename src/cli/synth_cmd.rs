@@ -12,7 +12,7 @@ use crate::data::input::{read_text, MAX_MOTION_BYTES};
 use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
 use crate::synth::rig::{onto_model, onto_skeleton_file};
-use crate::synth::export::{export_with_contacts, ExportFormat};
+use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions, Units};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::TransitionArg;
 use crate::synth::{generate, GenerateOptions, InitPose, SegmentSpan, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
@@ -75,6 +75,12 @@ pub struct GenerateArgs {
     /// table does not find them.
     #[arg(long)]
     pub joint_map: Option<PathBuf>,
+    /// Length unit of the file: metres (what engines expect), centimetres, or the model's own.
+    #[arg(long, value_enum, default_value = "metres")]
+    pub units: Units,
+    /// Frame rate of the file (e.g. 24, 30, 60); the model's own by default.
+    #[arg(long)]
+    pub fps: Option<f32>,
 }
 
 /// `seed:CLASS`, `seed:N` or `clip:PATH@FRAME`.
@@ -97,6 +103,9 @@ pub fn parse_init(s: &str) -> Result<InitPose> {
 
 pub fn run_generate(args: GenerateArgs) -> Result<()> {
     ExportFormat::from_path(&args.out)?;
+    if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
+        bail!("--fps {fps}: expected a frame rate from 1 to 1000");
+    }
     let joint_map = args.joint_map.as_deref().map(UserJointMap::read).transpose()?;
     let mut model = GlocalModel::load(&args.model)?;
     // Kept until generation is over: a foreign BVH retargeted with the user's joint map.
@@ -151,22 +160,26 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, joint_map.as_ref())?,
         None => take.motion.clone(),
     };
-    export_with_contacts(&motion, &take.segments, Some(&take.contacts), &args.out)?;
+    let options = ExportOptions { units: args.units, fps: args.fps, source_root: false };
+    let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
+    // Foot contacts are per frame of the model's rate: kept unless the take is resampled.
+    let contacts = (m.frames() == motion.frames()).then_some(&take.contacts);
+    export_with_contacts(&m, &segments, contacts, &args.out)?;
     note_rounded_durations(&opts, &take.segments, take.motion.fps);
-    let m = &motion;
+    let m = &m;
     if args.json {
         let summary = serde_json::json!({
             "frames": m.frames(),
             "fps": m.fps,
             "seconds": m.seconds(),
-            "segments": take.segments,
+            "segments": segments,
             "elapsed_ms": elapsed.as_secs_f64() * 1e3,
             "out": args.out,
         });
         say!("{summary}");
     } else {
         say!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, args.out.display());
-        for s in &take.segments {
+        for s in &segments {
             say!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
         }
     }

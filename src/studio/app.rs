@@ -7,14 +7,15 @@ use std::sync::Arc;
 
 use egui::{Key, KeyboardShortcut, Modifiers};
 
-use super::dialogs::{Dialogs, Purpose};
-use super::messages::Messages;
-use super::project::{self, History, Project};
+use super::dialogs::{self, Dialogs, Outcome, Purpose};
+use super::messages::{Level, Messages, Topic};
+use super::project::{self, History, Project, StudioState};
 use super::timeline::{Action, TimelineState, MIN_SECONDS};
 use super::transport::Playback;
 use super::viewport::Viewport;
 use super::worker::{ModelInfo, Reply, SeedMap, Take, Worker};
-use crate::synth::export::{segments_in_range, ExportFormat};
+use crate::synth::class_map::ClassMap;
+use crate::synth::export::{segments_in_range, ExportFormat, ExportOptions};
 use crate::synth::{GenerateOptions, InitPose, Segment};
 
 /// Edits regenerate after this pause (seconds).
@@ -24,23 +25,47 @@ pub const DEBOUNCE: f64 = 0.3;
 #[derive(Clone, Debug)]
 pub struct StudioOptions {
     pub model_dir: PathBuf,
-    /// Where shipped models are looked for (`<root>/*/model.json`).
-    pub models_root: PathBuf,
-    /// Autosave file (None: no autosave).
+    /// Folders where shipped models are looked for (`<root>/*/model.json`), in order.
+    pub model_roots: Vec<PathBuf>,
+    /// Autosave file (None: no autosave, and nothing remembered between runs).
     pub autosave: Option<PathBuf>,
     /// Start from the autosave when there is a valid one.
     pub restore_autosave: bool,
+    /// Try the system's file dialogs (false: always the in-app typed-path dialog).
+    pub system_dialogs: bool,
 }
 
 impl Default for StudioOptions {
+    /// The shipped models wherever they are found ([`model_roots`]), h36m first.
     fn default() -> Self {
-        Self {
-            model_dir: PathBuf::from("models/h36m"),
-            models_root: PathBuf::from("models"),
-            autosave: Some(project::default_autosave_path()),
-            restore_autosave: true,
-        }
+        let model_roots = model_roots();
+        let model_dir = model_roots.iter().map(|r| r.join("h36m")).find(|d| d.join("model.json").is_file()).unwrap_or_else(|| PathBuf::from("models/h36m"));
+        Self { model_dir, model_roots, autosave: Some(project::default_autosave_path()), restore_autosave: true, system_dialogs: dialogs::system_dialog_available() }
     }
+}
+
+/// Where shipped models are looked for, in order: beside the executable (an installed
+/// studio, or `target/<profile>/` two levels below a checkout), the crate's own `models/`
+/// (where it was built), and the working folder. Duplicates are dropped.
+pub fn model_roots() -> Vec<PathBuf> {
+    let exe_dir = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf));
+    let mut roots: Vec<PathBuf> = Vec::new();
+    if let Some(dir) = &exe_dir {
+        roots.push(dir.join("models"));
+        roots.extend(dir.ancestors().nth(2).map(|d| d.join("models")));
+    }
+    roots.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("models"));
+    if let Ok(cwd) = std::env::current_dir() {
+        roots.push(cwd.join("models"));
+    }
+    let mut seen = Vec::new();
+    roots.retain(|r| {
+        let key = r.canonicalize().unwrap_or_else(|_| r.clone());
+        let new = !seen.contains(&key);
+        seen.push(key);
+        new
+    });
+    roots
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,6 +81,33 @@ pub enum InitTab {
     File,
 }
 
+impl InitTab {
+    fn of(init: &InitPose) -> Self {
+        match init {
+            InitPose::SeedClass { .. } => InitTab::Class,
+            InitPose::SeedIndex(_) => InitTab::Seed,
+            InitPose::File { .. } => InitTab::File,
+        }
+    }
+}
+
+/// Actions that would discard unsaved work, held until the user answers.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Guarded {
+    New,
+    Open(PathBuf),
+}
+
+/// The classes carried over at the last model switch, for the mapping window.
+pub struct MappingNote {
+    pub map: ClassMap,
+    pub classes: Vec<String>,
+    /// The segments each pair retagged (indices at the time of the switch).
+    pub segments: Vec<Vec<usize>>,
+    /// The timeline right after the switch: edits apply to it only while it is unchanged.
+    pub timeline: crate::synth::Timeline,
+}
+
 /// Text fields of the UI (typed paths and the like).
 pub struct Fields {
     pub model_path: String,
@@ -64,11 +116,19 @@ pub struct Fields {
     pub init_path: String,
     pub init_frame: usize,
     pub new_class: usize,
+    /// The seed the Seed tab offers.
+    pub seed_index: usize,
 }
+
+/// The furthest "from frame" the UI accepts for an initial-pose file (a day at 120 fps).
+pub const MAX_INIT_FRAME: usize = 120 * 86_400;
 
 pub struct StudioApp {
     pub(super) doc: Project,
     pub(super) history: History,
+    /// The document as last saved, opened or started: unsaved work is what differs from it.
+    pub(super) saved: Project,
+    pub(super) confirm: Option<Guarded>,
     /// An edit (e.g. a drag) is under way and has been recorded in the history.
     pub(super) edit_open: bool,
     pub(super) worker: Worker,
@@ -77,13 +137,15 @@ pub struct StudioApp {
     pub(super) map: Option<Arc<SeedMap>>,
     pub(super) map_error: Option<String>,
     pub(super) take: Option<Arc<Take>>,
-    /// The take before the current one, for comparison.
-    pub(super) previous: Option<Arc<Take>>,
+    /// The take before the current one, for comparison, and its overlay colours.
+    pub(super) previous: Option<(Arc<Take>, Arc<Vec<[u8; 3]>>)>,
     pub(super) compare: bool,
     /// Id and progress of the generation under way.
     pub(super) pending: Option<(u64, f32)>,
     /// Options of the last generation asked for.
     pub(super) requested: Option<GenerateOptions>,
+    /// Why the last generation failed (the take on screen is then older than the document).
+    pub(super) generation_error: Option<String>,
     pub(super) regen_at: Option<f64>,
     pub(super) auto_regen: bool,
     pub(super) playback: Playback,
@@ -93,16 +155,26 @@ pub struct StudioApp {
     pub(super) messages: Messages,
     pub(super) fields: Fields,
     pub(super) init_tab: InitTab,
+    /// An initial-pose file is being checked against a newly loaded model.
+    pub(super) init_after_switch: bool,
     pub(super) export_range: ExportRange,
+    pub(super) export_options: ExportOptions,
     pub(super) project_path: Option<PathBuf>,
     pub(super) autosave: Option<PathBuf>,
     pub(super) autosaved: Option<Project>,
     pub(super) autosave_at: Option<f64>,
+    pub(super) state_path: Option<PathBuf>,
+    /// The user's class-mapping edits, used before the shipped table.
+    pub(super) class_table: Vec<(String, String)>,
+    pub(super) mapping: Option<MappingNote>,
+    pub(super) show_mapping: bool,
     pub(super) dialogs: Dialogs,
     pub(super) show_map: bool,
     pub(super) show_side: bool,
     pub(super) show_help: bool,
+    pub(super) show_log: bool,
     pub(super) shipped: Vec<PathBuf>,
+    pub(super) model_roots: Vec<PathBuf>,
     pub(super) now: f64,
 }
 
@@ -112,33 +184,49 @@ impl StudioApp {
     }
 
     pub fn with_context(ctx: &egui::Context, options: StudioOptions) -> Self {
-        let worker = Worker::spawn(ctx.clone());
+        let mut worker = Worker::spawn(ctx.clone());
         let mut messages = Messages::default();
         let mut doc = Project::new(options.model_dir.clone());
+        let mut restored = false;
         if options.restore_autosave {
             if let Some(path) = options.autosave.as_ref().filter(|p| p.exists()) {
                 match Project::load(path) {
                     Ok(p) => {
                         doc = p;
-                        messages.info(format!("Restored the autosaved project ({})", path.display()));
+                        restored = true;
+                        messages.info(format!("Restored from the autosave ({})", project::shown_path(path)));
                     }
-                    Err(e) => messages.error(format!("The autosave could not be restored: {e:#}")),
+                    Err(e) => messages.set(Topic::Autosave, Level::Error, broken_autosave_message(path, &e)),
                 }
             }
         }
+        let state_path = options.autosave.as_deref().map(StudioState::path_beside);
+        let state = state_path.as_deref().map(StudioState::load).unwrap_or_default();
+        let work = project::default_work_folder();
+        let project_path = state.project_path.clone();
         worker.load_model(doc.model.clone());
+        let shipped = scan_models(&options.model_roots);
+        if shipped.is_empty() {
+            let looked: Vec<String> = options.model_roots.iter().map(|r| project::shown_path(r)).collect();
+            messages.set(Topic::Model, Level::Error, format!("No shipped models found; looked in {}. Open a model folder with File > Open model folder…", looked.join(", ")));
+        }
         let fields = Fields {
             model_path: doc.model.display().to_string(),
-            project_path: "project.glocal.json".into(),
-            export_path: "take.bvh".into(),
+            project_path: project_path.as_ref().map_or_else(|| work.join("project.glocal.json"), Clone::clone).display().to_string(),
+            export_path: state.export_path.unwrap_or_else(|| work.join("take.bvh")).display().to_string(),
             init_path: String::new(),
             init_frame: 0,
             new_class: 0,
+            seed_index: 0,
         };
+        let saved = if restored { Project::new(doc.model.clone()) } else { doc.clone() };
         Self {
             model_loading: Some(doc.model.clone()),
+            init_tab: InitTab::of(&doc.init),
+            saved,
             doc,
             history: History::default(),
+            confirm: None,
             edit_open: false,
             worker,
             model: None,
@@ -149,6 +237,7 @@ impl StudioApp {
             compare: false,
             pending: None,
             requested: None,
+            generation_error: None,
             regen_at: None,
             auto_regen: true,
             playback: Playback::default(),
@@ -157,17 +246,24 @@ impl StudioApp {
             selected: None,
             messages,
             fields,
-            init_tab: InitTab::Seed,
+            init_after_switch: false,
             export_range: ExportRange::Whole,
-            project_path: None,
+            export_options: ExportOptions::default(),
+            project_path,
             autosave: options.autosave,
             autosaved: None,
             autosave_at: None,
-            dialogs: Dialogs::default(),
+            state_path,
+            class_table: state.class_table,
+            mapping: None,
+            show_mapping: false,
+            dialogs: Dialogs::new(options.system_dialogs),
             show_map: true,
             show_side: true,
             show_help: false,
-            shipped: scan_models(&options.models_root),
+            show_log: false,
+            shipped,
+            model_roots: options.model_roots,
             now: 0.0,
         }
     }
@@ -202,6 +298,20 @@ impl StudioApp {
         &self.messages
     }
 
+    /// The folders searched for shipped models, and the models found there.
+    pub fn model_search(&self) -> (&[PathBuf], &[PathBuf]) {
+        (&self.model_roots, &self.shipped)
+    }
+
+    pub fn project_path(&self) -> Option<&Path> {
+        self.project_path.as_deref()
+    }
+
+    /// The classes carried over at the last model switch.
+    pub fn class_mapping(&self) -> Option<&ClassMap> {
+        self.mapping.as_ref().map(|m| &m.map)
+    }
+
     /// Whether the worker still has something to do for the UI (loading, generating, or a
     /// regeneration waiting for its pause).
     pub fn is_busy(&self) -> bool {
@@ -212,8 +322,41 @@ impl StudioApp {
         &mut self.fields
     }
 
+    pub fn export_options_mut(&mut self) -> &mut ExportOptions {
+        &mut self.export_options
+    }
+
     pub fn set_selection(&mut self, selection: Option<(usize, usize)>) {
         self.playback.selection = selection;
+    }
+
+    /// Whether the document differs from what was last saved, opened or started.
+    pub fn has_unsaved_work(&self) -> bool {
+        !self.doc.same_take(&self.saved)
+    }
+
+    /// Why the take on screen is not the document's, if it is not: an edit not generated
+    /// yet, a generation under way or failed, or another model.
+    pub fn stale_reason(&self) -> Option<String> {
+        let take = self.take.as_ref()?;
+        if self.model.as_ref().is_none_or(|m| m.dir != take.model_dir) || self.doc.model != take.model_dir {
+            return Some("it was generated with another model".into());
+        }
+        if take.options == self.doc.options() {
+            return None;
+        }
+        Some(match (&self.generation_error, self.pending) {
+            (Some(e), _) => format!("the last generation failed: {}", first_line(e)),
+            (None, Some(_)) => "the new take is still being generated".into(),
+            (None, None) => "an edit has not been generated yet".into(),
+        })
+    }
+
+    /// The selected range as the UI states it: first and last frame (both included) and
+    /// the frame count. The selection itself is `[start, end)`.
+    pub fn range_label(&self) -> Option<String> {
+        let (a, b) = self.playback.selection?;
+        Some(format!("Range {a}–{} ({} frames)", b.saturating_sub(1), b - a))
     }
 
     // ---- the document ----
@@ -229,7 +372,7 @@ impl StudioApp {
 
     pub fn undo(&mut self) {
         if self.history.undo(&mut self.doc) {
-            self.clamp_selected();
+            self.after_history_step();
         } else {
             self.messages.info("Nothing to undo");
         }
@@ -237,15 +380,16 @@ impl StudioApp {
 
     pub fn redo(&mut self) {
         if self.history.redo(&mut self.doc) {
-            self.clamp_selected();
+            self.after_history_step();
         } else {
             self.messages.info("Nothing to redo");
         }
     }
 
-    fn clamp_selected(&mut self) {
+    fn after_history_step(&mut self) {
         let n = self.doc.timeline.segments.len();
         self.selected = self.selected.filter(|&k| k < n);
+        self.init_tab = InitTab::of(&self.doc.init);
     }
 
     pub fn classes(&self) -> &[String] {
@@ -268,7 +412,8 @@ impl StudioApp {
             self.edit(|d| {
                 d.timeline.segments.remove(k);
             });
-            self.clamp_selected();
+            let n = self.doc.timeline.segments.len();
+            self.selected = self.selected.filter(|&s| s < n);
         }
     }
 
@@ -276,6 +421,39 @@ impl StudioApp {
         if k < self.doc.timeline.segments.len() {
             self.edit(|d| d.timeline.segments[k].class = class.to_string());
         }
+    }
+
+    /// Chooses where the take starts from, as the Initial pose tabs do: the tab's choice is
+    /// applied at once. "By class" starts from the class's most typical seed window (the
+    /// first segment's class unless one is chosen).
+    pub fn set_init_tab(&mut self, tab: InitTab) {
+        self.init_tab = tab;
+        let Some(model) = self.model.clone() else { return };
+        match tab {
+            InitTab::Class => {
+                if !matches!(self.doc.init, InitPose::SeedClass { .. }) {
+                    let first = self.doc.timeline.segments.first().and_then(|s| model.spec.class_index(&s.class).ok()).unwrap_or(0);
+                    self.set_init_class(first, 0);
+                }
+            }
+            InitTab::Seed => self.doc.init = InitPose::SeedIndex(self.fields.seed_index.min(model.seeds.len().saturating_sub(1))),
+            InitTab::File => {
+                if self.fields.init_path.trim().is_empty() {
+                    self.messages.set(Topic::Init, Level::Info, "Choose a motion file: the take starts from it once it has been checked");
+                } else if !matches!(self.doc.init, InitPose::File { .. }) {
+                    let p = PathBuf::from(self.fields.init_path.trim());
+                    self.use_init_file(p, self.fields.init_frame);
+                }
+            }
+        }
+    }
+
+    /// Starts the take from the `rank`-th most typical seed window of `class`.
+    pub fn set_init_class(&mut self, class: usize, rank: usize) {
+        let Some(model) = self.model.clone() else { return };
+        let Some(name) = model.spec.classes.get(class).cloned() else { return };
+        self.init_tab = InitTab::Class;
+        self.doc.init = InitPose::SeedClass { class: name, variant: model.typical_variant(class, rank) };
     }
 
     /// Applies what the timeline widget reports.
@@ -321,21 +499,62 @@ impl StudioApp {
     // ---- files ----
 
     pub fn load_model(&mut self, dir: PathBuf) {
+        // A generation asked for on the current model would only fail on the next one.
+        self.cancel();
         self.fields.model_path = dir.display().to_string();
         self.model_loading = Some(dir.clone());
         self.worker.load_model(dir);
     }
 
+    /// Runs `action` now, or asks first when it would discard unsaved work.
+    pub fn request(&mut self, action: Guarded) {
+        if self.has_unsaved_work() {
+            self.confirm = Some(action);
+        } else {
+            self.run_guarded(action);
+        }
+    }
+
+    pub(super) fn run_guarded(&mut self, action: Guarded) {
+        self.confirm = None;
+        match action {
+            Guarded::New => self.new_project(),
+            Guarded::Open(path) => {
+                self.open_project(&path);
+            }
+        }
+    }
+
+    /// A fresh project on the current model (undoable, like any edit).
+    pub fn new_project(&mut self) {
+        let model = self.doc.model.clone();
+        let classes = self.classes().to_vec();
+        self.edit(|d| {
+            *d = Project::new(model);
+            d.timeline = Project::default_timeline(&classes);
+        });
+        self.saved = self.doc.clone();
+        self.project_path = None;
+        self.fields.project_path = project::default_work_folder().join("project.glocal.json").display().to_string();
+        self.selected = None;
+        self.init_tab = InitTab::of(&self.doc.init);
+        self.save_state();
+        self.messages.set(Topic::Project, Level::Info, "New project (not saved yet)");
+    }
+
     pub fn save_project(&mut self, path: &Path) -> bool {
-        match self.doc.save(path) {
+        let shown = project::shown_path(path);
+        match ensure_parent(path).and_then(|()| self.doc.save(path)) {
             Ok(()) => {
-                self.project_path = Some(path.to_path_buf());
-                self.fields.project_path = path.display().to_string();
-                self.messages.info(format!("Saved {}", path.display()));
+                self.project_path = Some(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
+                self.fields.project_path = shown.clone();
+                self.saved = self.doc.clone();
+                self.save_state();
+                self.messages.set(Topic::Project, Level::Info, format!("Saved {shown}"));
                 true
             }
             Err(e) => {
-                self.messages.error(format!("Could not save the project: {e:#}"));
+                self.messages.set(Topic::Project, Level::Error, format!("Could not save the project to {shown}: {e:#}"));
                 false
             }
         }
@@ -343,56 +562,73 @@ impl StudioApp {
 
     /// Opens a project; on any error the current one stays as it is.
     pub fn open_project(&mut self, path: &Path) -> bool {
+        let shown = project::shown_path(path);
         match Project::load(path) {
             Ok(p) => {
                 let model_changed = p.model != self.doc.model || self.model.is_none();
                 self.history.record(self.doc.clone());
                 let current_model = self.doc.model.clone();
                 self.doc = p;
-                self.project_path = Some(path.to_path_buf());
-                self.fields.project_path = path.display().to_string();
+                self.saved = self.doc.clone();
+                self.project_path = Some(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
+                self.fields.project_path = shown.clone();
                 self.selected = None;
+                self.init_tab = InitTab::of(&self.doc.init);
                 if model_changed {
                     // The project's model replaces the current one only once it has loaded.
                     let wanted = std::mem::replace(&mut self.doc.model, current_model);
+                    self.saved.model = wanted.clone();
                     self.load_model(wanted);
                 }
-                self.messages.info(format!("Opened {}", path.display()));
+                self.save_state();
+                self.messages.set(Topic::Project, Level::Info, format!("Opened {shown}"));
                 true
             }
             Err(e) => {
-                self.messages.error(format!("Could not open the project: {e:#}"));
+                self.messages.set(Topic::Project, Level::Error, format!("Could not open the project: {e:#}"));
                 false
             }
         }
     }
 
-    /// Exports the take (whole or the selected range) on the worker.
+    /// Exports the take on screen (whole or the selected range) on the worker; refused when
+    /// that take is not the document's.
     pub fn export_to(&mut self, path: PathBuf) {
-        let Some(take) = self.take.clone() else {
-            self.messages.error("Nothing to export yet: the take has not been generated");
+        let (Some(take), Some(model)) = (self.take.clone(), self.model.clone()) else {
+            self.messages.set(Topic::Export, Level::Error, "Nothing to export yet: the take has not been generated");
             return;
         };
+        if let Some(why) = self.stale_reason() {
+            self.messages.set(Topic::Stale, Level::Error, format!("Not exported: the take on screen is out of date ({why}). Generate it first (or undo the edit), then export."));
+            return;
+        }
         if let Err(e) = ExportFormat::from_path(&path) {
-            self.messages.error(format!("Could not export: {e:#}"));
+            self.messages.set(Topic::Export, Level::Error, format!("Could not export: {e:#}"));
             return;
         }
         let frames = take.motion.frames();
         let (a, b) = match (self.export_range, self.playback.selection) {
             (ExportRange::Selection, Some((a, b))) => (a.min(frames), b.min(frames)),
             (ExportRange::Selection, None) => {
-                self.messages.error("No range is selected: shift-drag on the timeline ruler, or export the whole take");
+                self.messages.set(Topic::Export, Level::Error, "No range is selected: shift-drag on the timeline ruler, or export the whole take");
                 return;
             }
             (ExportRange::Whole, _) => (0, frames),
         };
         if b <= a {
-            self.messages.error("The selected range is empty");
+            self.messages.set(Topic::Export, Level::Error, "The selected range is empty");
+            return;
+        }
+        if let Err(e) = ensure_parent(&path) {
+            self.messages.set(Topic::Export, Level::Error, format!("Could not export {}: {e:#}", project::shown_path(&path)));
             return;
         }
         let motion = if (a, b) == (0, frames) { take.motion.clone() } else { Arc::new(take.motion.slice(a, b)) };
+        let path = std::path::absolute(&path).unwrap_or(path);
         self.fields.export_path = path.display().to_string();
-        self.worker.export(motion, segments_in_range(&take.segments, a, b), path);
+        self.save_state();
+        let source = Arc::new(model.spec.source_skeleton.clone());
+        self.worker.export(motion, segments_in_range(&take.segments, a, b), path, self.export_options.clone(), source);
     }
 
     pub fn use_init_file(&mut self, path: PathBuf, frame: usize) {
@@ -400,31 +636,67 @@ impl StudioApp {
         self.worker.check_init(InitPose::File { path, frame });
     }
 
-    pub(super) fn open_dialog(&mut self, purpose: Purpose, ctx: &egui::Context) {
-        let suggested = match purpose {
-            Purpose::SaveProject => Some(PathBuf::from(&self.fields.project_path)),
-            Purpose::Export => Some(PathBuf::from(&self.fields.export_path)),
-            _ => None,
+    fn save_state(&mut self) {
+        let Some(path) = &self.state_path else { return };
+        let state = StudioState {
+            project_path: self.project_path.clone(),
+            export_path: Some(PathBuf::from(self.fields.export_path.trim())).filter(|p| !p.as_os_str().is_empty()),
+            class_table: self.class_table.clone(),
         };
-        self.dialogs.open(purpose, ctx, suggested);
+        if let Err(e) = state.save(path) {
+            self.messages.set(Topic::Autosave, Level::Error, format!("Could not remember the studio's paths: {e:#}"));
+        }
     }
 
-    fn handle_dialogs(&mut self) {
-        for (purpose, path) in self.dialogs.poll() {
-            let Some(path) = path else { continue };
-            match purpose {
-                Purpose::OpenModel => self.load_model(path),
-                Purpose::OpenProject => {
-                    self.open_project(&path);
+    fn suggested_path(&self, purpose: Purpose) -> Option<PathBuf> {
+        match purpose {
+            Purpose::SaveProject | Purpose::OpenProject => Some(PathBuf::from(&self.fields.project_path)),
+            Purpose::Export => Some(PathBuf::from(&self.fields.export_path)),
+            Purpose::InitFile => Some(PathBuf::from(&self.fields.init_path)).filter(|p| !p.as_os_str().is_empty()),
+            Purpose::OpenModel => Some(PathBuf::from(&self.fields.model_path)),
+        }
+    }
+
+    /// A file dialog: the system's, else the in-app one (with a word on why).
+    pub fn open_dialog(&mut self, purpose: Purpose, ctx: &egui::Context) {
+        let suggested = self.suggested_path(purpose);
+        if !self.dialogs.open(purpose, ctx, suggested.clone()) {
+            self.prompt_for_path(purpose, suggested);
+        }
+    }
+
+    fn prompt_for_path(&mut self, purpose: Purpose, suggested: Option<PathBuf>) {
+        self.dialogs.prompt(purpose, suggested);
+        self.messages.set(Topic::Dialog, Level::Info, "No system file dialog is available: type the path in the dialog");
+    }
+
+    fn handle_dialogs(&mut self, ctx: &egui::Context) {
+        let mut done = self.dialogs.poll();
+        done.extend(self.dialogs.prompt_ui(ctx));
+        for (purpose, outcome) in done {
+            match outcome {
+                Outcome::Chosen(path) => self.dialog_chosen(purpose, path),
+                Outcome::Cancelled => self.messages.resolve(Topic::Dialog),
+                Outcome::Unavailable => {
+                    let suggested = self.suggested_path(purpose);
+                    self.prompt_for_path(purpose, suggested);
                 }
-                Purpose::SaveProject => {
-                    self.save_project(&path);
-                }
-                Purpose::Export => self.export_to(path),
-                Purpose::InitFile => {
-                    let frame = self.fields.init_frame;
-                    self.use_init_file(path, frame);
-                }
+            }
+        }
+    }
+
+    fn dialog_chosen(&mut self, purpose: Purpose, path: PathBuf) {
+        self.messages.resolve(Topic::Dialog);
+        match purpose {
+            Purpose::OpenModel => self.load_model(path),
+            Purpose::OpenProject => self.request(Guarded::Open(path)),
+            Purpose::SaveProject => {
+                self.save_project(&path);
+            }
+            Purpose::Export => self.export_to(path),
+            Purpose::InitFile => {
+                let frame = self.fields.init_frame;
+                self.use_init_file(path, frame);
             }
         }
     }
@@ -432,31 +704,22 @@ impl StudioApp {
     // ---- the worker ----
 
     fn handle_replies(&mut self) {
+        if self.worker.take_lost() > 0 {
+            self.messages.set(Topic::Generation, Level::Error, "The background worker had stopped and was started again; the model is loading again");
+            self.pending = None;
+            let dir = self.doc.model.clone();
+            self.load_model(dir);
+        }
         for reply in self.worker.poll() {
             match reply {
-                Reply::ModelLoaded(info) => {
-                    let first = self.model.is_none();
-                    self.model_loading = None;
-                    self.map = None;
-                    self.map_error = None;
-                    self.doc.model = info.dir.clone();
-                    self.fields.model_path = info.dir.display().to_string();
-                    if self.doc.timeline.segments.is_empty() {
-                        self.doc.timeline = Project::default_timeline(&info.spec.classes);
-                    }
-                    if !first {
-                        self.messages.info(format!("Loaded model {} ({})", info.dir.display(), info.spec.dataset));
-                    }
-                    self.fields.new_class = self.fields.new_class.min(info.spec.classes.len().saturating_sub(1));
-                    self.model = Some(info);
-                    self.previous = None;
-                    self.requested = None;
-                    self.regen_at = Some(self.now);
-                }
+                Reply::ModelLoaded(info) => self.model_loaded(info),
                 Reply::ModelFailed { dir, error } => {
                     self.model_loading = None;
-                    let keep = if self.model.is_some() { " The current model stays loaded." } else { "" };
-                    self.messages.error(format!("Could not load the model {}: {error}.{keep}", dir.display()));
+                    let keep = match &self.model {
+                        Some(m) => format!(" The current model ({}) stays loaded, with its take.", m.spec.dataset),
+                        None => String::new(),
+                    };
+                    self.messages.set(Topic::Model, Level::Error, format!("Could not load the model {}: {}.{keep}", project::shown_path(&dir), first_line(&error)));
                     if let Some(m) = &self.model {
                         self.fields.model_path = m.dir.display().to_string();
                     }
@@ -478,9 +741,13 @@ impl StudioApp {
                     if self.pending.is_some_and(|(id, _)| id == take.id) {
                         self.pending = None;
                     }
+                    self.generation_error = None;
+                    self.messages.resolve(Topic::Generation);
+                    self.messages.resolve(Topic::Stale);
                     let frames = take.motion.frames();
                     if let Some(old) = self.take.replace(take) {
-                        self.previous = Some(old);
+                        let white = Arc::new(vec![PREVIOUS_TAKE_COLOR; old.motion.frames()]);
+                        self.previous = Some((old, white));
                     }
                     self.playback.clamp(frames);
                 }
@@ -489,7 +756,9 @@ impl StudioApp {
                         self.pending = None;
                     }
                     if !cancelled {
-                        self.messages.error(format!("Generation failed: {error}"));
+                        let shown = if self.take.is_some() { " The viewport shows the previous take, marked out of date." } else { "" };
+                        self.messages.set(Topic::Generation, Level::Error, format!("Generation failed: {error}.{shown}"));
+                        self.generation_error = Some(error);
                     }
                 }
                 Reply::Path { id, path } => {
@@ -497,34 +766,156 @@ impl StudioApp {
                         if let Some(t) = Arc::get_mut(t) {
                             t.path = path;
                         } else {
-                            let mut copy = Take { path, ..clone_take(t) };
-                            copy.id = id;
-                            *t = Arc::new(copy);
+                            *t = Arc::new(Take { path, ..clone_take(t) });
                         }
                     }
                 }
                 Reply::InitOk(init) => {
                     let name = match &init {
-                        InitPose::File { path, frame } => format!("{} from frame {frame}", path.display()),
+                        InitPose::File { path, frame } => format!("{} from frame {frame}", project::shown_path(path)),
                         _ => String::new(),
                     };
+                    self.init_after_switch = false;
                     self.edit(|d| d.init = init);
                     self.init_tab = InitTab::File;
-                    self.messages.info(format!("Initial pose: {name}"));
+                    self.messages.set(Topic::Init, Level::Info, format!("Initial pose: {name}"));
+                }
+                Reply::InitFailed { error, .. } if self.init_after_switch => {
+                    self.init_after_switch = false;
+                    let dataset = self.model.as_ref().map_or_else(String::new, |m| m.spec.dataset.clone());
+                    let first = self.doc.timeline.segments.first().and_then(|s| self.model.as_ref().and_then(|m| m.spec.class_index(&s.class).ok())).unwrap_or(0);
+                    self.set_init_class(first, 0);
+                    let class = match &self.doc.init {
+                        InitPose::SeedClass { class, .. } => class.clone(),
+                        _ => String::new(),
+                    };
+                    self.messages.set(Topic::Init, Level::Info, format!("The initial-pose file does not fit the {dataset} model ({}): the take now starts from a typical '{class}' pose", first_line(&error)));
                 }
                 Reply::InitFailed { error, .. } => {
-                    self.messages.error(format!("That file cannot start a take: {error}"));
+                    self.messages.set(Topic::Init, Level::Error, format!("That file cannot start a take: {}", first_line(&error)));
                 }
-                Reply::Exported(path) => self.messages.info(format!("Exported {}", path.display())),
-                Reply::ExportFailed { path, error } => self.messages.error(format!("Could not export {}: {error}", path.display())),
+                Reply::Exported(path) => self.messages.set(Topic::Export, Level::Info, format!("Exported {}", project::shown_path(&path))),
+                Reply::ExportFailed { path, error } => self.messages.set(Topic::Export, Level::Error, format!("Could not export {}: {error}", project::shown_path(&path))),
             }
         }
+    }
+
+    fn model_loaded(&mut self, info: Arc<ModelInfo>) {
+        let previous = self.model.take();
+        self.model_loading = None;
+        self.map = None;
+        self.map_error = None;
+        self.doc.model = info.dir.clone();
+        self.fields.model_path = info.dir.display().to_string();
+        if self.doc.timeline.segments.is_empty() {
+            self.doc.timeline = Project::default_timeline(&info.spec.classes);
+        }
+        if previous.is_none() && self.saved.timeline.segments.is_empty() {
+            // The first model of a fresh start: its default timeline is not unsaved work.
+            self.saved = self.doc.clone();
+        }
+        self.carry_classes(&info);
+        self.carry_init(&info);
+        self.fields.new_class = self.fields.new_class.min(info.spec.classes.len().saturating_sub(1));
+        self.fields.seed_index = self.fields.seed_index.min(info.seeds.len().saturating_sub(1));
+        if previous.is_some() {
+            self.messages.set(Topic::Model, Level::Info, format!("Loaded model {} ({})", project::shown_path(&info.dir), info.spec.dataset));
+        } else {
+            self.messages.resolve(Topic::Model);
+        }
+        self.model = Some(info);
+        self.previous = None;
+        self.requested = None;
+        self.generation_error = None;
+        self.regen_at = Some(self.now);
+    }
+
+    /// Retags segments whose class the new model does not have (by [`ClassMap`]), in the
+    /// document and its history, and says what was mapped.
+    fn carry_classes(&mut self, info: &ModelInfo) {
+        let classes = &info.spec.classes;
+        let mut unknown: Vec<String> = Vec::new();
+        for s in &self.doc.timeline.segments {
+            if info.spec.class_index(&s.class).is_err() && !unknown.contains(&s.class) {
+                unknown.push(s.class.clone());
+            }
+        }
+        if unknown.is_empty() || classes.is_empty() {
+            return;
+        }
+        let table: Vec<(String, String)> = self.class_table.iter().cloned().chain(ClassMap::shipped_table()).collect();
+        let map = ClassMap::build(&unknown, classes, &table);
+        let described = map.describe(&self.doc.timeline);
+        let segments = map.pairs.iter().map(|p| self.doc.timeline.segments.iter().enumerate().filter(|(_, s)| s.class == p.from).map(|(k, _)| k).collect()).collect();
+        let (timeline, changed) = map.apply(&self.doc.timeline);
+        self.doc.timeline = timeline;
+        let carry = |p: &mut Project| {
+            p.timeline = map.apply(&p.timeline).0;
+            if let InitPose::SeedClass { class, .. } = &mut p.init {
+                if let Some(to) = map.get(class) {
+                    *class = to.to_string();
+                }
+            }
+        };
+        self.history.map_states(carry);
+        self.messages.set(
+            Topic::Classes,
+            Level::Info,
+            format!("Classes carried over to {}: {described} ({changed} segments, durations kept). Edit > Class mapping… changes a pairing.", info.spec.dataset),
+        );
+        self.mapping = Some(MappingNote { map, classes: classes.clone(), segments, timeline: self.doc.timeline.clone() });
+    }
+
+    /// Keeps the initial pose meaningful on a new model: a class start moves to the mapped
+    /// class's typical window, a seed index out of range is reset, and a file is checked
+    /// again (and reset with a message if it does not fit).
+    fn carry_init(&mut self, info: &ModelInfo) {
+        match self.doc.init.clone() {
+            InitPose::SeedClass { class, variant } => {
+                let k = match info.spec.class_index(&class) {
+                    Ok(k) => k,
+                    Err(_) => self.mapping.as_ref().and_then(|m| m.map.get(&class)).and_then(|c| info.spec.class_index(c).ok()).unwrap_or(0),
+                };
+                let variant = if info.spec.classes[k] == class { variant } else { info.typical_variant(k, 0) };
+                self.doc.init = InitPose::SeedClass { class: info.spec.classes[k].clone(), variant };
+            }
+            InitPose::SeedIndex(i) if i >= info.seeds.len() => {
+                self.doc.init = InitPose::SeedIndex(0);
+                self.messages.set(Topic::Init, Level::Info, format!("Seed {i} does not exist in the {} model: the take starts from seed 0", info.spec.dataset));
+            }
+            InitPose::SeedIndex(_) => {}
+            init @ InitPose::File { .. } => {
+                self.init_after_switch = true;
+                self.worker.check_init(init);
+            }
+        }
+    }
+
+    /// Changes the counterpart of `from` in the last model switch's mapping: the segments it
+    /// retagged get `to` (while the timeline is as the switch left it), and the pairing is
+    /// remembered for later switches.
+    pub fn set_mapping(&mut self, from: &str, to: &str) {
+        let Some(note) = self.mapping.as_mut() else { return };
+        let Some(k) = note.map.pairs.iter().position(|p| p.from == from) else { return };
+        note.map.set(from, to);
+        self.class_table.retain(|(a, _)| a != from);
+        self.class_table.insert(0, (from.to_string(), to.to_string()));
+        if self.doc.timeline.segments.len() == note.timeline.segments.len() {
+            let indices = note.segments[k].clone();
+            self.edit(|d| indices.iter().for_each(|&i| d.timeline.segments[i].class = to.to_string()));
+            if let Some(note) = self.mapping.as_mut() {
+                note.timeline = self.doc.timeline.clone();
+            }
+        }
+        self.save_state();
     }
 
     /// Asks for a new take when the options changed and the pause is over.
     fn schedule(&mut self, ctx: &egui::Context) {
         let Some(model) = &self.model else { return };
-        if model.dir != self.doc.model {
+        // Not while another model loads (the request would reach it), nor before the
+        // initial-pose file has been checked against a new model.
+        if model.dir != self.doc.model || self.model_loading.is_some() || self.init_after_switch {
             return;
         }
         let options = self.doc.options();
@@ -551,6 +942,7 @@ impl StudioApp {
         let options = self.doc.options();
         let id = self.worker.generate(options.clone());
         self.requested = Some(options);
+        self.generation_error = None;
         self.pending = Some((id, 0.0));
         self.regen_at = None;
     }
@@ -571,7 +963,7 @@ impl StudioApp {
         if self.now >= at {
             self.autosave_at = None;
             if let Err(e) = project::autosave(&self.doc, &path) {
-                self.messages.error(format!("Autosave failed: {e:#}"));
+                self.messages.set(Topic::Autosave, Level::Error, format!("Autosave failed: {e:#}"));
                 self.autosave = None;
             }
             self.autosaved = Some(self.doc.clone());
@@ -581,26 +973,22 @@ impl StudioApp {
     }
 
     fn shortcuts(&mut self, ctx: &egui::Context) {
+        let save = KeyboardShortcut::new(Modifiers::COMMAND, Key::S);
+        if ctx.input_mut(|i| i.consume_shortcut(&save)) {
+            self.save_shortcut(ctx);
+        }
+        // A focused text field keeps every other key, Ctrl+Z included (its own undo).
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
         let redo = KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
         let undo = KeyboardShortcut::new(Modifiers::COMMAND, Key::Z);
         let redo_y = KeyboardShortcut::new(Modifiers::COMMAND, Key::Y);
-        let save = KeyboardShortcut::new(Modifiers::COMMAND, Key::S);
-        let (r, u, s) = ctx.input_mut(|i| {
-            let r = i.consume_shortcut(&redo) || i.consume_shortcut(&redo_y);
-            let u = i.consume_shortcut(&undo);
-            let s = i.consume_shortcut(&save);
-            (r, u, s)
-        });
+        let (r, u) = ctx.input_mut(|i| (i.consume_shortcut(&redo) || i.consume_shortcut(&redo_y), i.consume_shortcut(&undo)));
         if r {
             self.redo();
         } else if u {
             self.undo();
-        }
-        if s {
-            self.save_shortcut(ctx);
-        }
-        if ctx.egui_wants_keyboard_input() {
-            return;
         }
         let frames = self.take.as_ref().map_or(0, |t| t.motion.frames());
         let (space, left, right, home, end, del) = ctx.input_mut(|i| {
@@ -635,16 +1023,17 @@ impl StudioApp {
         }
     }
 
-    pub(super) fn save_shortcut(&mut self, ctx: &egui::Context) {
+    pub(super) fn save_shortcut(&mut self, ctx: &egui::Context) -> bool {
         match self.project_path.clone() {
-            Some(p) => {
-                self.save_project(&p);
-            }
+            Some(p) => self.save_project(&p),
             None if !self.fields.project_path.trim().is_empty() => {
                 let p = PathBuf::from(self.fields.project_path.trim());
-                self.save_project(&p);
+                self.save_project(&p)
             }
-            None => self.open_dialog(Purpose::SaveProject, ctx),
+            None => {
+                self.open_dialog(Purpose::SaveProject, ctx);
+                false
+            }
         }
     }
 
@@ -658,6 +1047,70 @@ impl StudioApp {
         if ctx.input(|i| !i.pointer.any_down()) {
             self.edit_open = false;
         }
+    }
+
+    /// The question before New or Open discards unsaved work.
+    fn confirm_ui(&mut self, ctx: &egui::Context) {
+        let Some(action) = self.confirm.clone() else { return };
+        let what = match &action {
+            Guarded::New => "Start a new project".to_string(),
+            Guarded::Open(p) => format!("Open {}", project::shown_path(p)),
+        };
+        let mut answer = None;
+        egui::Modal::new(egui::Id::unique("glocal_confirm_discard")).show(ctx, |ui| {
+            ui.set_max_width(420.0);
+            ui.heading("Unsaved changes");
+            ui.label(format!("{what}? The current project has changes that are not saved."));
+            ui.horizontal(|ui| {
+                if ui.button("Save first").clicked() {
+                    answer = Some(0);
+                }
+                if ui.button("Discard changes").clicked() {
+                    answer = Some(1);
+                }
+                if ui.button("Cancel").clicked() || ui.input(|i| i.key_pressed(Key::Escape)) {
+                    answer = Some(2);
+                }
+            });
+        });
+        match answer {
+            Some(0) => {
+                if self.save_shortcut(ctx) {
+                    self.run_guarded(action);
+                } else {
+                    self.confirm = None;
+                }
+            }
+            Some(1) => self.run_guarded(action),
+            Some(_) => self.confirm = None,
+            None => {}
+        }
+    }
+}
+
+/// The previous take's overlay colour: white, unlike any class colour (ghosts keep theirs).
+pub const PREVIOUS_TAKE_COLOR: [u8; 3] = [245, 245, 245];
+
+fn first_line(text: &str) -> &str {
+    text.lines().next().unwrap_or("")
+}
+
+/// Creates the default work folder when a file is about to be written in it (it may not
+/// exist yet); other folders are the user's to create.
+fn ensure_parent(path: &Path) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| *d == project::default_work_folder() && !d.exists()) {
+        std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create the folder {}: {e}", dir.display()))?;
+    }
+    Ok(())
+}
+
+/// An autosave that could not be read is moved aside (so the next autosave does not
+/// overwrite it) and the message says where it went.
+fn broken_autosave_message(path: &Path, error: &anyhow::Error) -> String {
+    let why = first_line(&format!("{error:#}")).to_string();
+    match project::keep_broken_autosave(path) {
+        Ok(kept) => format!("The autosave could not be restored ({why}); it is kept as {}", project::shown_path(&kept)),
+        Err(e) => format!("The autosave could not be restored ({why}) nor moved aside ({e:#}); it will be overwritten by the next autosave"),
     }
 }
 
@@ -687,22 +1140,26 @@ impl eframe::App for StudioApp {
         self.now = ctx.input(|i| i.time);
         self.messages.tick(&ctx);
         self.handle_replies();
-        self.handle_dialogs();
+        self.handle_dialogs(&ctx);
         self.shortcuts(&ctx);
         let before = self.doc.clone();
 
+        // Side panels give way on a small window so the viewport keeps some room.
+        let width = ctx.content_rect().width();
         let frame = unfilled_panel_frame(ui.style());
         egui::Panel::top("menu_bar").frame(frame).show(ui, |ui| self.menu_bar(ui));
         egui::Panel::bottom("transport").frame(frame).resizable(false).show(ui, |ui| self.bottom_panel(ui));
         let mut show_side = self.show_side;
-        egui::Panel::left("side").frame(frame).resizable(true).default_size(300.0).min_size(240.0).show_collapsible(ui, &mut show_side, |ui| {
+        egui::Panel::left("side").frame(frame).resizable(true).default_size(300.0f32.min(width * 0.3)).min_size(240.0).max_size((width * 0.4).max(240.0)).show_collapsible(ui, &mut show_side, |ui| {
             on_panel_background(ui, |ui| egui::ScrollArea::vertical().show(ui, |ui| self.side_panel(ui)));
         });
         self.show_side = show_side;
         let mut show_map = self.show_map;
-        egui::Panel::right("map").frame(frame).resizable(true).default_size(330.0).min_size(220.0).show_collapsible(ui, &mut show_map, |ui| self.map_panel(ui));
+        egui::Panel::right("map").frame(frame).resizable(true).default_size(330.0f32.min(width * 0.25)).min_size(200.0).max_size((width * 0.35).max(200.0)).show_collapsible(ui, &mut show_map, |ui| self.map_panel(ui));
         self.show_map = show_map;
         egui::CentralPanel::no_frame().show(ui, |ui| self.central(ui));
+        self.windows(&ctx);
+        self.confirm_ui(&ctx);
 
         self.finish_edits(&ctx, before);
         self.schedule(&ctx);
@@ -717,18 +1174,25 @@ impl eframe::App for StudioApp {
     }
 }
 
-/// Model folders under `root` that hold a `model.json`, sorted.
-pub fn scan_models(root: &Path) -> Vec<PathBuf> {
-    let mut found: Vec<PathBuf> = std::fs::read_dir(root)
-        .map(|rd| rd.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.join("model.json").is_file()).collect())
-        .unwrap_or_default();
-    found.sort();
+/// Model folders under `roots` that hold a `model.json`, sorted within each root; a model
+/// name found in an earlier root hides the same name in later ones.
+pub fn scan_models(roots: &[PathBuf]) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = Vec::new();
+    for root in roots {
+        let mut here: Vec<PathBuf> = std::fs::read_dir(root)
+            .map(|rd| rd.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.join("model.json").is_file()).collect())
+            .unwrap_or_default();
+        here.sort();
+        here.retain(|p| !found.iter().any(|f| f.file_name() == p.file_name()));
+        found.extend(here);
+    }
     found
 }
 
 fn clone_take(t: &Take) -> Take {
     Take {
         id: t.id,
+        model_dir: t.model_dir.clone(),
         motion: t.motion.clone(),
         segments: t.segments.clone(),
         frame_colors: t.frame_colors.clone(),

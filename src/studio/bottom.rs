@@ -36,7 +36,7 @@ impl StudioApp {
 
     fn transport_row(&mut self, ui: &mut egui::Ui) {
         let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let play = if self.playback.playing { "Pause" } else { "Play" };
             if ui.add_enabled(frames > 1, Button::new(play).min_size(egui::vec2(76.0, 0.0))).on_hover_text("Space").clicked() {
                 self.playback.toggle(frames, &self.doc.playback);
@@ -47,8 +47,19 @@ impl StudioApp {
             if ui.add_enabled(frames > 1, Button::new(" > ")).on_hover_text("Next frame (Right arrow)").clicked() {
                 self.playback.step(1, frames);
             }
-            let f = self.playback.frame();
-            ui.label(RichText::new(format!("{:>5} / {}  {:>6.2} s", f, frames.saturating_sub(1), f as f32 / fps)).monospace());
+            // Typeable frame and time (click to type, drag to scrub).
+            let last = frames.saturating_sub(1);
+            let mut f = self.playback.frame();
+            let frame_edit = ui.add(egui::DragValue::new(&mut f).range(0..=last).speed(0.5).prefix("frame ").suffix(format!(" / {last}")));
+            let mut t = f as f32 / fps;
+            let time_edit = ui.add(egui::DragValue::new(&mut t).range(0.0..=last as f32 / fps).speed(0.02).fixed_decimals(2).suffix(" s"));
+            if time_edit.changed() {
+                f = (t * fps).round() as usize;
+            }
+            if frame_edit.changed() || time_edit.changed() {
+                self.playback.playing = false;
+                self.playback.seek(f, frames);
+            }
             ui.separator();
             ui.label("Loop");
             let lm = &mut self.doc.playback.loop_mode;
@@ -66,15 +77,15 @@ impl StudioApp {
             let classes = self.classes().to_vec();
             if !classes.is_empty() {
                 let k = self.fields.new_class.min(classes.len() - 1);
-                egui::ComboBox::from_id_salt("new_class").selected_text(&classes[k]).width(110.0).show_ui(ui, |ui| {
+                egui::ComboBox::from_id_salt("new_class").selected_text(&classes[k]).width(110.0).height(400.0).show_ui(ui, |ui| {
                     for (i, c) in classes.iter().enumerate() {
                         ui.selectable_value(&mut self.fields.new_class, i, c);
                     }
                 });
             }
-            if let Some((a, b)) = self.playback.selection {
+            if let Some(label) = self.range_label() {
                 ui.separator();
-                ui.label(format!("Range {a}–{b}"));
+                ui.label(label).on_hover_text("First and last frame, both included: what a range export writes");
                 if ui.small_button("x").on_hover_text("Clear the range").clicked() {
                     self.playback.selection = None;
                 }
@@ -91,7 +102,13 @@ impl StudioApp {
     }
 
     fn segment_row(&mut self, ui: &mut egui::Ui, classes: &[String]) {
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
+            // What the pointer is over on the timeline, here rather than in a tooltip that
+            // would cover the transport bar.
+            if let Some(hint) = self.timeline_state.hint() {
+                ui.label(RichText::new(hint).weak());
+                return;
+            }
             let Some(k) = self.selected.filter(|&k| k < self.doc.timeline.segments.len()) else {
                 ui.label(RichText::new("Select a segment to edit it · drag blocks to reorder, their right edge to resize · right-click for more").weak());
                 return;
@@ -102,14 +119,14 @@ impl StudioApp {
             let color = class_index(classes, &seg.class).map_or(egui::Color32::GRAY, |c| color32(class_color(c)));
             ui.painter().circle_filled(r.center(), 6.0, color);
             ui.label(RichText::new(format!("Segment {}", k + 1)).strong());
-            egui::ComboBox::from_id_salt("segment_class").selected_text(&seg.class).width(120.0).show_ui(ui, |ui| {
+            egui::ComboBox::from_id_salt("segment_class").selected_text(&seg.class).width(120.0).height(400.0).show_ui(ui, |ui| {
                 for c in classes {
                     ui.selectable_value(&mut seg.class, c.clone(), c);
                 }
             });
             ui.add(egui::DragValue::new(&mut seg.seconds).range(MIN_SECONDS..=600.0).speed(0.05).suffix(" s").fixed_decimals(1));
             let mut own = seg.pace.is_some();
-            if ui.checkbox(&mut own, "own pace").changed() {
+            if ui.checkbox(&mut own, "own pace").on_hover_text("This segment's pace replaces the global pace (it does not multiply it)").changed() {
                 seg.pace = own.then_some(self.doc.pace);
             }
             if let Some(p) = seg.pace.as_mut() {

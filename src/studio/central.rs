@@ -13,8 +13,8 @@ impl StudioApp {
         if let Some(t) = &self.take {
             layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0 });
             if self.compare {
-                if let Some(p) = &self.previous {
-                    layers.push(Layer { motion: p.motion.clone(), frame_colors: p.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 0.35 });
+                if let Some((p, white)) = &self.previous {
+                    layers.push(Layer { motion: p.motion.clone(), frame_colors: white.clone(), offset: glam::Vec3::ZERO, opacity: 0.45 });
                 }
             }
         }
@@ -34,6 +34,10 @@ impl StudioApp {
                 seg.map_or("", |s| s.name.as_str())
             );
             painter.text(rect.left_top() + egui::vec2(12.0, 10.0), Align2::LEFT_TOP, label, FontId::monospace(13.0), text_color);
+            if let Some(why) = self.stale_reason() {
+                let warn = Color32::from_rgb(255, 190, 70);
+                painter.text(rect.left_top() + egui::vec2(12.0, 30.0), Align2::LEFT_TOP, format!("OUT OF DATE: {why}"), FontId::proportional(14.0), warn);
+            }
         } else {
             let msg = if self.model_loading.is_some() {
                 "Loading the model…"

@@ -108,6 +108,7 @@ impl StudioApp {
                     if d < 10.0 {
                         self.doc.init = InitPose::SeedIndex(i);
                         self.init_tab = InitTab::Seed;
+                        self.fields.seed_index = i;
                     }
                 }
             }

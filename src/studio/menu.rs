@@ -1,24 +1,37 @@
-//! The menu bar.
+//! The menu bar and the windows it opens (help, message log, class mapping).
 
-use egui::{Button, KeyboardShortcut, Key, Modifiers};
+use egui::{Button, Key, KeyboardShortcut, Modifiers, PopupCloseBehavior};
 
-use super::app::StudioApp;
+use super::app::{Guarded, StudioApp};
 use super::dialogs::Purpose;
+
+/// Keyboard and mouse, as the Help window lists them.
+const CONTROLS: &[(&str, &str)] = &[
+    ("Space", "play / pause"),
+    ("Left / Right", "step one frame"),
+    ("Home / End", "first / last frame"),
+    ("Ctrl+Z", "undo (in a text field: undo the typing)"),
+    ("Ctrl+Shift+Z, Ctrl+Y", "redo"),
+    ("Ctrl+S", "save the project"),
+    ("Delete", "delete the selected segment"),
+    ("Shift-drag on the ruler", "select a range"),
+    ("Viewport: drag", "orbit"),
+    ("Viewport: right or middle drag, Shift+drag", "pan"),
+    ("Viewport: scroll or pinch", "zoom"),
+    ("Viewport: double-click", "frame the take"),
+    ("View > Reset camera", "the starting view"),
+];
 
 impl StudioApp {
     pub(super) fn menu_bar(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         let fmt = |s: KeyboardShortcut| ctx.format_shortcut(&s);
-        egui::MenuBar::new().ui(ui, |ui| {
+        // Checkboxes and sliders keep a menu open; buttons close it themselves.
+        let config = egui::containers::menu::MenuConfig::new().close_behavior(PopupCloseBehavior::CloseOnClickOutside);
+        egui::MenuBar::new().config(config).ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.button("New project").clicked() {
-                    let model = self.doc.model.clone();
-                    let classes = self.classes().to_vec();
-                    self.edit(|d| {
-                        *d = super::project::Project::new(model);
-                        d.timeline = super::project::Project::default_timeline(&classes);
-                    });
-                    self.project_path = None;
+                    self.request(Guarded::New);
                     ui.close();
                 }
                 if ui.button("Open project…").clicked() {
@@ -36,12 +49,12 @@ impl StudioApp {
                 ui.separator();
                 ui.menu_button("Models", |ui| {
                     if self.shipped.is_empty() {
-                        ui.label("No models found under models/");
+                        ui.label("No shipped models found");
                     }
                     for dir in self.shipped.clone() {
                         let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
                         let current = self.model.as_ref().is_some_and(|m| m.dir == dir);
-                        if ui.selectable_label(current, name).clicked() {
+                        if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
                             self.load_model(dir);
                             ui.close();
                         }
@@ -87,11 +100,16 @@ impl StudioApp {
                     self.playback.selection = None;
                     ui.close();
                 }
+                ui.separator();
+                if ui.add_enabled(self.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
+                    self.show_mapping = true;
+                    ui.close();
+                }
             });
             ui.menu_button("View", |ui| {
                 ui.checkbox(&mut self.show_side, "Settings panel");
                 ui.checkbox(&mut self.show_map, "Seed map panel");
-                ui.checkbox(&mut self.compare, "Overlay the previous take");
+                ui.checkbox(&mut self.compare, "Overlay the previous take (white)");
                 ui.separator();
                 let v = &mut self.doc.view;
                 ui.checkbox(&mut v.grid, "Grid");
@@ -99,35 +117,77 @@ impl StudioApp {
                 ui.checkbox(&mut v.follow_root, "Follow the root");
                 ui.add(egui::Slider::new(&mut v.ghosts, 0..=8).text("ghosts"));
                 ui.add(egui::Slider::new(&mut v.ghost_step, 1..=20).text("frames between ghosts"));
+                ui.separator();
+                if ui.button("Reset camera").clicked() {
+                    self.viewport.reset_camera();
+                    ui.close();
+                }
+                if ui.button("Frame the take").on_hover_text("Double-click in the viewport").clicked() {
+                    self.viewport.frame_all();
+                    ui.close();
+                }
             });
             ui.menu_button("Help", |ui| {
-                if ui.button("Keyboard shortcuts").clicked() {
+                if ui.button("Keyboard and mouse").clicked() {
                     self.show_help = true;
+                    ui.close();
+                }
+                if ui.button("Message log").clicked() {
+                    self.show_log = true;
                     ui.close();
                 }
             });
         });
+    }
+
+    /// Help, the message log and the class mapping, when open.
+    pub(super) fn windows(&mut self, ctx: &egui::Context) {
         if self.show_help {
             let mut open = true;
-            egui::Window::new("Keyboard shortcuts").open(&mut open).collapsible(false).resizable(false).show(ui.ctx(), |ui| {
+            egui::Window::new("Keyboard and mouse").open(&mut open).collapsible(false).resizable(false).show(ctx, |ui| {
                 egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                    for (k, what) in [
-                        ("Space", "play / pause"),
-                        ("Left / Right", "step one frame"),
-                        ("Home / End", "first / last frame"),
-                        ("Ctrl+Z", "undo"),
-                        ("Ctrl+Shift+Z, Ctrl+Y", "redo"),
-                        ("Ctrl+S", "save the project"),
-                        ("Delete", "delete the selected segment"),
-                        ("Shift-drag on the ruler", "select a range"),
-                    ] {
-                        ui.monospace(k);
-                        ui.label(what);
+                    for (k, what) in CONTROLS {
+                        ui.monospace(*k);
+                        ui.label(*what);
                         ui.end_row();
                     }
                 });
             });
             self.show_help = open;
+        }
+        if self.show_log {
+            let mut open = true;
+            egui::Window::new("Message log").open(&mut open).default_width(520.0).show(ctx, |ui| self.messages.log_ui(ui));
+            self.show_log = open;
+        }
+        if self.show_mapping {
+            let mut open = true;
+            egui::Window::new("Class mapping").open(&mut open).collapsible(false).show(ctx, |ui| self.mapping_ui(ui));
+            self.show_mapping = open && self.mapping.is_some();
+        }
+    }
+
+    fn mapping_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(note) = &self.mapping else { return };
+        ui.label("Segments of the previous model's classes were retagged as below. A change applies to those segments and is remembered for later switches.");
+        let (pairs, classes) = (note.map.pairs.clone(), note.classes.clone());
+        let mut change = None;
+        egui::Grid::new("class_mapping").striped(true).show(ui, |ui| {
+            for p in &pairs {
+                ui.label(&p.from);
+                ui.label("->");
+                egui::ComboBox::from_id_salt(("map", &p.from)).selected_text(&p.to).height(400.0).show_ui(ui, |ui| {
+                    for c in &classes {
+                        if ui.selectable_label(*c == p.to, c).clicked() {
+                            change = Some((p.from.clone(), c.clone()));
+                        }
+                    }
+                });
+                ui.end_row();
+            }
+        });
+        if let Some((from, to)) = change {
+            self.set_mapping(&from, &to);
         }
     }
 }

@@ -42,7 +42,7 @@ pub struct Project {
     /// Model folder.
     pub model: PathBuf,
     pub timeline: Timeline,
-    /// Global pace (a segment's own pace overrides it).
+    /// Global pace (a segment's own pace replaces it for that segment).
     pub pace: f32,
     pub init: InitPose,
     pub transition: Transition,
@@ -142,16 +142,72 @@ impl Project {
     }
 }
 
-/// Where autosaves go: `$XDG_DATA_HOME/glocal/autosave.json`, else
-/// `~/.local/share/glocal/autosave.json`, else the working folder.
-pub fn default_autosave_path() -> PathBuf {
+/// The studio's data folder: `$XDG_DATA_HOME/glocal`, else `~/.local/share/glocal`, else
+/// the working folder.
+pub fn data_folder() -> PathBuf {
     let base = std::env::var_os("XDG_DATA_HOME")
         .filter(|v| !v.is_empty())
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share")));
-    match base {
-        Some(b) => b.join("glocal").join("autosave.json"),
-        None => PathBuf::from("glocal-autosave.json"),
+    base.map_or_else(|| PathBuf::from("."), |b| b.join("glocal"))
+}
+
+/// Where projects and exports go unless the user says otherwise: `~/Documents/Glocal Studio`
+/// when there is a Documents folder, else the data folder.
+pub fn default_work_folder() -> PathBuf {
+    match std::env::var_os("HOME").map(|h| PathBuf::from(h).join("Documents")).filter(|d| d.is_dir()) {
+        Some(docs) => docs.join("Glocal Studio"),
+        None => data_folder(),
+    }
+}
+
+/// Where autosaves go: `autosave.json` in the data folder.
+pub fn default_autosave_path() -> PathBuf {
+    data_folder().join("autosave.json")
+}
+
+/// An absolute form of `path` for messages (the path itself when that fails).
+pub fn shown_path(path: &Path) -> String {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()).display().to_string()
+}
+
+/// Moves an autosave that could not be read aside (`autosave.broken-<unix seconds>.json`
+/// beside it), so the next autosave does not overwrite it; returns where it went.
+pub fn keep_broken_autosave(path: &Path) -> Result<PathBuf> {
+    let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let stem = path.file_stem().map_or_else(|| "autosave".into(), |s| s.to_string_lossy().into_owned());
+    let kept = path.with_file_name(format!("{stem}.broken-{stamp}.json"));
+    std::fs::rename(path, &kept).with_context(|| format!("cannot move {} aside", path.display()))?;
+    Ok(kept)
+}
+
+/// What the studio remembers between runs besides the autosave: the open project's path,
+/// the export path and the user's class-mapping edits. Kept in `studio.json` beside the
+/// autosave.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StudioState {
+    pub project_path: Option<PathBuf>,
+    pub export_path: Option<PathBuf>,
+    #[serde(default)]
+    pub class_table: Vec<(String, String)>,
+}
+
+impl StudioState {
+    pub fn path_beside(autosave: &Path) -> PathBuf {
+        autosave.with_file_name("studio.json")
+    }
+
+    /// The state saved at `path`; the default when there is none or it is unreadable (it
+    /// holds nothing that cannot be chosen again).
+    pub fn load(path: &Path) -> Self {
+        std::fs::read_to_string(path).ok().and_then(|t| serde_json::from_str(&t).ok()).unwrap_or_default()
+    }
+
+    pub fn save(&self, path: &Path) -> Result<()> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        }
+        write_atomic(path, serde_json::to_string_pretty(self)?.as_bytes())
     }
 }
 
@@ -209,9 +265,9 @@ impl History {
         true
     }
 
-    pub fn clear(&mut self) {
-        self.undo.clear();
-        self.redo.clear();
+    /// Applies `f` to every recorded state (e.g. class names carried to a new model).
+    pub fn map_states(&mut self, mut f: impl FnMut(&mut Project)) {
+        self.undo.iter_mut().chain(self.redo.iter_mut()).for_each(&mut f);
     }
 }
 

@@ -4,9 +4,10 @@ use std::path::PathBuf;
 
 use egui::{RichText, Slider};
 
-use super::app::{ExportRange, InitTab, StudioApp};
+use super::app::{ExportRange, Guarded, InitTab, StudioApp, MAX_INIT_FRAME};
 use super::dialogs::Purpose;
 use super::timeline::color32;
+use crate::synth::export::Units;
 use crate::synth::render::class_color;
 use crate::synth::timeline::{MAX_PACE, MIN_PACE};
 use crate::synth::{InitPose, Transition};
@@ -25,11 +26,12 @@ fn path_field(ui: &mut egui::Ui, label: &str, value: &mut String, hint: &str) ->
 impl StudioApp {
     pub(super) fn side_panel(&mut self, ui: &mut egui::Ui) {
         ui.add_space(4.0);
+        // The project first: it is what a session starts and ends with.
+        section(ui, "Project", |ui| self.project_section(ui));
         section(ui, "Model", |ui| self.model_section(ui));
         section(ui, "Initial pose", |ui| self.init_section(ui));
         section(ui, "Generation", |ui| self.generation_section(ui));
         section(ui, "Export take", |ui| self.export_section(ui));
-        section(ui, "Project", |ui| self.project_section(ui));
     }
 
     fn model_section(&mut self, ui: &mut egui::Ui) {
@@ -52,9 +54,10 @@ impl StudioApp {
                 ui.label(format!("Loading {}…", dir.display()));
             });
         }
+        let looked = self.model_roots.iter().map(|r| r.display().to_string()).collect::<Vec<_>>().join("\n");
         if !self.shipped.is_empty() {
             ui.horizontal_wrapped(|ui| {
-                ui.label("Shipped:");
+                ui.label("Shipped:").on_hover_text(format!("Models are looked for in\n{looked}"));
                 for dir in self.shipped.clone() {
                     let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
                     let current = self.model.as_ref().is_some_and(|m| m.dir == dir);
@@ -84,34 +87,45 @@ impl StudioApp {
         };
         let classes = &model.spec.classes;
         ui.horizontal(|ui| {
-            ui.selectable_value(&mut self.init_tab, InitTab::Class, "By class");
-            ui.selectable_value(&mut self.init_tab, InitTab::Seed, "Seed");
-            ui.selectable_value(&mut self.init_tab, InitTab::File, "File");
+            for (tab, name, tip) in [
+                (InitTab::Class, "By class", "A typical pose of a class"),
+                (InitTab::Seed, "Seed", "Any pose of the seed bank (or click the seed map)"),
+                (InitTab::File, "File", "A pose from a BVH, NPY or dataset file"),
+            ] {
+                if ui.selectable_label(self.init_tab == tab, name).on_hover_text(tip).clicked() && self.init_tab != tab {
+                    self.set_init_tab(tab);
+                }
+            }
         });
         match self.init_tab {
             InitTab::Class => {
-                let (mut class, mut variant) = match &self.doc.init {
-                    InitPose::SeedClass { class, variant } => (class.clone(), *variant),
-                    InitPose::SeedIndex(i) => (model.seeds.get(*i).map_or_else(|| classes[0].clone(), |s| classes[s.class].clone()), 0),
-                    InitPose::File { .. } => (classes[0].clone(), 0),
+                let (class, rank) = match &self.doc.init {
+                    InitPose::SeedClass { class, variant } => {
+                        let k = model.spec.class_index(class).unwrap_or(0);
+                        (k, model.typical_rank(k, *variant))
+                    }
+                    _ => (0, 0),
                 };
-                egui::ComboBox::from_label("Seed class").selected_text(&class).show_ui(ui, |ui| {
-                    for c in classes {
-                        ui.selectable_value(&mut class, c.clone(), c);
+                let (mut new_class, mut new_rank) = (class, rank);
+                egui::ComboBox::from_label("Start class").selected_text(&classes[class]).height(400.0).show_ui(ui, |ui| {
+                    for (k, c) in classes.iter().enumerate() {
+                        ui.selectable_value(&mut new_class, k, c);
                     }
                 });
-                let k = classes.iter().position(|c| c.eq_ignore_ascii_case(&class)).unwrap_or(0);
-                let n = model.seeds.iter().filter(|s| s.class == k).count().max(1);
-                ui.add(Slider::new(&mut variant, 0..=n - 1).text("variant"));
-                let init = InitPose::SeedClass { class, variant };
-                if ui.button("Use this seed").clicked() || (matches!(self.doc.init, InitPose::SeedClass { .. }) && self.doc.init != init) {
-                    self.doc.init = init;
+                if new_class != class {
+                    new_rank = 0;
+                }
+                let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
+                ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
+                    .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
+                if (new_class, new_rank) != (class, rank) || !matches!(self.doc.init, InitPose::SeedClass { .. }) {
+                    self.set_init_class(new_class, new_rank);
                 }
             }
             InitTab::Seed => {
                 let mut index = match &self.doc.init {
                     InitPose::SeedIndex(i) => *i,
-                    _ => 0,
+                    _ => self.fields.seed_index,
                 };
                 if let Some(s) = model.seeds.get(index) {
                     ui.horizontal(|ui| {
@@ -121,18 +135,19 @@ impl StudioApp {
                     });
                 }
                 let max = model.seeds.len().saturating_sub(1);
-                let changed = ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed();
-                ui.label(RichText::new("Or click a point in the seed map").weak());
-                if changed || (ui.button("Use this seed").clicked()) {
+                if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.doc.init, InitPose::SeedIndex(_)) {
+                    self.fields.seed_index = index;
                     self.doc.init = InitPose::SeedIndex(index);
                 }
+                ui.label(RichText::new("Or click a point in the seed map").weak());
             }
             InitTab::File => {
-                if let InitPose::File { path, frame } = &self.doc.init {
-                    ui.label(format!("In use: {} @ {frame}", path.display()));
-                }
+                match &self.doc.init {
+                    InitPose::File { path, frame } => ui.label(format!("In use: {} @ {frame}", path.display())),
+                    _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
+                };
                 path_field(ui, "Motion file (BVH, NPY or dataset .txt)", &mut self.fields.init_path, "clip.bvh");
-                ui.add(egui::DragValue::new(&mut self.fields.init_frame).prefix("from frame "));
+                ui.add(egui::DragValue::new(&mut self.fields.init_frame).range(0..=MAX_INIT_FRAME).prefix("from frame "));
                 ui.horizontal(|ui| {
                     if ui.button("Use file").clicked() {
                         let p = PathBuf::from(self.fields.init_path.trim());
@@ -150,18 +165,24 @@ impl StudioApp {
         let has_locgen = self.model.as_ref().is_some_and(|m| m.has_locgen);
         let guidance = self.model.as_ref().is_some_and(|m| m.spec.glogen.class_dropout > 0.0);
         ui.add(Slider::new(&mut self.doc.pace, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true).text("global pace"))
-            .on_hover_text("Below 1: slower motion, above 1: faster. A segment may set its own pace.");
+            .on_hover_text("How long each pose lasts: 2 plays the motion twice as slowly (over twice the time), 0.5 twice as fast. A segment with its own pace uses that instead.");
         ui.horizontal(|ui| {
             ui.label("Transitions:");
-            ui.selectable_value(&mut self.doc.transition, Transition::Anchor, "Anchor").on_hover_text("Mix both classes and ease the poses towards the new activity: it wins over the old one's momentum");
-            ui.selectable_value(&mut self.doc.transition, Transition::Blend, "Blend").on_hover_text("Blocks across a boundary mix both classes");
-            ui.selectable_value(&mut self.doc.transition, Transition::Cut, "Cut").on_hover_text("The class changes at the first block of a segment");
+            ui.selectable_value(&mut self.doc.transition, Transition::Anchor, "Anchor")
+                .on_hover_text("The new activity takes over within about two seconds, even from a very different motion (recommended)");
+            ui.selectable_value(&mut self.doc.transition, Transition::Blend, "Blend")
+                .on_hover_text("The two activities mix over about two seconds around the change; a strong motion may carry on for a while");
+            ui.selectable_value(&mut self.doc.transition, Transition::Cut, "Cut")
+                .on_hover_text("The activity switches at the boundary; the previous motion's momentum can carry on (the paper's method)");
         });
         ui.add_enabled(guidance, Slider::new(&mut self.doc.class_strength, 0.0..=3.0).text("class strength"))
-            .on_disabled_hover_text("This model was trained without class dropout, so classifier-free guidance is not available");
-        ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.locgen, "LocGen refinement"));
+            .on_hover_text("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity")
+            .on_disabled_hover_text("This model was trained without class dropout, so the strength cannot be changed");
+        ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.locgen, "LocGen refinement"))
+            .on_hover_text("Adds natural in-between motion (weight shifts, swing) between the model's key poses. Off: straight-line in-betweens, for comparison");
         ui.horizontal(|ui| {
-            ui.add(egui::DragValue::new(&mut self.doc.variation_seed).range(0..=9999)).on_hover_text("0: the model's deterministic take");
+            ui.add(egui::DragValue::new(&mut self.doc.variation_seed).range(0..=9999))
+                .on_hover_text("Another version of the same timeline: 0 is the model's standard take, every other number a slightly different one");
             ui.label("variation seed");
         });
         ui.checkbox(&mut self.auto_regen, "Regenerate after every edit");
@@ -192,18 +213,65 @@ impl StudioApp {
                 }
             }
         });
+        let (native_unit, native_fps, root) = match &self.model {
+            Some(m) => {
+                let unit = match m.spec.layout.skeleton.meters_per_unit() {
+                    u if (u - 0.001).abs() < 1e-6 => "mm".to_string(),
+                    u if (u - 0.01).abs() < 1e-6 => "cm".to_string(),
+                    u => format!("{u} m"),
+                };
+                let src = &m.spec.source_skeleton;
+                let root = src.names().first().cloned().filter(|r| !m.spec.layout.skeleton.names().contains(r));
+                (unit, m.spec.fps, root)
+            }
+            None => ("native".to_string(), 25.0, None),
+        };
+        let o = &mut self.export_options;
+        ui.horizontal(|ui| {
+            ui.label("Units");
+            egui::ComboBox::from_id_salt("export_units")
+                .selected_text(match o.units {
+                    Units::Metres => "metres".to_string(),
+                    Units::Centimetres => "centimetres".to_string(),
+                    Units::Native => format!("model's ({native_unit})"),
+                })
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(&mut o.units, Units::Metres, "metres").on_hover_text("What game engines and Blender expect");
+                    ui.selectable_value(&mut o.units, Units::Centimetres, "centimetres");
+                    ui.selectable_value(&mut o.units, Units::Native, format!("model's ({native_unit})"));
+                });
+            ui.label("fps");
+            egui::ComboBox::from_id_salt("export_fps").selected_text(o.fps.map_or_else(|| format!("{native_fps} (model)"), |f| format!("{f}"))).show_ui(ui, |ui| {
+                ui.selectable_value(&mut o.fps, None, format!("{native_fps} (model)"));
+                for f in [24.0, 30.0, 60.0] {
+                    ui.selectable_value(&mut o.fps, Some(f), format!("{f}"));
+                }
+            });
+        });
+        let tip = match &root {
+            Some(r) => format!("Adds the source skeleton's root '{r}' above the hips, on the ground under them, as in the original data"),
+            None => "This model's skeleton already has the source's root joint".to_string(),
+        };
+        ui.add_enabled(root.is_some(), egui::Checkbox::new(&mut o.source_root, "Keep the source root joint")).on_hover_text(&tip).on_disabled_hover_text(&tip);
         ui.horizontal(|ui| {
             ui.radio_value(&mut self.export_range, ExportRange::Whole, "Whole take");
-            ui.add_enabled(self.playback.selection.is_some(), egui::RadioButton::new(self.export_range == ExportRange::Selection, "Selected range"))
+            let label = self.range_label().map_or_else(|| "Selected range".to_string(), |l| l.replacen("Range", "Selected range", 1));
+            ui.add_enabled(self.playback.selection.is_some(), egui::RadioButton::new(self.export_range == ExportRange::Selection, label))
                 .clicked()
                 .then(|| self.export_range = ExportRange::Selection);
         });
+        let stale = self.stale_reason();
+        if let Some(why) = &stale {
+            ui.label(RichText::new(format!("Out of date: {why}")).color(ui.visuals().warn_fg_color));
+        }
+        let ready = self.take.is_some() && stale.is_none();
         ui.horizontal(|ui| {
-            if ui.add_enabled(self.take.is_some(), egui::Button::new("Export")).clicked() {
+            let why = stale.clone().unwrap_or_else(|| "Nothing generated yet".into());
+            if ui.add_enabled(ready, egui::Button::new("Export")).on_disabled_hover_text(&why).clicked() {
                 let p = PathBuf::from(self.fields.export_path.trim());
                 self.export_to(p);
             }
-            if ui.add_enabled(self.take.is_some(), egui::Button::new("Export…")).clicked() {
+            if ui.add_enabled(ready, egui::Button::new("Export…")).on_disabled_hover_text(&why).clicked() {
                 self.open_dialog(Purpose::Export, ui.ctx());
             }
         });
@@ -211,10 +279,10 @@ impl StudioApp {
 
     fn project_section(&mut self, ui: &mut egui::Ui) {
         path_field(ui, "Project file", &mut self.fields.project_path, "project.glocal.json");
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             if ui.button("Open").clicked() {
                 let p = PathBuf::from(self.fields.project_path.trim());
-                self.open_project(&p);
+                self.request(Guarded::Open(p));
             }
             if ui.button("Save").clicked() {
                 let p = PathBuf::from(self.fields.project_path.trim());
@@ -227,8 +295,10 @@ impl StudioApp {
                 self.open_dialog(Purpose::SaveProject, ui.ctx());
             }
         });
+        let status = if self.has_unsaved_work() { "unsaved changes" } else { "saved" };
+        let label = ui.label(RichText::new(format!("{status} · autosaved")).weak().small());
         if let Some(p) = &self.autosave {
-            ui.label(RichText::new(format!("Autosave: {}", p.display())).weak().small());
+            label.on_hover_text(format!("Autosave: {}", p.display()));
         }
     }
 }

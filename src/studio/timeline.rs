@@ -54,7 +54,19 @@ pub struct TimelineState {
     drag: Option<Drag>,
     /// Pixels per second, held while a drag edits durations so the blocks don't rescale.
     frozen_scale: Option<f32>,
+    /// What the pointer is over, for the line under the timeline (tooltips there would cover
+    /// the transport bar).
+    hint: Option<String>,
 }
+
+impl TimelineState {
+    pub fn hint(&self) -> Option<&str> {
+        self.hint.as_deref()
+    }
+}
+
+/// Fill of a segment whose class the model does not have (no class colour is this dark).
+const UNKNOWN_FILL: Color32 = Color32::from_rgb(60, 40, 40);
 
 pub fn class_index(classes: &[String], name: &str) -> Option<usize> {
     classes.iter().position(|c| c.eq_ignore_ascii_case(name))
@@ -67,6 +79,7 @@ pub fn color32(rgb: [u8; 3]) -> Color32 {
 /// Draws the timeline in the available width; returns what the user did.
 pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) -> Vec<Action> {
     let mut actions = Vec::new();
+    state.hint = None;
     let width = ui.available_width().max(100.0);
     let (ruler_h, lane_h) = (20.0, 44.0);
     let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 6.0), Sense::hover());
@@ -92,7 +105,9 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
     }
     let ruler_resp = ui.interact(ruler, ui.scope_id().with("ruler"), Sense::click_and_drag()).on_hover_cursor(CursorIcon::Text);
     ruler_resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, "Timeline ruler"));
-    let ruler_resp = ruler_resp.on_hover_text("Click or drag to scrub; shift-drag to select a range");
+    if ruler_resp.hovered() {
+        state.hint = Some("Ruler: click or drag to scrub; shift-drag to select a range".into());
+    }
     if let Some(pos) = ruler_resp.interact_pointer_pos() {
         let f = frame_at(pos.x).min(input.frames.saturating_sub(1));
         if ruler_resp.drag_started() || ruler_resp.clicked() {
@@ -128,10 +143,11 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
         let (x0, x1) = (x_of(starts[k]), x_of(starts[k] + seg.seconds));
         let rect = Rect::from_min_max(pos2(x0 + 1.0, lane.top() + 2.0), pos2(x1 - 1.0, lane.bottom() - 2.0));
         let known = class_index(input.classes, &seg.class);
-        let fill = known.map_or(Color32::from_gray(90), |c| color32(class_color(c)));
+        let fill = known.map_or(UNKNOWN_FILL, |c| color32(class_color(c)));
+        let name = if known.is_some() { seg.class.clone() } else { format!("{}?", seg.class) };
         let label = match seg.pace {
-            Some(p) => format!("{} · {:.1}s · pace {p:.2}", seg.class, seg.seconds),
-            None => format!("{} · {:.1}s", seg.class, seg.seconds),
+            Some(p) => format!("{name} · {:.1}s · pace {p:.2}", seg.seconds),
+            None => format!("{name} · {:.1}s", seg.seconds),
         };
         let id = ui.scope_id().with(("segment", k));
         let resp = ui.interact(rect, id, Sense::click_and_drag());
@@ -149,7 +165,10 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
         painter.rect_stroke(rect, 4.0, stroke, StrokeKind::Inside);
         let text_painter = painter.with_clip_rect(rect.shrink(3.0));
         text_painter.text(rect.left_center() + vec2(6.0, 0.0), Align2::LEFT_CENTER, &label, FontId::proportional(13.0), Color32::WHITE);
-        let resp = resp.on_hover_text(format!("{label}\nDrag to reorder, drag the right edge to resize, right-click for more"));
+        if resp.hovered() {
+            let unknown = if known.is_none() { " · this model has no such class: right-click to choose one" } else { "" };
+            state.hint = Some(format!("Segment {}: {label}{unknown} · drag to reorder, drag the right edge to resize, right-click for more", k + 1));
+        }
         if resp.clicked() {
             actions.push(Action::Select(Some(k)));
         }
@@ -219,7 +238,13 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
                     let j = others[to - 1];
                     x_of(starts[j] + input.timeline.segments[j].seconds)
                 };
-                painter.line_segment([pos2(slot_x, lane.top()), pos2(slot_x, lane.bottom())], Stroke::new(3.0, Color32::WHITE));
+                // The insertion marker: a bar with a notch above and below.
+                let accent = Color32::from_rgb(255, 210, 80);
+                painter.line_segment([pos2(slot_x, lane.top() - 2.0), pos2(slot_x, lane.bottom() + 2.0)], Stroke::new(3.0, accent));
+                for (y, dy) in [(lane.top() - 2.0, 6.0), (lane.bottom() + 2.0, -6.0)] {
+                    painter.add(egui::Shape::convex_polygon(vec![pos2(slot_x - 6.0, y), pos2(slot_x + 6.0, y), pos2(slot_x, y + dy)], accent, Stroke::NONE));
+                }
+                state.hint = Some(format!("Release to move segment {} to position {}", index + 1, to + 1));
                 if released {
                     if to != index {
                         actions.push(Action::BeginEdit);

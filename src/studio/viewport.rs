@@ -73,6 +73,8 @@ const MAX_GHOSTS: usize = 32;
 /// Background (sRGB).
 const BACKGROUND: [u8; 3] = [30, 32, 38];
 
+const START_CAMERA: Camera = Camera { yaw: 0.6, pitch: 0.3, distance: 4.0, target: Vec3::new(0.0, 0.9, 0.0), pan: Vec3::ZERO };
+
 /// Camera state and interaction (orbit: drag, pan: right/middle drag or shift+drag, zoom:
 /// scroll, frame the take: double-click). Create once with [`Viewport::new`]; call
 /// [`Viewport::register`] once with the wgpu render state (eframe's `cc.wgpu_render_state`,
@@ -275,7 +277,7 @@ impl Viewport {
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         Self {
             id: egui::Id::unique(("glocal_viewport", NEXT_ID.fetch_add(1, Ordering::Relaxed))),
-            camera: Camera { yaw: 0.6, pitch: 0.3, distance: 4.0, target: Vec3::new(0.0, 0.9, 0.0), pan: Vec3::ZERO },
+            camera: START_CAMERA,
             reframe: true,
             was_following: None,
             layers: Vec::new(),
@@ -298,6 +300,12 @@ impl Viewport {
 
     /// Frames the whole scene on the next [`Viewport::ui`] (like a double-click).
     pub fn frame_all(&mut self) {
+        self.reframe = true;
+    }
+
+    /// Back to the starting view (angle and distance), framed on the take.
+    pub fn reset_camera(&mut self) {
+        self.camera = START_CAMERA;
         self.reframe = true;
     }
 
@@ -404,7 +412,8 @@ impl Viewport {
         }
         if response.hovered() {
             let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta.y, i.zoom_delta()));
-            let factor = (-scroll * 0.002).exp() / zoom.max(1e-3);
+            // A wheel notch (about 50 points) zooms by 5%.
+            let factor = (-scroll * 0.001).exp() / zoom.max(1e-3);
             cam.distance = (cam.distance * factor).clamp(0.2, 500.0);
         }
     }

@@ -7,6 +7,7 @@
 //! wanted (a newer edit, or the Cancel button), and queued requests that are no longer
 //! wanted are skipped.
 
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender, TryRecvError};
@@ -18,8 +19,8 @@ use anyhow::{Context as _, Result};
 use super::tsne;
 use crate::model::glocal::GlocalModel;
 use crate::model::spec::ModelSpec;
-use crate::motion::Motion;
-use crate::synth::export::export;
+use crate::motion::{Motion, Skeleton};
+use crate::synth::export::{export, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
 use crate::synth::{generate, GenerateOptions, InitPose, SegmentSpan};
@@ -29,7 +30,22 @@ pub struct ModelInfo {
     pub dir: PathBuf,
     pub spec: ModelSpec,
     pub seeds: Vec<SeedInfo>,
+    /// For each class, its seeds (as variants: positions among the class's seeds) from the
+    /// most typical of the class to the least (see [`typical_order`]).
+    pub typical: Vec<Vec<usize>>,
     pub has_locgen: bool,
+}
+
+impl ModelInfo {
+    /// The variant the studio offers as a class's `rank`-th start (0: the most typical).
+    pub fn typical_variant(&self, class: usize, rank: usize) -> usize {
+        self.typical.get(class).and_then(|v| v.get(rank)).copied().unwrap_or(0)
+    }
+
+    /// The rank of a class's `variant` in [`ModelInfo::typical`] (inverse of `typical_variant`).
+    pub fn typical_rank(&self, class: usize, variant: usize) -> usize {
+        self.typical.get(class).and_then(|v| v.iter().position(|&x| x == variant)).unwrap_or(0)
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -49,6 +65,8 @@ pub struct SeedMap {
 /// A generated take, ready to show.
 pub struct Take {
     pub id: u64,
+    /// The model folder it was generated with.
+    pub model_dir: PathBuf,
     pub motion: Arc<Motion>,
     pub segments: Vec<SegmentSpan>,
     /// Class colour of every frame.
@@ -60,12 +78,25 @@ pub struct Take {
     pub millis: f64,
 }
 
+#[derive(Clone)]
 pub enum Request {
     LoadModel(PathBuf),
     Generate { id: u64, options: GenerateOptions },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
-    Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf },
+    Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
+}
+
+impl Request {
+    /// The reply that reports this request's failure (a panic while serving it).
+    fn failure(&self, error: String) -> Reply {
+        match self {
+            Request::LoadModel(dir) => Reply::ModelFailed { dir: dir.clone(), error },
+            Request::Generate { id, .. } => Reply::GenerateFailed { id: *id, error, cancelled: false },
+            Request::CheckInit(init) => Reply::InitFailed { init: init.clone(), error },
+            Request::Export { path, .. } => Reply::ExportFailed { path: path.clone(), error },
+        }
+    }
 }
 
 pub enum Reply {
@@ -90,30 +121,53 @@ pub struct Worker {
     rx: Receiver<Reply>,
     wanted: Arc<AtomicU64>,
     next_id: u64,
+    ctx: egui::Context,
+    /// Requests that could not be sent because the worker thread was gone (it is started
+    /// again at once); the app reports them.
+    lost: usize,
+}
+
+/// The worker thread, listening on `requests`.
+fn start_thread(ctx: egui::Context, wanted: Arc<AtomicU64>) -> std::io::Result<(Sender<Request>, Receiver<Reply>)> {
+    let (tx, requests) = channel();
+    let (replies, rx) = channel();
+    let state = WorkerState { ctx, replies, wanted, model: None, map: None, last_blocks: None };
+    std::thread::Builder::new().name("glocal-worker".into()).spawn(move || state.run(&requests))?;
+    Ok((tx, rx))
 }
 
 impl Worker {
     pub fn spawn(ctx: egui::Context) -> Self {
-        let (tx, requests) = channel();
-        let (replies, rx) = channel();
         let wanted = Arc::new(AtomicU64::new(0));
-        let state = WorkerState { ctx, replies, wanted: wanted.clone(), model: None, map: None, last_blocks: None };
-        std::thread::Builder::new()
-            .name("glocal-worker".into())
-            .spawn(move || state.run(&requests))
-            .expect("cannot start the worker thread");
-        Self { tx, rx, wanted, next_id: 1 }
+        let (tx, rx) = start_thread(ctx.clone(), wanted.clone()).expect("cannot start the worker thread");
+        Self { tx, rx, wanted, next_id: 1, ctx, lost: 0 }
     }
 
-    pub fn load_model(&self, dir: PathBuf) {
-        let _ = self.tx.send(Request::LoadModel(dir));
+    /// Sends a request; if the worker thread is gone, starts a new one (without a model:
+    /// the app loads it again) and counts the request as lost.
+    fn send(&mut self, request: Request) {
+        if self.tx.send(request).is_err() {
+            self.lost += 1;
+            if let Ok((tx, rx)) = start_thread(self.ctx.clone(), self.wanted.clone()) {
+                (self.tx, self.rx) = (tx, rx);
+            }
+        }
+    }
+
+    /// How many requests were lost since the last call (see [`Worker::send`]).
+    pub fn take_lost(&mut self) -> usize {
+        std::mem::take(&mut self.lost)
+    }
+
+    pub fn load_model(&mut self, dir: PathBuf) {
+        self.send(Request::LoadModel(dir));
     }
 
     /// Starts a generation (cancelling any older one); returns its id.
     pub fn generate(&mut self, options: GenerateOptions) -> u64 {
         let id = self.fresh_id();
         self.wanted.store(id, Ordering::SeqCst);
-        let _ = self.tx.send(Request::Generate { id, options });
+        self.send(Request::Generate { id, options });
         id
     }
 
@@ -123,12 +177,12 @@ impl Worker {
         self.wanted.store(id, Ordering::SeqCst);
     }
 
-    pub fn check_init(&self, init: InitPose) {
-        let _ = self.tx.send(Request::CheckInit(init));
+    pub fn check_init(&mut self, init: InitPose) {
+        self.send(Request::CheckInit(init));
     }
 
-    pub fn export(&self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf) {
-        let _ = self.tx.send(Request::Export { motion, segments, path });
+    pub fn export(&mut self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf, options: ExportOptions, source: Arc<Skeleton>) {
+        self.send(Request::Export { motion, segments, path, options, source });
     }
 
     /// Every reply that has arrived.
@@ -154,11 +208,15 @@ struct WorkerState {
 }
 
 impl WorkerState {
-    fn send(&self, reply: Reply) {
-        let _ = self.replies.send(reply);
+    /// Sends a reply; false when the UI is gone (the worker then stops).
+    fn send(&self, reply: Reply) -> bool {
+        let sent = self.replies.send(reply).is_ok();
         self.ctx.request_repaint();
+        sent
     }
 
+    /// Serves requests until the UI goes away. A panic while serving one is caught and
+    /// reported as that request's failure; the worker keeps serving.
     fn run(mut self, requests: &Receiver<Request>) {
         loop {
             let request = match requests.try_recv() {
@@ -167,7 +225,10 @@ impl WorkerState {
                 Err(TryRecvError::Empty) => {
                     // Idle: build the seed map if the model has none yet, then wait.
                     if self.model.is_some() && self.map.is_none() {
-                        self.build_map();
+                        if catch_unwind(AssertUnwindSafe(|| self.build_map())).is_err() {
+                            self.map = Some((Vec::new(), Vec::new()));
+                            self.send(Reply::MapFailed("internal error while building the seed map".into()));
+                        }
                         continue;
                     }
                     match requests.recv() {
@@ -176,29 +237,42 @@ impl WorkerState {
                     }
                 }
             };
-            match request {
-                Request::LoadModel(dir) => self.load(dir),
-                Request::Generate { id, options } => {
-                    if self.wanted.load(Ordering::SeqCst) == id {
-                        self.generate(id, &options);
-                    }
-                }
-                Request::CheckInit(init) => {
-                    let reply = match self.model.as_ref().context("no model is loaded").and_then(|m| initial_features(m, &init)) {
-                        Ok(_) => Reply::InitOk(init),
-                        Err(e) => Reply::InitFailed { init, error: format!("{e:#}") },
-                    };
-                    self.send(reply);
-                }
-                Request::Export { motion, segments, path } => {
-                    let reply = match export(&motion, &segments, &path) {
-                        Ok(()) => Reply::Exported(path),
-                        Err(e) => Reply::ExportFailed { path, error: format!("{e:#}") },
-                    };
-                    self.send(reply);
-                }
+            let reply = match catch_unwind(AssertUnwindSafe(|| self.serve(request.clone()))) {
+                Ok(Some(reply)) => reply,
+                Ok(None) => continue,
+                Err(panic) => request.failure(format!("internal error ({}); the studio carries on, please report it", panic_text(panic.as_ref()))),
+            };
+            if !self.send(reply) {
+                return;
             }
         }
+    }
+
+    /// Serves one request; returns the reply still to send (generation and model loads
+    /// send theirs on the way).
+    fn serve(&mut self, request: Request) -> Option<Reply> {
+        match request {
+            Request::LoadModel(dir) => self.load(dir),
+            Request::Generate { id, options } => {
+                if self.wanted.load(Ordering::SeqCst) == id {
+                    self.generate(id, &options);
+                }
+            }
+            Request::CheckInit(init) => {
+                return Some(match self.model.as_ref().context("no model is loaded").and_then(|m| initial_features(m, &init)) {
+                    Ok(_) => Reply::InitOk(init),
+                    Err(e) => Reply::InitFailed { init, error: format!("{e:#}") },
+                });
+            }
+            Request::Export { motion, segments, path, options, source } => {
+                let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export(&m, &s, &path));
+                return Some(match written {
+                    Ok(()) => Reply::Exported(path),
+                    Err(e) => Reply::ExportFailed { path, error: format!("{e:#}") },
+                });
+            }
+        }
+        None
     }
 
     fn load(&mut self, dir: PathBuf) {
@@ -208,6 +282,7 @@ impl WorkerState {
                     dir: dir.clone(),
                     spec: model.spec.clone(),
                     seeds: model.seeds.iter().map(|s| SeedInfo { class: s.class, clip: s.clip.clone(), frame: s.frame }).collect(),
+                    typical: typical_order(&model),
                     has_locgen: model.has_locgen(),
                 };
                 self.model = Some(model);
@@ -216,7 +291,9 @@ impl WorkerState {
                 self.send(Reply::ModelLoaded(Arc::new(info)));
             }
             // The model in use, if any, stays.
-            Err(e) => self.send(Reply::ModelFailed { dir, error: format!("{e:#}") }),
+            Err(e) => {
+                self.send(Reply::ModelFailed { dir, error: format!("{e:#}") });
+            }
         }
     }
 
@@ -251,6 +328,7 @@ impl WorkerState {
                 }
                 let take = Take {
                     id,
+                    model_dir: model.dir.clone(),
                     motion: Arc::new(g.motion),
                     segments: g.segments,
                     frame_colors: Arc::new(colors),
@@ -291,6 +369,36 @@ impl WorkerState {
             }
         }
     }
+}
+
+/// The text of a caught panic.
+fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
+    panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_else(|| "a panic".into())
+}
+
+/// For each class, its seed windows ordered from the most typical to the least: by mean
+/// distance (normalised features) to the class's other windows. A class's first window is
+/// often the start of a clip (a "sitting" clip starts standing), so the medoid, not the first,
+/// is what a start "by class" should look like.
+pub fn typical_order(model: &GlocalModel) -> Vec<Vec<usize>> {
+    let normalized: Vec<(usize, Vec<f32>)> = model
+        .seeds
+        .iter()
+        .map(|s| {
+            let mut f = s.features.clone();
+            model.spec.sparse_norm.normalize(&mut f);
+            (s.class, f)
+        })
+        .collect();
+    (0..model.spec.classes.len())
+        .map(|class| {
+            let mine: Vec<&Vec<f32>> = normalized.iter().filter(|(c, _)| *c == class).map(|(_, f)| f).collect();
+            let spread = |a: &Vec<f32>| mine.iter().map(|b| a.iter().zip(b.iter()).map(|(x, y)| (x - y) * (x - y)).sum::<f32>().sqrt()).sum::<f32>();
+            let mut order: Vec<(usize, f32)> = mine.iter().enumerate().map(|(k, f)| (k, spread(f))).collect();
+            order.sort_by(|a, b| a.1.total_cmp(&b.1));
+            order.into_iter().map(|(k, _)| k).collect()
+        })
+        .collect()
 }
 
 /// GloGen's encoder embedding of every seed, each under its own class.

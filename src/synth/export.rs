@@ -17,7 +17,7 @@ use crate::model::spec::ModelSpec;
 use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::write::write_atomic;
 use crate::motion::contacts::FootContacts;
-use crate::motion::{Motion, Skeleton};
+use crate::motion::{LocalPose, Motion, Skeleton};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExportFormat {
@@ -157,4 +157,128 @@ pub fn parse_json_take(bytes: &[u8], name: &str) -> Result<(Motion, Vec<SegmentS
     let motion = Motion::from_positions(Arc::new(skeleton), take.fps, positions);
     check_plausible(&motion, name, &motion.skeleton)?;
     Ok((motion, take.segments))
+}
+
+/// Length unit of an export.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+pub enum Units {
+    /// Metres: what game engines (and Blender's scene unit) expect.
+    Metres,
+    Centimetres,
+    /// The model's own unit (Human3.6M millimetres, Bandai centimetres).
+    Native,
+}
+
+impl Units {
+    /// Metres per unit of a take written in these units (`native`: the take's own).
+    pub fn meters_per_unit(self, native: f32) -> f32 {
+        match self {
+            Units::Metres => 1.0,
+            Units::Centimetres => 0.01,
+            Units::Native => native,
+        }
+    }
+}
+
+/// What pipelines ask of an exported take besides its format.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExportOptions {
+    pub units: Units,
+    /// Frame rate of the file (None: the model's own).
+    pub fps: Option<f32>,
+    /// Put back the source skeleton's root joint the model dropped (Bandai's `joint_Root`).
+    pub source_root: bool,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        Self { units: Units::Metres, fps: None, source_root: false }
+    }
+}
+
+/// The take in `meters_per_unit` units: offsets, positions and root translations scaled.
+pub fn in_units(motion: &Motion, meters_per_unit: f32) -> Result<Motion> {
+    let s = &motion.skeleton;
+    let k = s.meters_per_unit() / meters_per_unit;
+    if !(k.is_finite() && k > 0.0) {
+        bail!("cannot convert a take from {} to {meters_per_unit} metres per unit", s.meters_per_unit());
+    }
+    let skeleton = Arc::new(Skeleton::new(s.names().to_vec(), s.parents().to_vec(), s.offsets().iter().map(|o| *o * k).collect(), meters_per_unit)?);
+    let mut out = match &motion.local_poses {
+        Some(poses) => {
+            let scaled = poses.iter().map(|p| LocalPose { rotations: p.rotations.clone(), translations: p.translations.iter().map(|t| *t * k).collect() }).collect();
+            Motion::from_local_poses(skeleton, motion.fps, scaled)
+        }
+        None => Motion::from_positions(skeleton, motion.fps, motion.positions().iter().map(|p| *p * k).collect()),
+    };
+    out.fps = motion.fps;
+    Ok(out)
+}
+
+/// The take resampled to `fps` for export, with its segment spans moved to the new frames.
+pub fn resampled(motion: &Motion, segments: &[SegmentSpan], fps: f32) -> Result<(Motion, Vec<SegmentSpan>)> {
+    if !(fps.is_finite() && (1.0..=1000.0).contains(&fps)) {
+        bail!("export frame rate {fps}: expected 1 to 1000 fps");
+    }
+    let out = motion.resample(fps);
+    let (n, ratio) = (out.frames(), f64::from(fps) / f64::from(motion.fps));
+    let frame = |f: usize| ((f as f64 * ratio).round() as usize).min(n);
+    let spans = segments.iter().map(|s| SegmentSpan { start_frame: frame(s.start_frame), end_frame: frame(s.end_frame), ..s.clone() }).collect();
+    Ok((out, spans))
+}
+
+/// The take with `source`'s root joint put back above the model's root, when the model
+/// dropped it (Bandai's placement handle `joint_Root`); None when the roots are the same.
+/// The handle follows the hips on the ground (their projection at height 0, no rotation),
+/// as in the source data; the hips keep their motion under it.
+pub fn with_source_root(motion: &Motion, source: &Skeleton) -> Result<Option<Motion>> {
+    // Joint 0 is a skeleton's root.
+    let s = &motion.skeleton;
+    let root = 0;
+    if source.names()[0] == s.names()[root] {
+        return Ok(None);
+    }
+    let names = std::iter::once(source.names()[0].clone()).chain(s.names().iter().cloned()).collect();
+    let parents = std::iter::once(None).chain(s.parents().iter().map(|p| Some(p.map_or(0, |p| p + 1)))).collect();
+    let offsets = std::iter::once(Vec3::ZERO).chain(s.offsets().iter().copied()).collect();
+    let skeleton = Arc::new(Skeleton::new(names, parents, offsets, s.meters_per_unit())?);
+    let solved;
+    let poses = match &motion.local_poses {
+        Some(p) if p.len() == motion.frames() => p,
+        _ => {
+            solved = crate::motion::solve_local_poses(s, motion.positions());
+            &solved
+        }
+    };
+    let poses = poses
+        .iter()
+        .enumerate()
+        .map(|(t, p)| {
+            let hips = motion.frame(t)[root];
+            let handle = Vec3::new(hips.x, 0.0, hips.z);
+            let mut translations = vec![handle];
+            translations.extend(p.translations.iter().enumerate().map(|(j, &v)| if j == root { v - handle } else { v }));
+            let mut rotations = vec![glam::Quat::IDENTITY];
+            rotations.extend(p.rotations.iter().copied());
+            LocalPose { rotations, translations }
+        })
+        .collect();
+    Ok(Some(Motion::from_local_poses(skeleton, motion.fps, poses)))
+}
+
+/// The take as `options` ask, set on the floor first so units and the added root agree
+/// with what [`export`] writes. `source` is the model's source skeleton (for the root).
+pub fn prepare(motion: &Motion, segments: &[SegmentSpan], options: &ExportOptions, source: &Skeleton) -> Result<(Motion, Vec<SegmentSpan>)> {
+    let mut m = motion.translated(Vec3::new(0.0, -motion.floor_height(), 0.0));
+    let mut spans = segments.to_vec();
+    if let Some(fps) = options.fps.filter(|f| (f - motion.fps).abs() > 1e-3) {
+        (m, spans) = resampled(&m, &spans, fps)?;
+    }
+    if options.source_root {
+        if let Some(rooted) = with_source_root(&m, source)? {
+            m = rooted;
+        }
+    }
+    let unit = options.units.meters_per_unit(m.skeleton.meters_per_unit());
+    Ok((in_units(&m, unit)?, spans))
 }

@@ -16,7 +16,8 @@ use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTE
 use crate::data::npy::{motion_from_npy, read_npy};
 use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
-use crate::motion::Motion;
+use crate::motion::{Motion, Skeleton};
+use super::export::in_units;
 
 /// Where the first sparse poses come from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -67,6 +68,32 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
     }
 }
 
+/// A BVH exported in metres or centimetres (`glocal generate --units`) read as if in the
+/// model's unit: rescaled by the power of ten that makes its bones the model's length.
+fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
+    let s = &m.skeleton;
+    let mut ratios: Vec<f32> = (0..s.len())
+        .filter_map(|j| {
+            let k = model.index_of(&s.names()[j])?;
+            let (a, b) = (model.offsets()[k].length(), s.offsets()[j].length());
+            (j > 0 && k > 0 && a > 0.0 && b > 0.0).then_some(a / b)
+        })
+        .collect();
+    if ratios.is_empty() {
+        return Ok(m);
+    }
+    ratios.sort_by(f32::total_cmp);
+    let ratio = ratios[ratios.len() / 2];
+    let power = ratio.log10().round();
+    if power == 0.0 || power.abs() > 3.0 || (ratio.log10() - power).abs() > 0.02 {
+        return Ok(m);
+    }
+    let skeleton = Skeleton::new(s.names().to_vec(), s.parents().to_vec(), s.offsets().to_vec(), s.meters_per_unit() * 10f32.powf(power))?;
+    let mut file = m;
+    file.skeleton = Arc::new(skeleton);
+    in_units(&file, model.meters_per_unit())
+}
+
 /// Reads a BVH, NPY or exponential-map file and brings it onto the model's joints and
 /// frame rate; a BVH of another humanoid skeleton is retargeted onto the model's joints.
 pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion> {
@@ -78,6 +105,7 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
         "bvh" => {
             let text = read_text(path, MAX_MOTION_BYTES)?;
             let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit())?;
+            let m = in_model_units(m, &spec.source_skeleton)?;
             check_plausible(&m, &name, &spec.source_skeleton)?;
             // A take this model exported is on its own joints already.
             if m.skeleton.differences(&spec.layout.skeleton).is_empty() {

@@ -1,5 +1,6 @@
 //! Synthesis: timelines of activities, pace, long-term generation and export.
 
+pub mod class_map;
 pub mod export;
 pub mod foot_lock;
 pub mod generate;

@@ -14,7 +14,8 @@ use crate::motion::{floor_height, JointRoles, Motion};
 
 /// A palette of distinct colours for classes, shared by the sheet and the studio.
 pub fn class_color(class: usize) -> [u8; 3] {
-    // Tableau's 10 categorical colours, then two more distinct ones.
+    // Tableau's 10 categorical colours (its grey replaced by teal: grey is how the studio
+    // shows a segment of an unknown class), then two more distinct ones.
     const PALETTE: [[u8; 3]; 12] = [
         [31, 119, 180],
         [255, 127, 14],
@@ -23,7 +24,7 @@ pub fn class_color(class: usize) -> [u8; 3] {
         [148, 103, 189],
         [140, 86, 75],
         [227, 119, 194],
-        [127, 127, 127],
+        [0, 140, 110],
         [188, 189, 34],
         [23, 190, 207],
         [255, 215, 0],
