@@ -128,8 +128,11 @@ fn contacts_on_real_walking() {
 /// bone lengths exact; and the lock leaves far less slide than the network's own take.
 #[test]
 fn foot_lock_plants_generated_walking() {
-    for (name, class) in [("h36m", "walking"), ("bandai", "walk")] {
+    // The shipped Bandai model leaves its takes unlocked (its spec's `foot_lock`: the few
+    // locks that engage on its sliding feet doubled the peak jerk), so the lock is judged on h36m.
+    for (name, class) in [("h36m", "walking")] {
         let mut m = model(name);
+        assert!(m.spec.foot_lock, "{name} locks its feet by default");
         let opts = GenerateOptions { timeline: format!("{class}:8").parse().unwrap(), init: InitPose::SeedClass { class: class.into(), variant: 0 }, seed: 1, variation: 0.05, ..Default::default() };
         assert!(opts.foot_lock, "the foot lock is on by default");
         let g = generate(&mut m, &opts, &mut |_| true).unwrap();

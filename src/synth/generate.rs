@@ -258,9 +258,8 @@ impl SparseTimeline {
     }
 }
 
-/// A context being eased towards a real window of its class: by `strength * step / blocks`
-/// at the `step`-th of `blocks` blocks, so a class change ends on a real window of the new
-/// class (the seam join keeps the replacement from popping).
+/// A context being eased towards a real window of its class, by a growing share at each of
+/// its `blocks` blocks (the seam join keeps the easing from popping).
 struct Easing {
     /// A class change (not a keep-alive).
     change: bool,
@@ -319,7 +318,10 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         since_anchor += 1;
         if let Some(e) = easing.as_mut() {
             e.step += 1;
-            let alpha = (e.strength * e.step as f32 / (e.blocks - 1).max(1) as f32).min(1.0);
+            // A class change ends on the new class's window; a keep-alive only leans towards
+            // its window, so the take never becomes a copy of the seed bank.
+            let reach = if e.change { (e.blocks - 1).max(1) } else { e.blocks + 1 };
+            let alpha = (e.strength * e.step as f32 / reach as f32).min(1.0);
             input.iter_mut().zip(&e.anchor).for_each(|(v, a)| *v += alpha * (a - *v));
             if e.step == e.blocks {
                 easing = None;
