@@ -252,7 +252,7 @@ impl SparseTimeline {
                 let segment = self.segment_at(t + b * t + t / 2);
                 let target = self.classes[segment];
                 let ease_blocks = ease_of(segment);
-                BlockPlan { class: if class.iter().all(|v| *v == 0.0) { model.class_vector(target) } else { class }, target, ease_blocks }
+                BlockPlan { class, target, ease_blocks }
             })
             .collect()
     }
@@ -288,7 +288,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         InitPose::File { .. } => None,
     };
     let mut easing: Option<Easing> = None;
-    let typical_motion = class_motion(model);
+    let bank = AnchorBank::new(model);
     let mut since_anchor = 0;
     let mut last_anchor = None;
     let mut sparse = seed_raw;
@@ -301,14 +301,14 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         let context = &sparse[sparse.len() - t * dim..];
         let mut input = context.to_vec();
         let previous = context[context.len() - 2 * dim..].to_vec();
-        let motion = pose_motion(&input, dim) / typical_motion[plan.target].max(f32::EPSILON);
+        let motion = pose_motion(&input, dim) / bank.typical[plan.target].max(f32::EPSILON);
         let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && !(STALL_BELOW..=RUSH_ABOVE).contains(&motion);
         let switching = plan.ease_blocks > 0 && context_class != Some(plan.target);
         let changing = switching || easing.as_ref().is_some_and(|e| e.change);
         if easing.is_none() && (switching || stalled) {
             let (blocks, strength) = if switching { (plan.ease_blocks, 1.0) } else { (KEEP_ALIVE_EASE, anchors.random_range(KEEP_ALIVE_STRENGTH)) };
-            let lively = if switching { 0.0 } else { typical_motion[plan.target] };
-            easing = pick_anchor(model, plan.target, lively, &mut anchors, last_anchor).map(|(k, anchor)| {
+            let lively = if switching { 0.0 } else { bank.typical[plan.target] };
+            easing = bank.pick(plan.target, lively, &mut anchors, last_anchor).map(|(k, anchor)| {
                 last_anchor = Some(k);
                 Easing { change: switching, anchor, step: 0, blocks, strength }
             });
@@ -380,28 +380,41 @@ fn segment_spans(timeline: &SparseTimeline, names: &[String], interval_starts: &
     segments
 }
 
-/// A random normalised seed-bank window of `class` whose [`pose_motion`] is at least
-/// `min_motion` (a keep-alive wants a window that moves: re-anchoring a stalled take on a
-/// still window of the class keeps it still), another than `avoid` where there is a choice,
-/// with its index.
-fn pick_anchor(model: &GlocalModel, class: usize, min_motion: f32, rng: &mut StdRng, avoid: Option<usize>) -> Option<(usize, Vec<f32>)> {
-    let dim = model.spec.layout.dim();
-    let windows: Vec<(usize, Vec<f32>)> = model
-        .seeds
-        .iter()
-        .filter(|s| s.class == class)
-        .map(|s| {
-            let mut w = s.features.clone();
-            model.spec.sparse_norm.normalize(&mut w);
-            w
-        })
-        .enumerate()
-        .collect();
-    let lively: Vec<&(usize, Vec<f32>)> = windows.iter().filter(|(_, w)| pose_motion(w, dim) >= min_motion).collect();
-    let pool: Vec<&(usize, Vec<f32>)> = if lively.is_empty() { windows.iter().collect() } else { lively };
-    let fresh: Vec<&&(usize, Vec<f32>)> = pool.iter().filter(|(k, _)| Some(*k) != avoid).collect();
-    let choice = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
-    Some(choice.clone())
+/// The seed bank as anchors: each class's windows normalised once, with their
+/// [`pose_motion`], and the class's typical motion (the mean over its windows).
+struct AnchorBank {
+    /// Per class: (normalised window, its motion), in seed-bank order.
+    windows: Vec<Vec<(Vec<f32>, f32)>>,
+    typical: Vec<f32>,
+}
+
+impl AnchorBank {
+    fn new(model: &GlocalModel) -> Self {
+        let dim = model.spec.layout.dim();
+        let mut windows = vec![Vec::new(); model.spec.classes.len()];
+        for seed in &model.seeds {
+            let mut window = seed.features.clone();
+            model.spec.sparse_norm.normalize(&mut window);
+            if let Some(w) = windows.get_mut(seed.class) {
+                let motion = pose_motion(&window, dim);
+                w.push((window, motion));
+            }
+        }
+        let typical = windows.iter().map(|w| if w.is_empty() { 0.0 } else { w.iter().map(|(_, m)| m).sum::<f32>() / w.len() as f32 }).collect();
+        Self { windows, typical }
+    }
+
+    /// A random window of `class` whose motion is at least `min_motion` (a keep-alive wants
+    /// a window that moves: re-anchoring a stalled take on a still window of the class keeps
+    /// it still), another than `avoid` where there is a choice, with its index.
+    fn pick(&self, class: usize, min_motion: f32, rng: &mut StdRng, avoid: Option<usize>) -> Option<(usize, Vec<f32>)> {
+        let windows: Vec<(usize, &(Vec<f32>, f32))> = self.windows.get(class)?.iter().enumerate().collect();
+        let lively: Vec<&(usize, &(Vec<f32>, f32))> = windows.iter().filter(|(_, (_, m))| *m >= min_motion).collect();
+        let pool = if lively.is_empty() { windows.iter().collect() } else { lively };
+        let fresh: Vec<_> = pool.iter().filter(|(k, _)| Some(*k) != avoid).collect();
+        let &(k, (window, _)) = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
+        Some((k, window.clone()))
+    }
 }
 
 /// Mean distance between consecutive poses of a normalised sparse window, over the joint
@@ -410,20 +423,6 @@ fn pose_motion(window: &[f32], dim: usize) -> f32 {
     let poses: Vec<&[f32]> = window.chunks_exact(dim).collect();
     let steps = poses.windows(2).map(|p| p[0][ROOT_FEATURES..].iter().zip(&p[1][ROOT_FEATURES..]).map(|(a, b)| (a - b) * (a - b)).sum::<f32>().sqrt());
     steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
-}
-
-/// Each class's typical [`pose_motion`]: the mean over its seed-bank windows.
-fn class_motion(model: &GlocalModel) -> Vec<f32> {
-    let dim = model.spec.layout.dim();
-    let mut sums = vec![(0.0f32, 0usize); model.spec.classes.len()];
-    for seed in &model.seeds {
-        let mut window = seed.features.clone();
-        model.spec.sparse_norm.normalize(&mut window);
-        if let Some(s) = sums.get_mut(seed.class) {
-            *s = (s.0 + pose_motion(&window, dim), s.1 + 1);
-        }
-    }
-    sums.into_iter().map(|(s, n)| if n == 0 { 0.0 } else { s / n as f32 }).collect()
 }
 
 /// Stretches each sparse interval (native `stride` frames) to `stride * pace` frames at the
