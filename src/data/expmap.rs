@@ -162,7 +162,9 @@ fn level_to_vertical(motion: &Motion) -> Motion {
         up += (f[neck] - f[0]).normalize_or_zero();
     }
     let by_torso = Quat::from_rotation_arc(up.normalize_or(Vec3::Y), Vec3::Y);
-    let torso_levelled = rotate_about_origin(motion, by_torso, Vec3::ZERO);
+    // The fit needs positions only: rotating them is the same as rotating the root, without
+    // a second forward-kinematics pass over the take.
+    let torso_levelled = Motion::from_positions(motion.skeleton.clone(), motion.fps, motion.positions().iter().map(|p| by_torso * *p).collect());
     let toes: Vec<usize> = JointRoles::new(&motion.skeleton).map(|r| [r.left.toe, r.right.toe].into_iter().flatten().collect()).unwrap_or_default();
     let (fix, floor) = match fit_floor(&torso_levelled, &toes) {
         Some(floor) => (floor.levelling * by_torso, floor.height),
