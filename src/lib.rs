@@ -11,4 +11,5 @@ pub mod synth;
 pub mod eval;
 pub mod motion;
 pub mod cli;
+#[cfg(feature = "studio")]
 pub mod studio;

@@ -1,6 +1,7 @@
-//! Retargeting with real files: BVH files of three other conventions (CMU dance's acLSTM
-//! names with fingers, a Mixamo-named A-pose rig written from a Bandai clip, and the CMU
-//! database's ASF names on its own skeleton) start takes on both shipped models with the
+//! Retargeting with real files: BVH files of four other conventions (CMU dance's acLSTM
+//! names with fingers, a Mixamo-named A-pose rig written from a Bandai clip, the CMU
+//! database's ASF names on its own skeleton, and Unreal mannequin names on an A-pose rig as
+//! Blender's own exporter writes it) start takes on both shipped models with the
 //! source's pose; a take written onto the CMU skeleton reads back with its bones, frames and
 //! rate; a skeleton that cannot be mapped is refused in one line naming what is missing.
 
@@ -119,6 +120,14 @@ fn cmu_asf(dir: &Path) -> PathBuf {
     write(dir, "cmu-asf-soccer.bvh", &write_bvh(&motion, None))
 }
 
+/// A CMU salsa clip written by Blender's own BVH exporter (not ours) onto a rig with Unreal
+/// mannequin names (pelvis, spine_01, upperarm_l, calf_l, ball_l, ...), an unanimated `root`
+/// on the floor, an A-pose rest, position channels on every joint, 60 fps
+/// (tests/blender/make_foreign_bvh.py; tests/assets/README.md).
+fn blender_unreal() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/assets/blender-unreal-salsa.bvh")
+}
+
 fn keys_of(skeleton: &Skeleton) -> KeyJoints {
     key_joints(skeleton, None, "test").unwrap_or_else(|e| panic!("{e:#}"))
 }
@@ -140,7 +149,7 @@ fn mean_bone_angle(bones: &[(Key, Key)], a: &[Vec3], ak: &KeyJoints, b: &[Vec3],
 #[test]
 fn foreign_bvh_files_start_takes_on_both_models() {
     let dir = tempfile::tempdir().unwrap();
-    let sources = [(cmu_dance(dir.path()), 200), (mixamo_from_bandai(dir.path(), &MIXAMO_NAMES), 100), (cmu_asf(dir.path()), 30)];
+    let sources = [(cmu_dance(dir.path()), 200), (mixamo_from_bandai(dir.path(), &MIXAMO_NAMES), 100), (cmu_asf(dir.path()), 30), (blender_unreal(), 20)];
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
         let target = m.spec.layout.skeleton.clone();
@@ -170,6 +179,7 @@ fn rest_poses_of_the_conventions_are_detected() {
     };
     assert_eq!(rest(cmu_dance(dir.path())), RestPose::TPose);
     assert_eq!(rest(mixamo_from_bandai(dir.path(), &MIXAMO_NAMES)), RestPose::APose);
+    assert_eq!(rest(blender_unreal()), RestPose::APose);
     let bandai = model("bandai").spec.layout.skeleton;
     assert_eq!(RestPose::detect(&bandai, &keys_of(&bandai)), RestPose::Other, "Bandai's rest is not a standing pose");
 }

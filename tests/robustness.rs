@@ -505,7 +505,7 @@ fn readers_survive_a_fixed_corpus_of_mutated_real_files() {
         (
             "project",
             &project,
-            Box::new(|b| Project::from_json(&String::from_utf8_lossy(b), "m.glocal").map_or(true, |p| p.timeline.segments.iter().all(|s| s.seconds > 0.0 && s.seconds.is_finite()))),
+            Box::new(|b| Project::from_json(&String::from_utf8_lossy(b), "m.glocal").map_or(true, |p| p.options.timeline.segments.iter().all(|s| s.seconds > 0.0 && s.seconds.is_finite()))),
         ),
         ("model.json", &model_json, Box::new(|b| ModelSpec::from_json(&String::from_utf8_lossy(b), "model.json").map_or(true, |s| s.validate().is_ok()))),
     ];

@@ -183,16 +183,16 @@ fn adding_a_segment_and_changing_its_class_regenerates() {
     let mut h = harness("add");
     wait_ready(&mut h);
     let before = frames(&h);
-    assert_eq!(h.state().project().timeline.segments.len(), 2);
+    assert_eq!(h.state().project().options.timeline.segments.len(), 2);
     h.get_by_label("+ Add segment").click();
-    wait(&mut h, "the segment", |a| a.project().timeline.segments.len() == 3);
+    wait(&mut h, "the segment", |a| a.project().options.timeline.segments.len() == 3);
     // Change the new segment's class through its context menu on the timeline.
     h.get_by_label("Segment 3: directions").click_secondary();
     h.run_ok();
     h.get_by_label("Class").hover();
     h.run_ok();
     h.get_by_role_and_label(egui::accesskit::Role::Button, "sitting").click();
-    wait(&mut h, "the class change", |a| a.project().timeline.segments[2].class == "sitting");
+    wait(&mut h, "the class change", |a| a.project().options.timeline.segments[2].class == "sitting");
     wait(&mut h, "the regenerated take", |a| a.take().is_some_and(|t| t.segments.len() == 3) && !a.is_busy());
     let app = h.state();
     let take = app.take().unwrap();
@@ -203,10 +203,10 @@ fn adding_a_segment_and_changing_its_class_regenerates() {
     // Undo and redo from the keyboard.
     h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
     h.step();
-    assert_eq!(h.state().project().timeline.segments[2].class, "directions");
+    assert_eq!(h.state().project().options.timeline.segments[2].class, "directions");
     h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
     h.step();
-    assert_eq!(h.state().project().timeline.segments[2].class, "sitting");
+    assert_eq!(h.state().project().options.timeline.segments[2].class, "sitting");
 }
 
 #[test]
@@ -242,33 +242,33 @@ fn projects_save_load_and_refuse_bad_files() {
     wait_ready(&mut h);
     let path = dir.join("p.json");
     assert!(h.state_mut().save_project(&path));
-    let saved = h.state().project().timeline.clone();
+    let saved = h.state().project().options.timeline.clone();
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(text.contains("\"version\": 1"), "readable JSON with a version");
+    assert!(text.contains("\"version\": 2"), "readable JSON with a version");
     // Change the timeline, then load the file back.
     h.state_mut().add_segment();
     h.step();
-    assert_ne!(h.state().project().timeline, saved);
+    assert_ne!(h.state().project().options.timeline, saved);
     assert!(h.state_mut().open_project(&path));
     h.step();
-    assert_eq!(h.state().project().timeline, saved);
+    assert_eq!(h.state().project().options.timeline, saved);
 
     // A broken and a newer file: an error in the UI, the timeline untouched.
     h.state_mut().add_segment();
     h.step();
-    let current = h.state().project().timeline.clone();
+    let current = h.state().project().options.timeline.clone();
     let broken = dir.join("broken.json");
     std::fs::write(&broken, "{ \"version\": 1, \"timeline\": [oops").unwrap();
     assert!(!h.state_mut().open_project(&broken));
     h.run_ok();
-    assert_eq!(h.state().project().timeline, current);
+    assert_eq!(h.state().project().options.timeline, current);
     assert!(has_error(h.state(), "Could not open the project"));
     assert!(shows(&h, "Could not open the project"), "the error is visible");
     let newer = dir.join("newer.json");
-    std::fs::write(&newer, text.replace("\"version\": 1", "\"version\": 7")).unwrap();
+    std::fs::write(&newer, text.replace("\"version\": 2", "\"version\": 7")).unwrap();
     assert!(!h.state_mut().open_project(&newer));
     h.run_ok();
-    assert_eq!(h.state().project().timeline, current);
+    assert_eq!(h.state().project().options.timeline, current);
     assert!(has_error(h.state(), "newer than this studio understands"));
     assert!(shows(&h, "newer than this studio understands"));
 }
@@ -279,7 +279,7 @@ fn bad_input_gives_messages_and_keeps_the_work() {
     let dir = temp_dir("bad");
     let mut h = harness("bad");
     wait_ready(&mut h);
-    let timeline = h.state().project().timeline.clone();
+    let timeline = h.state().project().options.timeline.clone();
     let take_frames = frames(&h);
 
     // An unwritable export path, through the Export button.
@@ -304,14 +304,14 @@ fn bad_input_gives_messages_and_keeps_the_work() {
         "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n JOINT Head\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 5 0\n  }\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.04\n0 0 0 0 0 0 0 0 0\n0 0 0 0 0 0 0 0 0\n",
     )
     .unwrap();
-    let init = h.state().project().init.clone();
+    let init = h.state().project().options.init.clone();
     h.state_mut().use_init_file(bvh, 0);
     wait(&mut h, "the initial pose error", |a| has_error(a, "cannot start a take"));
     h.run_ok();
     assert!(shows(&h, "cannot start a take"));
-    assert_eq!(h.state().project().init, init);
+    assert_eq!(h.state().project().options.init, init);
 
-    assert_eq!(h.state().project().timeline, timeline, "the timeline is untouched");
+    assert_eq!(h.state().project().options.timeline, timeline, "the timeline is untouched");
     assert_eq!(frames(&h), take_frames, "the take is untouched");
 }
 
@@ -399,15 +399,15 @@ fn by_class_starts_from_a_pose_of_that_class() {
     let standing = hip_height(&h.state().take().unwrap().motion, 0);
     h.get_by_label("By class").click_accesskit();
     h.run_ok();
-    assert!(matches!(h.state().project().init, glocal::synth::InitPose::SeedClass { .. }), "choosing the tab applies it");
+    assert!(matches!(h.state().project().options.init, glocal::synth::InitPose::SeedClass { .. }), "choosing the tab applies it");
     h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "Start class").click_accesskit();
     h.run_ok();
     h.get_by_role_and_label(egui::accesskit::Role::Button, "sitting").click();
     h.run_ok();
-    let glocal::synth::InitPose::SeedClass { class, variant } = h.state().project().init.clone() else { panic!("not a class start") };
+    let glocal::synth::InitPose::SeedClass { class, variant } = h.state().project().options.init.clone() else { panic!("not a class start") };
     assert_eq!(class, "sitting");
     assert_ne!(variant, 0, "the class's first seed window (the start of a clip, standing) is not its typical one");
-    wait(&mut h, "the sitting start", |a| a.take().is_some_and(|t| t.options.init == a.project().init) && !a.is_busy());
+    wait(&mut h, "the sitting start", |a| a.take().is_some_and(|t| t.options.init == a.project().options.init) && !a.is_busy());
     let sitting = hip_height(&h.state().take().unwrap().motion, 0);
     assert!(sitting < 0.75 * standing, "a sitting start has the hips low: {sitting:.0} against {standing:.0} standing");
 }
@@ -427,7 +427,7 @@ fn ctrl_z_in_a_text_field_undoes_the_typing_only() {
     assert!(h.state_mut().fields_mut().export_path.ends_with("xyz"));
     h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
     h.run_ok();
-    assert_eq!(h.state().project().timeline.segments.len(), 3, "the project edit stays");
+    assert_eq!(h.state().project().options.timeline.segments.len(), 3, "the project edit stays");
     assert!(!h.state_mut().fields_mut().export_path.ends_with("xyz"), "the typing is undone");
 }
 
@@ -448,10 +448,10 @@ fn new_and_open_ask_before_discarding_unsaved_work() {
     };
     menu(&mut h);
     assert!(shows(&h, "Unsaved changes"), "New asks");
-    assert_eq!(h.state().project().timeline.segments.len(), 3, "nothing is discarded yet");
+    assert_eq!(h.state().project().options.timeline.segments.len(), 3, "nothing is discarded yet");
     h.get_by_label("Discard changes").click();
     h.run_ok();
-    assert_eq!(h.state().project().timeline.segments.len(), 2, "a new project");
+    assert_eq!(h.state().project().options.timeline.segments.len(), 2, "a new project");
     assert!(!shows(&h, "Unsaved changes"));
 
     // Open with unsaved work: "Save first" saves, then opens.
@@ -468,8 +468,8 @@ fn new_and_open_ask_before_discarding_unsaved_work() {
     assert!(shows(&h, "Unsaved changes"), "Open asks");
     h.get_by_label("Save first").click();
     h.run_ok();
-    assert_eq!(glocal::studio::project::Project::load(&mine).unwrap().timeline.segments.len(), 3, "the work was saved");
-    assert_eq!(h.state().project().timeline.segments.len(), 2, "then the other project opened");
+    assert_eq!(glocal::studio::project::Project::load(&mine).unwrap().options.timeline.segments.len(), 3, "the work was saved");
+    assert_eq!(h.state().project().options.timeline.segments.len(), 2, "then the other project opened");
     assert!(has_message(h.state(), &format!("Opened {}", other.display())), "{:?}", h.state().messages().all());
 }
 
@@ -492,26 +492,26 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     h.state_mut().export_to(clip.clone());
     wait(&mut h, "the export", |_| clip.exists());
     h.state_mut().use_init_file(clip.clone(), 0);
-    wait(&mut h, "the file start", |a| matches!(a.project().init, glocal::synth::InitPose::File { .. }));
-    let before: Vec<f32> = h.state().project().timeline.segments.iter().map(|s| s.seconds).collect();
+    wait(&mut h, "the file start", |a| matches!(a.project().options.init, glocal::synth::InitPose::File { .. }));
+    let before: Vec<f32> = h.state().project().options.timeline.segments.iter().map(|s| s.seconds).collect();
 
     h.get_by_label("bandai").click_accesskit();
     wait(&mut h, "bandai and its take", |a| a.model_info().is_some_and(|m| m.spec.dataset == "bandai") && a.take().is_some_and(|t| t.model_dir.ends_with("bandai")) && !a.is_busy());
     let app = h.state();
-    let classes: Vec<&str> = app.project().timeline.segments.iter().map(|s| s.class.as_str()).collect();
+    let classes: Vec<&str> = app.project().options.timeline.segments.iter().map(|s| s.class.as_str()).collect();
     assert_eq!(classes, ["walk", "guide", "guide"]);
-    let after: Vec<f32> = app.project().timeline.segments.iter().map(|s| s.seconds).collect();
+    let after: Vec<f32> = app.project().options.timeline.segments.iter().map(|s| s.seconds).collect();
     assert_eq!(after, before, "durations are kept");
     assert!(has_message(app, "Classes carried over to bandai: walking -> walk, directions -> guide, sitting -> guide (3 segments"), "{:?}", app.messages().log());
     assert!(has_message(app, "does not fit the bandai model"), "the h36m file start is reset: {:?}", app.messages().log());
-    assert!(matches!(app.project().init, glocal::synth::InitPose::SeedClass { .. }));
+    assert!(matches!(app.project().options.init, glocal::synth::InitPose::SeedClass { .. }));
     assert_eq!(app.messages().errors().count(), 0, "no unknown-class errors: {:?}", app.messages().all());
     assert_eq!(app.take().unwrap().segments.len(), 3);
 
     // A pairing edited by the user.
     h.state_mut().set_mapping("directions", "bow");
     wait(&mut h, "the retagged take", |a| a.take().is_some() && a.stale_reason().is_none() && !a.is_busy());
-    assert_eq!(h.state().project().timeline.segments[1].class, "bow");
+    assert_eq!(h.state().project().options.timeline.segments[1].class, "bow");
 
     // Bandai in centimetres at 60 fps with its source root joint.
     *h.state_mut().export_options_mut() = glocal::synth::export::ExportOptions { units: glocal::synth::export::Units::Centimetres, fps: Some(60.0), source_root: true };
@@ -528,7 +528,7 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     // And back: the table maps the other way.
     h.get_by_label("h36m").click_accesskit();
     wait(&mut h, "h36m again", |a| a.model_info().is_some_and(|m| m.spec.dataset == "h36m") && a.take().is_some_and(|t| t.model_dir.ends_with("h36m")) && !a.is_busy());
-    let classes: Vec<String> = h.state().project().timeline.segments.iter().map(|s| s.class.clone()).collect();
+    let classes: Vec<String> = h.state().project().options.timeline.segments.iter().map(|s| s.class.clone()).collect();
     assert_eq!(classes, ["walking", "greeting", "directions"]);
 }
 
@@ -573,7 +573,7 @@ fn a_worker_panic_reaches_the_ui_and_the_worker_keeps_serving() {
     h.state_mut().use_init_file(npy, usize::MAX);
     wait(&mut h, "the error", |a| has_error(a, "cannot start a take"));
     let first = h.state().take().unwrap().id;
-    h.state_mut().edit(|d| d.variation_seed = 7);
+    h.state_mut().edit(|d| d.set_variation_seed(7));
     wait(&mut h, "a take after the failure", |a| a.take().is_some_and(|t| t.id != first) && !a.is_busy());
 }
 
@@ -593,13 +593,13 @@ fn a_broken_autosave_is_kept_and_paths_survive_a_restart() {
     assert!(h.state_mut().save_project(&project));
     assert!(has_message(h.state(), &format!("Saved {}", project.display())), "the full path");
     h.state_mut().add_segment();
-    wait(&mut h, "the autosave", |_| glocal::studio::project::Project::load(&autosave).is_ok_and(|p| p.timeline.segments.len() == 3));
+    wait(&mut h, "the autosave", |_| glocal::studio::project::Project::load(&autosave).is_ok_and(|p| p.options.timeline.segments.len() == 3));
     drop(h);
 
     let mut h = harness_with(restoring, egui::vec2(1280.0, 800.0));
     wait_take(&mut h);
     assert!(has_message(h.state(), "Restored from the autosave"));
-    assert_eq!(h.state().project().timeline.segments.len(), 3);
+    assert_eq!(h.state().project().options.timeline.segments.len(), 3);
     assert_eq!(h.state().project_path(), Some(project.as_path()), "the open project's path survives");
 }
 
@@ -620,4 +620,244 @@ fn without_a_system_dialog_export_opens_a_typed_path_dialog() {
     h.get_by_label("OK").click();
     wait(&mut h, "the export", |_| out.exists());
     assert!(has_message(h.state(), &format!("Exported {}", out.display())));
+}
+
+/// The take's body root on the ground at frame `t`, in metres (x, z).
+fn root_on_ground(motion: &glocal::motion::Motion, t: usize) -> glam::Vec2 {
+    let root = glocal::motion::JointRoles::new(&motion.skeleton).unwrap().body_root;
+    let p = motion.frame(t)[root] * motion.skeleton.meters_per_unit();
+    glam::vec2(p.x, p.z)
+}
+
+/// A press and release at `pos` (a click that does not drag).
+fn click_at(h: &mut Harness<'_, StudioApp>, pos: egui::Pos2) {
+    h.event(egui::Event::PointerMoved(pos));
+    h.run_ok();
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton { pos, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() });
+        h.run_ok();
+    }
+}
+
+/// Where the test clicks the viewport's ground (at 1280x800, the camera on the take's start).
+const CLICK: egui::Pos2 = egui::pos2(470.0, 470.0);
+
+/// The workflow the studio is built for: draw a path, generate a take along it, key a frame
+/// of that take (its pose and where it stands), change the activity around the key, and
+/// generate again. A root-fixing key bends the take towards where its pose stood from the
+/// start of the take, so a key taken from a take that follows the path keeps the path.
+#[test]
+fn a_drawn_waypoint_and_a_key_from_the_current_frame_shape_the_next_take() {
+    use glocal::synth::constraints::KeySource;
+    let _g = serial();
+    let dir = temp_dir("keys");
+    let mut h = harness("keys");
+    wait_take(&mut h);
+    h.state_mut().edit(|d| d.options.timeline = "walking:6,directions:4".parse().unwrap());
+    wait(&mut h, "the 10 s take", |a| a.take().is_some_and(|t| t.options.timeline.seconds() == 10.0) && !a.is_busy());
+    let first = h.state().take().unwrap().motion.clone();
+    let fps = first.fps;
+
+    // Draw a path: one click on the ground in the viewport (the path starts where the take does).
+    h.get_by_label("Draw path").click_accesskit();
+    h.run_ok();
+    click_at(&mut h, CLICK);
+    let path = h.state().project().options.path.clone().expect("a path");
+    assert_eq!(path.waypoints.len(), 2, "the take's start and the clicked point: {path:?}");
+    let start = root_on_ground(&first, 0);
+    assert!(glam::vec2(path.waypoints[0].x, path.waypoints[0].z).distance(start) < 1e-4);
+    let target = glam::vec2(path.waypoints[1].x, path.waypoints[1].z);
+    assert!(h.query_by_label("Waypoint 2").is_some(), "the waypoint is on its track");
+    let nearest = |m: &glocal::motion::Motion| (0..m.frames()).map(|t| root_on_ground(m, t).distance(target)).fold(f32::INFINITY, f32::min);
+    let missed = nearest(&first);
+    assert!(missed > 0.5, "the waypoint is off the first take's way (it passes {missed:.2} m from it; waypoint {target}, start {start})");
+
+    // Undo takes the waypoint away, redo brings it back.
+    h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    h.run_ok();
+    assert!(h.state().project().options.path.is_none());
+    h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
+    h.run_ok();
+    assert_eq!(h.state().project().options.path, Some(path.clone()));
+    h.get_by_label("Draw path").click_accesskit();
+    wait(&mut h, "the take along the path", |a| a.take().is_some_and(|t| t.options.path.is_some()) && a.stale_reason().is_none() && !a.is_busy());
+    let along = h.state().take().unwrap().motion.clone();
+    let passes = nearest(&along);
+    assert!(passes < 0.25, "the take passes {passes:.2} m from the waypoint {target} (the first passed {missed:.2} m)");
+
+    // Key the pose at 9 s of that take.
+    let ruler = h.get_by_label("Timeline ruler").rect();
+    click_at(&mut h, egui::pos2(ruler.left() + 9.0 * (ruler.width() - 8.0) / 10.0, ruler.center().y));
+    let key_frame = h.state().frame();
+    assert!((key_frame as f32 / fps - 9.0).abs() < 0.1, "the ruler click seeks to 9 s: frame {key_frame}");
+    h.get_by_label("Key from current frame").click_accesskit();
+    h.run_ok();
+    let keys = h.state().project().options.keys.clone();
+    assert_eq!(keys.len(), 1, "one key in the project's options");
+    assert!((keys[0].seconds - key_frame as f32 / fps).abs() < 1e-4 && keys[0].fix_root);
+    let KeySource::Pose(pose) = &keys[0].source else { panic!("a key from the take's frame holds its pose") };
+    assert_eq!(pose.len(), first.joints());
+    assert!(h.query_by_label("Key 1").is_some(), "the key is on its track");
+
+    // The second segment becomes another activity: the key still holds its pose there.
+    h.state_mut().set_segment_class(1, "phoning");
+    wait(&mut h, "the constrained take", |a| a.take().is_some_and(|t| !t.options.keys.is_empty() && t.options.timeline.segments[1].class == "phoning") && a.stale_reason().is_none() && !a.is_busy());
+    let motion = h.state().take().unwrap().motion.clone();
+    let saved = dir.join("keys.json");
+    assert!(h.state_mut().save_project(&saved));
+    let back = glocal::studio::project::Project::load(&saved).unwrap();
+    assert_eq!((back.options.keys.clone(), back.options.path.clone()), (keys.clone(), Some(path)));
+
+    // The take passes through the key (body and root) and still near the waypoint.
+    let unit = motion.skeleton.meters_per_unit();
+    let root = glocal::motion::JointRoles::new(&motion.skeleton).unwrap().body_root;
+    let at = motion.frame(key_frame.min(motion.frames() - 1));
+    let key_root = glam::Vec3::from(pose[root]);
+    let body = (0..motion.joints()).map(|j| ((at[j] - at[root]) - (glam::Vec3::from(pose[j]) - key_root)).length() * unit).fold(0.0f32, f32::max);
+    assert!(body < 0.05, "the keyed pose is {:.1} cm away at its joint furthest off", body * 100.0);
+    assert!((at[root] - key_root).length() * unit < 0.05, "the root is {:.1} cm from the key's", (at[root] - key_root).length() * unit * 100.0);
+    let still = nearest(&motion);
+    assert!(still < 0.3, "with the key the take passes {still:.2} m from the waypoint");
+    assert!(h.state().messages().log().iter().all(|m| !m.text.contains("Generation failed")), "{:?}", h.state().messages().log());
+    println!("waypoint {:.2} m from the start: first take {missed:.2} m from it, along the path {passes:.2} m, with the key {still:.2} m; key: body {:.1} cm (worst joint), root {:.1} cm", target.distance(start), body * 100.0, (at[root] - key_root).length() * unit * 100.0);
+}
+
+#[test]
+fn a_sit_too_short_after_a_walk_is_explained_and_fixed_in_one_click() {
+    let _g = serial();
+    let mut h = harness("advice");
+    wait_take(&mut h);
+    h.state_mut().edit(|d| d.options.timeline = "walking:4,sitting:3".parse().unwrap());
+    h.run_ok();
+    assert!(has_message(h.state(), "The seated activity in segment 2 follows a standing one"), "{:?}", h.state().messages().log());
+    assert!(shows(&h, "Insert sittingdown (1 s) before it") && shows(&h, "Lengthen segment 2 to 4.0 s"));
+    h.get_by_label("Insert sittingdown (1 s) before it").click_accesskit();
+    h.run_ok();
+    let classes: Vec<String> = h.state().project().options.timeline.segments.iter().map(|s| s.class.clone()).collect();
+    assert_eq!(classes, ["walking", "sittingdown", "sitting"]);
+    assert!(!shows(&h, "Insert sittingdown"), "the advice went away with its cause");
+    wait(&mut h, "the fixed take", |a| a.take().is_some_and(|t| t.segments.len() == 3) && a.stale_reason().is_none() && !a.is_busy());
+    let motion = &h.state().take().unwrap().motion;
+    let (start, end) = (hip_height(motion, 0), hip_height(motion, motion.frames() - 1));
+    assert!(end < 0.75 * start, "the take ends seated: hips {end:.2} against {start:.2} standing");
+
+    // The transition into segment 3, of its own length, saved with the project.
+    h.get_by_label("Segment 3: sitting").click();
+    h.run_ok();
+    // Off the timeline, the row under it shows the segment's settings (not the hover hint).
+    h.event(egui::Event::PointerMoved(egui::pos2(640.0, 300.0)));
+    h.run_ok();
+    h.get_by_label("own transition").click_accesskit();
+    h.run_ok();
+    assert_eq!(h.state().project().options.timeline.segments[2].transition, Some(2.0), "starts at the global length");
+    h.get_by_label("Segment 3: sitting").hover();
+    h.run_ok();
+    assert!(shows(&h, "Segment 3: sitting · 3.0s · in 2.0s"), "the block says so");
+    let path = temp_dir("advice").join("p.json");
+    assert!(h.state_mut().save_project(&path));
+    assert_eq!(glocal::studio::project::Project::load(&path).unwrap().options.timeline.segments[2].transition, Some(2.0));
+}
+
+/// Mean angle in degrees between corresponding bones (joint minus parent) of two poses on
+/// the same skeleton, after turning `b` about the vertical to face like `a` (a take starts
+/// facing the model's way); bones of no length are skipped.
+fn mean_bone_angle(skeleton: &glocal::motion::Skeleton, a: &[glam::Vec3], b: &[glam::Vec3]) -> f32 {
+    let mean_at = |yaw: f32| {
+        let turn = glam::Quat::from_rotation_y(yaw);
+        let angles: Vec<f32> = (0..skeleton.len())
+            .filter_map(|j| {
+                let p = skeleton.parents()[j]?;
+                let (u, v) = ((a[j] - a[p]).try_normalize()?, (turn * (b[j] - b[p])).try_normalize()?);
+                Some(u.dot(v).clamp(-1.0, 1.0).acos().to_degrees())
+            })
+            .collect();
+        angles.iter().sum::<f32>() / angles.len() as f32
+    };
+    (0..360).map(|d| mean_at((d as f32).to_radians())).fold(f32::INFINITY, f32::min)
+}
+
+/// Picks `joint` in the mapping editor's combo box for `key`.
+fn choose_joint(h: &mut Harness<'_, StudioApp>, key: &str, joint: &str) {
+    h.get_by_role_and_label(egui::accesskit::Role::ComboBox, key).click_accesskit();
+    h.run_ok();
+    h.get_by_label(joint).click();
+    h.run_ok();
+}
+
+/// An Unreal-named BVH with two key joints renamed to words no table knows: the studio says
+/// which keys are missing, the mapping editor (pre-filled with the table's guesses) names
+/// them, the preview shows the retargeted pose, and the take generated from it starts there.
+#[test]
+fn a_foreign_bvh_is_mapped_in_the_editor_previewed_and_starts_the_take() {
+    let _g = serial();
+    let dir = temp_dir("joint-map");
+    let bvh = dir.join("renamed-unreal.bvh");
+    let text = std::fs::read_to_string("tests/assets/blender-unreal-salsa.bvh").unwrap();
+    std::fs::write(&bvh, text.replace("JOINT lowerarm_l\n", "JOINT zz_bend_a\n").replace("JOINT calf_r\n", "JOINT zz_bend_b\n")).unwrap();
+    let mut h = harness("joint-map");
+    wait_take(&mut h);
+    let seed_take = h.state().take().unwrap().motion.clone();
+
+    h.state_mut().set_init_tab(glocal::studio::app::InitTab::File);
+    h.run_ok();
+    h.state_mut().fields_mut().init_path = bvh.display().to_string();
+    h.get_by_label("Use file").click();
+    wait(&mut h, "the mapping error", |a| has_error(a, "cannot be mapped"));
+    h.run_ok();
+    let error = h.state().messages().errors().map(|m| m.text.clone()).collect::<Vec<_>>().join("; ");
+    assert!(error.contains("LeftForeArm") && error.contains("RightLeg"), "the message names the missing keys: {error}");
+    assert!(error.contains("name them with Edit mapping"), "the studio points at its editor: {error}");
+    assert!(h.state().retarget_preview().is_none());
+
+    h.get_by_label("Edit mapping…").click();
+    h.run_ok();
+    assert!(shows(&h, "The file's joint for each of the model's key joints"));
+    let guessed = h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "LeftHand").value();
+    assert_eq!(guessed.as_deref(), Some("hand_l"), "pre-filled by the name table");
+    choose_joint(&mut h, "LeftForeArm", "zz_bend_a");
+    choose_joint(&mut h, "RightLeg", "zz_bend_b");
+    h.get_by_label("Apply").click();
+    wait(&mut h, "the retarget preview", |a| a.retarget_preview().is_some());
+    h.run_ok();
+    assert!(shows(&h, "Retargeted pose"));
+    let map = h.state().project().joint_map.clone().expect("the mapping is in the project");
+    assert_eq!(map.get("zz_bend_a").map(String::as_str), Some("LeftForeArm"));
+    assert_eq!(map.get("zz_bend_b").map(String::as_str), Some("RightLeg"));
+    let preview = h.state().retarget_preview().unwrap();
+    let retargeted = preview.retargeted.clone();
+    assert!(preview.source.skeleton.index_of("zz_bend_a").is_some(), "the source is the file's own skeleton");
+    assert_eq!(retargeted.skeleton.len(), seed_take.skeleton.len(), "the retargeted pose is on the model's joints");
+
+    h.get_by_label("Use").click();
+    wait(&mut h, "a take from the retargeted file", |a| {
+        a.take().is_some_and(|t| matches!(&t.options.init, glocal::synth::InitPose::File { path, .. } if path == &bvh)) && !a.is_busy()
+    });
+    assert!(h.state().retarget_preview().is_none());
+    let take = h.state().take().unwrap().motion.clone();
+    let from_file = mean_bone_angle(&take.skeleton, take.frame(0), retargeted.frame(0));
+    let from_seed = mean_bone_angle(&take.skeleton, seed_take.frame(0), retargeted.frame(0));
+    eprintln!("mean bone angle to the retargeted pose: take {from_file:.1} deg, seed take {from_seed:.1} deg");
+    assert!(from_file < 10.0, "the take starts from the retargeted pose ({from_file:.1} degrees off)");
+    assert!(from_seed > 3.0 * from_file.max(10.0) / 3.0, "the seed take starts elsewhere ({from_seed:.1} degrees off), so the check can fail");
+
+    // A key from the same file, mid-take: previewed at once with the project's mapping.
+    h.get_by_label("Timeline ruler").click();
+    h.run_ok();
+    h.get_by_label("Key from file…").click_accesskit();
+    h.run_ok();
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Path").type_text(&bvh.display().to_string());
+    h.get_by_label("OK").click();
+    wait(&mut h, "the key's retarget preview", |a| a.retarget_preview().is_some());
+    h.get_by_label("Use").click();
+    wait(&mut h, "a take with the key", |a| a.take().is_some_and(|t| t.options.keys.len() == 1) && !a.is_busy());
+    // The built-in table cannot map this file: a take with the key means the mapping was used.
+    let key = &h.state().take().unwrap().options.keys[0];
+    assert!(matches!(&key.source, glocal::synth::constraints::KeySource::Init(glocal::synth::InitPose::File { path, .. }) if path == &bvh));
+    assert!(h.state().stale_reason().is_none(), "the take is the document's");
+
+    // The mapping is saved with the project.
+    let project = dir.join("mapped.glocal.json");
+    assert!(h.state_mut().save_project(&project));
+    let saved = glocal::studio::project::Project::load(&project).unwrap();
+    assert_eq!(saved.joint_map, Some(map));
 }

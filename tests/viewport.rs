@@ -14,7 +14,7 @@ use egui_kittest::{Harness, SnapshotOptions};
 use glocal::data::archive::DataRoot;
 use glocal::data::registry::{self, Dataset};
 use glocal::motion::Motion;
-use glocal::studio::viewport::{Layer, Scene, ViewSettings, Viewport};
+use glocal::studio::viewport::{Layer, PathEdit, PathOverlay, Scene, ViewSettings, Viewport};
 use image::RgbaImage;
 
 /// Orange for the first half of the take, blue for the second (like two class segments).
@@ -49,16 +49,22 @@ struct State {
     layers: Vec<Layer>,
     frame: usize,
     settings: ViewSettings,
+    /// A root path's waypoints (x, z) in metres, and whether clicks edit it.
+    path: Vec<[f32; 2]>,
+    path_editing: bool,
+    path_edits: Vec<PathEdit>,
 }
 
 fn harness(size: egui::Vec2, layers: Vec<Layer>, settings: ViewSettings) -> Harness<'static, State> {
     let render_state = create_render_state(default_wgpu_setup(), eframe::egui_wgpu::RendererOptions::PREDICTABLE);
     Viewport::register(&render_state);
-    let state = State { viewport: Viewport::new(), layers, frame: 30, settings };
+    let state = State { viewport: Viewport::new(), layers, frame: 30, settings, path: Vec::new(), path_editing: false, path_edits: Vec::new() };
     Harness::builder().with_size(size).renderer(WgpuTestRenderer::from_render_state(render_state)).build_ui_state(
         |ui, s: &mut State| {
-            let scene = Scene { layers: &s.layers, frame: s.frame, settings: &s.settings };
+            let path = (s.path_editing || !s.path.is_empty()).then_some(PathOverlay { waypoints: &s.path, selected: None, editing: s.path_editing });
+            let scene = Scene { layers: &s.layers, frame: s.frame, settings: &s.settings, path };
             s.viewport.ui(ui, &scene);
+            s.path_edits.extend(s.viewport.take_path_edits());
         },
         state,
     )
@@ -143,6 +149,71 @@ fn viewport_draws_the_skeleton_and_moves_with_frames() {
     assert!(count_centre(&bare, 0.5, blue) > 1000);
 }
 
+/// The root path's colour on the floor (the viewport's PATH_RGB, shaded or not).
+fn path_colour(p: [u8; 3]) -> bool {
+    let [r, g, b] = p.map(i32::from);
+    g > 150 && b > 130 && g > r + 70 && b > r + 50
+}
+
+/// Pixels of `pred` in a square of `half` pixels around `(x, y)`.
+fn count_near(img: &RgbaImage, (x, y): (u32, u32), half: u32, pred: impl Fn([u8; 3]) -> bool) -> usize {
+    let (w, h) = img.dimensions();
+    (y.saturating_sub(half)..(y + half).min(h)).flat_map(|y| (x.saturating_sub(half)..(x + half).min(w)).map(move |x| (x, y))).filter(|&(x, y)| pred(img.get_pixel(x, y).0[..3].try_into().unwrap())).count()
+}
+
+#[test]
+fn viewport_draws_a_root_path_and_clicks_add_waypoints_where_the_ground_is() {
+    let walk = walk();
+    let mpu = walk.skeleton.meters_per_unit();
+    let body_root = glocal::motion::JointRoles::new(&walk.skeleton).unwrap().body_root;
+    let root = walk.frame(30)[body_root] * mpu;
+    let mut h = harness(egui::vec2(640.0, 400.0), vec![layer(walk.clone(), [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)], ViewSettings::default());
+    let bare = render(&mut h);
+    assert_eq!(count_centre(&bare, 1.0, path_colour), 0, "nothing is path-coloured before there is a path");
+    // An L from under the figure: 1 m along x, then 1.5 m away from the camera.
+    h.state_mut().path = vec![[root.x, root.z], [root.x + 1.0, root.z], [root.x + 1.0, root.z - 1.5]];
+    let drawn = render(&mut h);
+    h.snapshot_options("viewport_path", &snapshot_options());
+    let path_pixels = count_centre(&drawn, 1.0, path_colour);
+    assert!(path_pixels > 400, "the path is not drawn: {path_pixels} path-coloured pixels");
+    assert!(differing(&bare, &drawn) > 300);
+
+    // Editing: a click on the ground adds a waypoint there, and it is drawn under the click.
+    h.state_mut().path_editing = true;
+    h.run();
+    let click = egui::pos2(180.0, 330.0);
+    h.event(egui::Event::PointerMoved(click));
+    h.run();
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton { pos: click, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() });
+        h.run();
+    }
+    let edits = std::mem::take(&mut h.state_mut().path_edits);
+    let [PathEdit::Add(point)] = edits[..] else { panic!("one waypoint added, got {edits:?}") };
+    h.state_mut().path.push(point);
+    let added = render(&mut h);
+    let at_click = count_near(&added, (180, 330), 8, path_colour);
+    assert!(at_click > 20, "the new waypoint is not drawn under the click ({at_click} pixels) at {point:?}");
+
+    // A drag from that waypoint moves it (and the camera stays).
+    h.event(egui::Event::PointerButton { pos: click, button: egui::PointerButton::Primary, pressed: true, modifiers: Default::default() });
+    h.run();
+    for x in [200.0, 240.0, 280.0] {
+        h.event(egui::Event::PointerMoved(egui::pos2(x, 330.0)));
+        h.run();
+    }
+    h.event(egui::Event::PointerButton { pos: egui::pos2(280.0, 330.0), button: egui::PointerButton::Primary, pressed: false, modifiers: Default::default() });
+    h.run();
+    let edits = std::mem::take(&mut h.state_mut().path_edits);
+    assert_eq!(edits.first(), Some(&PathEdit::BeginDrag), "{edits:?}");
+    let Some(&PathEdit::Move { index: 3, to }) = edits.last() else { panic!("the new waypoint moved: {edits:?}") };
+    assert!(to[0] > point[0] + 0.1, "dragged right on screen, the waypoint moved from {point:?} to {to:?}");
+    h.state_mut().path[3] = to;
+    let moved = render(&mut h);
+    assert!(count_near(&moved, (280, 330), 8, path_colour) > 20, "the moved waypoint is drawn under the pointer");
+    assert!(count_centre(&moved, 0.5, orange) > 1000, "the camera did not move away from the figure");
+}
+
 #[test]
 fn viewport_layers_side_by_side_and_overlaid() {
     let walk = walk();
@@ -173,6 +244,28 @@ fn viewport_layers_side_by_side_and_overlaid() {
     let overlay = render(&mut h);
     h.snapshot_options("viewport_overlay", &snapshot_options());
     assert!(count_centre(&overlay, 0.5, orange) > 500, "the opaque take is hidden by the translucent one");
+}
+
+/// The studio's retarget preview of a foreign BVH (Blender's Unreal-named export): the
+/// file's skeleton on the left in orange, the h36m model's pose on the right in blue.
+#[test]
+fn viewport_retarget_preview_side_by_side() {
+    use glocal::studio::joint_mapping::{preview, PreviewFor};
+    use glocal::studio::worker::Reply;
+    let spec = glocal::model::glocal::GlocalModel::load(std::path::Path::new("models/h36m")).expect("the shipped h36m model").spec;
+    let file = std::path::PathBuf::from("tests/assets/blender-unreal-salsa.bvh");
+    let Reply::Retargeted(p) = preview(&spec, PreviewFor::Init, file, 0, None) else { panic!("the Unreal-named file retargets by the name table") };
+    let mut h = harness(egui::vec2(640.0, 400.0), p.layers(), ViewSettings::default());
+    let img = render(&mut h);
+    h.snapshot_options("viewport_retarget_preview", &snapshot_options());
+    let (w, hgt) = img.dimensions();
+    let side = |x0: u32, x1: u32, pred: fn([u8; 3]) -> bool| {
+        (0..hgt).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| pred(img.get_pixel(x, y).0[..3].try_into().unwrap())).count()
+    };
+    let (orange_left, orange_right) = (side(0, w / 2, orange), side(w / 2, w, orange));
+    let (blue_left, blue_right) = (side(0, w / 2, blue), side(w / 2, w, blue));
+    assert!(orange_left > 500 && blue_right > 500, "poses missing: source (orange) left {orange_left}, retargeted (blue) right {blue_right}");
+    assert!(orange_left > 3 * orange_right && blue_right > 3 * blue_left, "the poses are not side by side");
 }
 
 #[test]

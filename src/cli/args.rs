@@ -1,5 +1,8 @@
 //! Command-line forms of the engine's options: the engine's own types know nothing of clap.
 
+use crate::model::spec::LossKind;
+use crate::model::train::Stage;
+use crate::synth::export::Units;
 use crate::synth::Transition;
 
 /// How the class changes at a segment boundary (see [`Transition`]).
@@ -16,6 +19,66 @@ impl From<TransitionArg> for Transition {
             TransitionArg::Cut => Transition::Cut,
             TransitionArg::Blend => Transition::Blend,
             TransitionArg::Anchor => Transition::Anchor,
+        }
+    }
+}
+
+/// Which network `glocal train` trains (see [`Stage`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum StageArg {
+    Glogen,
+    Locgen,
+}
+
+impl From<StageArg> for Stage {
+    fn from(s: StageArg) -> Self {
+        match s {
+            StageArg::Glogen => Stage::Glogen,
+            StageArg::Locgen => Stage::Locgen,
+        }
+    }
+}
+
+/// The training loss's terms (see [`LossKind`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LossArg {
+    /// Joint error only (L_J).
+    #[value(name = "j")]
+    Joint,
+    /// Motion-flow error only (L_MF).
+    #[value(name = "mf")]
+    Flow,
+    /// Both, as the paper trains (L_J + L_MF).
+    #[value(name = "j+mf")]
+    JointFlow,
+}
+
+impl From<LossArg> for LossKind {
+    fn from(l: LossArg) -> Self {
+        match l {
+            LossArg::Joint => LossKind::Joint,
+            LossArg::Flow => LossKind::Flow,
+            LossArg::JointFlow => LossKind::JointFlow,
+        }
+    }
+}
+
+/// An export's length unit (see [`Units`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum UnitsArg {
+    /// Metres: what game engines (and Blender's scene unit) expect.
+    Metres,
+    Centimetres,
+    /// The model's own unit (Human3.6M millimetres, Bandai centimetres).
+    Native,
+}
+
+impl From<UnitsArg> for Units {
+    fn from(u: UnitsArg) -> Self {
+        match u {
+            UnitsArg::Metres => Units::Metres,
+            UnitsArg::Centimetres => Units::Centimetres,
+            UnitsArg::Native => Units::Native,
         }
     }
 }

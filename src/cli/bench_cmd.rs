@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::model::bench::{bench_infer, bench_train, Budget, TrainBenchConfig};
 use crate::model::glocal::GlocalModel;
-use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, DEFAULT_CLASS_STRENGTH};
+use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, Segment, Timeline, Waypoint, DEFAULT_CLASS_STRENGTH};
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
@@ -32,6 +32,7 @@ pub enum BenchCommand {
     },
     /// Studio frame time during playback (ghosts on) against an empty window, 1280x800.
     /// Needs a display (`xvfb-run -a -s "-screen 0 1280x800x24" glocal bench studio`).
+    #[cfg(feature = "studio")]
     Studio {
         #[arg(long, default_value_t = 10.0)]
         seconds: f64,
@@ -79,6 +80,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 )
             })
         }
+        #[cfg(feature = "studio")]
         BenchCommand::Studio { seconds, only, json } => match only.as_deref() {
             Some(which) => {
                 let stats = crate::studio::bench::measure(which == "empty", seconds)?;
@@ -137,7 +139,11 @@ pub fn run(command: BenchCommand) -> Result<()> {
             print(&r, json, || {
                 r.runs
                     .iter()
-                    .map(|x| format!("{:>4} s of motion: {:.1} ms ({:.3} ms per second of motion)", x.seconds, x.ms, x.ms / x.seconds as f64))
+                    .map(|x| {
+                        let with = if x.constrained { ", 4 keys and a path" } else { "" };
+                        format!("{:>4} s of motion{with}: {:.1} ms ({:.3} ms per second of motion)", x.seconds, x.ms, x.ms / x.seconds as f64)
+                    })
+                    .chain(constraint_cost(&r.runs))
                     .collect::<Vec<_>>()
                     .join("\n")
             })
@@ -157,6 +163,8 @@ fn print<T: Serialize>(value: &T, json: bool, text: impl FnOnce() -> String) -> 
 #[derive(Serialize)]
 pub struct GenerateRun {
     pub seconds: f32,
+    /// With four keys and a root path (the 60 s case is run both ways).
+    pub constrained: bool,
     pub frames: usize,
     /// Best of the repeats, milliseconds.
     pub ms: f64,
@@ -177,11 +185,18 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32, foot_lock
     let mut model = GlocalModel::load(dir)?;
     let classes = model.spec.classes.clone();
     let mut runs = Vec::new();
-    for seconds in [10.0f32, 60.0, 600.0] {
+    for (seconds, constrained) in [(10.0f32, false), (60.0, false), (60.0, true), (600.0, false)] {
         let segments = (0..(seconds / 10.0) as usize)
             .map(|k| Segment::new(classes[k % classes.len()].clone(), 10.0))
             .collect();
-        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, foot_lock, ..Default::default() };
+        let mut opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, foot_lock, ..Default::default() };
+        if constrained {
+            // A seed pose of each of four classes, 12 s apart, and a 40 m zigzag.
+            let key = |k: usize| Key { seconds: 12.0 * (k + 1) as f32, source: KeySource::Init(InitPose::SeedClass { class: classes[k % classes.len()].clone(), variant: 0 }), fix_root: false };
+            opts.keys = (0..4).map(key).collect();
+            let waypoints = (0..5).map(|k| Waypoint { x: 10.0 * k as f32, z: if k % 2 == 0 { 0.0 } else { 10.0 }, seconds: None }).collect();
+            opts.path = Some(RootPath { waypoints });
+        }
         let mut best = f64::INFINITY;
         let mut frames = 0;
         for _ in 0..repeats.max(1) {
@@ -190,13 +205,21 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32, foot_lock
             best = best.min(start.elapsed().as_secs_f64() * 1e3);
             frames = take.motion.frames();
         }
-        runs.push(GenerateRun { seconds, frames, ms: best });
+        runs.push(GenerateRun { seconds, constrained, frames, ms: best });
     }
     Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, foot_lock, runs })
 }
 
+/// The 60 s take's time with keys and a path over its time without, measured in one run.
+fn constraint_cost(runs: &[GenerateRun]) -> Option<String> {
+    let plain = runs.iter().find(|r| r.seconds == 60.0 && !r.constrained)?;
+    let with = runs.iter().find(|r| r.seconds == 60.0 && r.constrained)?;
+    Some(format!("keys and path: {:.2}x the unconstrained 60 s take", with.ms / plain.ms))
+}
+
 /// Runs `glocal bench studio --only WHICH` in a child process (a process can open only one
 /// event loop) and reads its statistics, frame intervals included.
+#[cfg(feature = "studio")]
 fn measure_in_child(which: &str, seconds: f64) -> Result<crate::studio::bench::FrameStats> {
     let exe = std::env::current_exe()?;
     let out = std::process::Command::new(exe)

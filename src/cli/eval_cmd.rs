@@ -8,15 +8,15 @@ use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::data::write::write_atomic;
-use crate::eval::{run_suite, SuiteOptions, SUITES};
+use crate::eval::{run_suite, Suite, SuiteOptions};
 use super::args::TransitionArg;
 use crate::synth::DEFAULT_CLASS_STRENGTH;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, motion, or all.
-    #[arg(long)]
-    suite: String,
+    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, motion, constraints, or all.
+    #[arg(long, value_parser = suites_named)]
+    suite: Suites,
     /// Write the suite's numbers here as JSON (for `all`: one file per suite, NAME inserted
     /// before the extension).
     #[arg(long)]
@@ -53,6 +53,17 @@ pub struct EvalArgs {
     quick: bool,
 }
 
+/// The suites one `--suite` value names: one, or every suite for `all`.
+#[derive(Clone, Debug)]
+struct Suites(Vec<Suite>);
+
+fn suites_named(name: &str) -> Result<Suites, String> {
+    if name == "all" {
+        return Ok(Suites(Suite::ALL.to_vec()));
+    }
+    name.parse().map(|s| Suites(vec![s])).map_err(|e: anyhow::Error| format!("{e}, all"))
+}
+
 pub fn run(args: EvalArgs) -> Result<()> {
     let mut opts = SuiteOptions {
         data: DataRoot::resolve(args.data.as_deref()),
@@ -68,15 +79,15 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(c) = args.cache {
         opts.cache = c;
     }
-    let names: Vec<&str> = if args.suite == "all" { SUITES.to_vec() } else { vec![args.suite.as_str()] };
-    for name in &names {
-        let report = run_suite(name, &opts, &mut |m| eprintln!("{m}"))?;
-        say!("## {}\n\n{}", report.name, report.markdown);
+    let suites = &args.suite.0;
+    for &suite in suites {
+        let report = run_suite(suite, &opts, &mut |m| eprintln!("{m}"))?;
+        say!("## {suite}\n\n{}", report.markdown);
         say!("(suite took {:.0} s)\n", report.json["seconds"].as_f64().unwrap_or(0.0));
         if let Some(path) = &args.json {
-            let path = if names.len() > 1 {
+            let path = if suites.len() > 1 {
                 let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("eval");
-                path.with_file_name(format!("{stem}-{name}.json"))
+                path.with_file_name(format!("{stem}-{suite}.json"))
             } else {
                 path.clone()
             };

@@ -51,7 +51,10 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
+        #[cfg(feature = "studio")]
         None => crate::studio::run(),
+        #[cfg(not(feature = "studio"))]
+        None => anyhow::bail!("this glocal was built without the studio (the `studio` feature); give a command (see --help)"),
         Some(Command::Data { command }) => data_cmd::run(command),
         Some(Command::Train(args)) => train_cmd::run(args),
         Some(Command::Generate(args)) => synth_cmd::run_generate(args),

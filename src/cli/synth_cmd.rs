@@ -1,4 +1,3 @@
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -6,16 +5,16 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::data::bvh::{read_bvh, write_bvh};
+use crate::data::bvh::read_bvh;
 use crate::data::joint_map::UserJointMap;
 use crate::data::input::{read_text, MAX_MOTION_BYTES};
 use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
-use crate::synth::rig::{onto_model, onto_skeleton_file};
-use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions, Units};
+use crate::synth::rig::{onto_model_file, onto_skeleton_file};
+use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
-use super::args::TransitionArg;
-use crate::synth::{generate, GenerateOptions, InitPose, SegmentSpan, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+use super::args::{TransitionArg, UnitsArg};
+use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, SegmentSpan, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
@@ -24,8 +23,12 @@ pub struct GenerateArgs {
     pub model: PathBuf,
     /// Segments as CLASS:SECONDS[@PACE][~TRANSITION], comma-separated, e.g.
     /// "sitting:3,eating:5,walking:10~0.5" (TRANSITION: seconds into that segment).
-    #[arg(long)]
-    pub timeline: String,
+    #[arg(long, required_unless_present = "project")]
+    pub timeline: Option<String>,
+    /// A studio project (.glocal): the take it describes, with its activities, keys, path and
+    /// generation settings as saved (--model still picks the model).
+    #[arg(long, conflicts_with_all = ["timeline", "keys", "path"])]
+    pub project: Option<PathBuf>,
     #[arg(long, default_value_t = 1.0)]
     pub pace: f32,
     /// seed:CLASS, seed:N, or clip:PATH@FRAME (a BVH, NPY or exponential-map file).
@@ -39,6 +42,15 @@ pub struct GenerateArgs {
     /// Seconds over which each class change happens, centred on its boundary (0: a cut).
     #[arg(long, default_value_t = DEFAULT_TRANSITION_SECONDS)]
     pub transition_seconds: f32,
+    /// A full-body pose the take passes through: TIME=SOURCE[,root], SOURCE as --init
+    /// (seed:CLASS, seed:N, clip:PATH@FRAME); `,root` also fixes where the body stands and
+    /// faces. Repeatable.
+    #[arg(long = "key", value_name = "TIME=SOURCE")]
+    pub keys: Vec<String>,
+    /// A root path for the take's locomotion: JSON or CSV of (seconds, x, z) waypoints in
+    /// metres (see the README).
+    #[arg(long)]
+    pub path: Option<PathBuf>,
     /// Leave GloGen's blocks unjoined at their seams (as in the paper), for comparison.
     #[arg(long)]
     pub no_seam_join: bool,
@@ -77,7 +89,7 @@ pub struct GenerateArgs {
     pub joint_map: Option<PathBuf>,
     /// Length unit of the file: metres (what engines expect), centimetres, or the model's own.
     #[arg(long, value_enum, default_value = "metres")]
-    pub units: Units,
+    pub units: UnitsArg,
     /// Frame rate of the file (e.g. 24, 30, 60); the model's own by default.
     #[arg(long)]
     pub fps: Option<f32>,
@@ -106,40 +118,24 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
         bail!("--fps {fps}: expected a frame rate from 1 to 1000");
     }
-    let joint_map = args.joint_map.as_deref().map(UserJointMap::read).transpose()?;
     let mut model = GlocalModel::load(&args.model)?;
-    // Kept until generation is over: a foreign BVH retargeted with the user's joint map.
-    let mut retargeted_init = None;
-    let parsed = parse_init(&args.init)?;
-    let input = match &parsed {
-        InitPose::File { path, .. } => Some(path.clone()),
-        _ => None,
+    let (mut opts, project_map) = match (&args.project, &args.timeline) {
+        (Some(project), _) => project_options(project)?,
+        (None, Some(timeline)) => (options_from_args(&args, timeline)?, None),
+        (None, None) => bail!("--timeline or --project is needed"),
     };
-    check_output(&args.out, &input.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
-    let init = match (parsed, &joint_map) {
-        (InitPose::File { path, frame }, Some(map)) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) => {
-            let file = retarget_init_file(&model, &path, map)?;
-            let path = file.path().to_path_buf();
-            retargeted_init = Some(file);
-            InitPose::File { path, frame }
-        }
-        (init, _) => init,
+    // Every file the take reads: the output may be none of them.
+    let inputs: Vec<&Path> = args.project.iter().map(PathBuf::as_path).chain(input_files(&opts)).collect();
+    check_output(&args.out, &inputs)?;
+    let joint_map = match &args.joint_map {
+        Some(path) => Some(UserJointMap::read(path)?),
+        None => project_map,
     };
-    let mut opts = GenerateOptions {
-        timeline: args.timeline.parse()?,
-        pace: args.pace,
-        init,
-        locgen: !args.no_locgen,
-        transition: args.transition.into(),
-        transition_seconds: args.transition_seconds,
-        class_strength: args.class_strength,
-        project_bones: !args.no_projection,
-        keep_alive: !args.no_keep_alive,
-        join_seams: !args.no_seam_join,
-        foot_lock: !args.no_foot_lock,
-        ..Default::default()
-    }
-    .varied(args.seed);
+    // Kept until generation is over: foreign BVH files retargeted with the user's joint map.
+    let retargeted = match &joint_map {
+        Some(map) => retarget_foreign_files(&model, &mut opts, map)?,
+        None => Vec::new(),
+    };
     if args.paper {
         opts = opts.paper();
     }
@@ -155,17 +151,20 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     })?;
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    drop(retargeted_init);
+    drop(retargeted);
     let motion = match &args.retarget_to {
         Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, joint_map.as_ref())?,
         None => take.motion.clone(),
     };
-    let options = ExportOptions { units: args.units, fps: args.fps, source_root: false };
+    let options = ExportOptions { units: args.units.into(), fps: args.fps, source_root: false };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
     // Foot contacts are per frame of the model's rate: kept unless the take is resampled.
     let contacts = (m.frames() == motion.frames()).then_some(&take.contacts);
     export_with_contacts(&m, &segments, contacts, &args.out)?;
     note_rounded_durations(&opts, &take.segments, take.motion.fps);
+    for warning in &take.warnings {
+        eprintln!("warning: {warning}");
+    }
     let m = &m;
     if args.json {
         let summary = serde_json::json!({
@@ -174,6 +173,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
             "seconds": m.seconds(),
             "segments": segments,
             "elapsed_ms": elapsed.as_secs_f64() * 1e3,
+            "warnings": take.warnings,
             "out": args.out,
         });
         say!("{summary}");
@@ -186,15 +186,87 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     Ok(())
 }
 
+/// The generation options the command line's flags ask for.
+fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOptions> {
+    Ok(GenerateOptions {
+        timeline: timeline.parse()?,
+        pace: args.pace,
+        init: parse_init(&args.init)?,
+        locgen: !args.no_locgen,
+        transition: args.transition.into(),
+        transition_seconds: args.transition_seconds,
+        class_strength: args.class_strength,
+        project_bones: !args.no_projection,
+        keep_alive: !args.no_keep_alive,
+        join_seams: !args.no_seam_join,
+        foot_lock: !args.no_foot_lock,
+        keys: args.keys.iter().map(|k| Key::parse(k, parse_init)).collect::<Result<_>>()?,
+        path: args.path.as_deref().map(RootPath::read).transpose()?,
+        ..Default::default()
+    }
+    .varied(args.seed))
+}
+
+/// The motion files a take starts from or takes keys from.
+fn input_files(opts: &GenerateOptions) -> impl Iterator<Item = &Path> {
+    let keyed = opts.keys.iter().filter_map(|k| match &k.source {
+        KeySource::Init(init) => Some(init),
+        KeySource::Pose(_) => None,
+    });
+    std::iter::once(&opts.init).chain(keyed).filter_map(|init| match init {
+        InitPose::File { path, .. } => Some(path.as_path()),
+        _ => None,
+    })
+}
+
+/// The generation options a studio project saved (format version 2 on), and its joint map.
+fn project_options(path: &Path) -> Result<(GenerateOptions, Option<UserJointMap>)> {
+    let name = path.display();
+    let value: serde_json::Value = serde_json::from_str(&read_text(path, MAX_PROJECT_BYTES)?).with_context(|| format!("{name} is not a project file (not JSON)"))?;
+    match value.get("version").and_then(serde_json::Value::as_u64) {
+        Some(v) if v >= 2 => {}
+        Some(v) => bail!("{name}: a version {v} project keeps no generation options; open and save it in the studio to bring it to version 2"),
+        None => bail!("{name}: not a project file (no version)"),
+    }
+    let options = value.get("options").with_context(|| format!("{name}: the project has no \"options\""))?;
+    let options = serde_json::from_value(options.clone()).with_context(|| format!("{name}: options"))?;
+    let map = match value.get("joint_map") {
+        Some(map) if !map.is_null() => Some(UserJointMap::from_value(map, &format!("{name}: joint_map"))?),
+        _ => None,
+    };
+    Ok((options, map))
+}
+
+/// A project file larger than this is not one (a project with a thousand keys is ~1 MB).
+const MAX_PROJECT_BYTES: u64 = 64 << 20;
+
 /// A foreign BVH brought onto the model's joints with the user's joint map, in a temporary
 /// BVH file that `--init clip:` reads like a take the model exported.
-fn retarget_init_file(model: &GlocalModel, path: &Path, map: &UserJointMap) -> Result<tempfile::NamedTempFile> {
-    let name = path.display().to_string();
-    let source = read_bvh(&read_text(path, MAX_MOTION_BYTES)?, &name)?;
-    let motion = onto_model(&model.spec, &source, &name, Some(map))?;
-    let mut file = tempfile::Builder::new().suffix(".bvh").tempfile()?;
-    file.write_all(write_bvh(&motion, None).as_bytes())?;
-    Ok(file)
+fn retarget_foreign_files(model: &GlocalModel, opts: &mut GenerateOptions, map: &UserJointMap) -> Result<Vec<tempfile::NamedTempFile>> {
+    let mut files = Vec::new();
+    let keyed = opts.keys.iter_mut().filter_map(|k| match &mut k.source {
+        KeySource::Init(init) => Some(init),
+        KeySource::Pose(_) => None,
+    });
+    for init in std::iter::once(&mut opts.init).chain(keyed) {
+        let InitPose::File { path, frame } = init else { continue };
+        if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) {
+            continue;
+        }
+        let name = path.display().to_string();
+        let source = read_bvh(&read_text(path, MAX_MOTION_BYTES)?, &name)?;
+        // One project map may name the joints of several files: each gets its own entries.
+        let own = UserJointMap { entries: map.entries.iter().filter(|(joint, _)| source.skeleton.index_of(joint).is_some()).cloned().collect() };
+        // Frames count at the model's rate, as for every start or key file.
+        let frames = source.resample(model.spec.fps).frames();
+        if *frame >= frames {
+            bail!("{name}: frame {frame} is past its {frames} frames at the model's {} fps", model.spec.fps);
+        }
+        let file = onto_model_file(&model.spec, &source, &name, &own)?;
+        *path = file.path().to_path_buf();
+        files.push(file);
+    }
+    Ok(files)
 }
 
 /// Segments last whole sparse steps (`stride * pace` frames), so a duration that is not a

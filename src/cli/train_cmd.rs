@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::data::archive::DataRoot;
 use crate::data::features::Interpolation;
-use crate::model::spec::LossKind;
+use super::args::{LossArg, StageArg};
 use crate::model::train::{train, Stage, TrainOptions};
 
 #[derive(Args, Debug)]
@@ -16,7 +16,7 @@ pub struct TrainArgs {
     #[arg(long)]
     dataset: String,
     #[arg(long, value_enum)]
-    stage: Stage,
+    stage: StageArg,
     #[arg(long, default_value_t = 4000)]
     steps: usize,
     /// Model folder (created when missing; both stages train into the same one).
@@ -34,7 +34,7 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 200)]
     hidden: usize,
     #[arg(long, value_enum, default_value = "j+mf")]
-    loss: LossKind,
+    loss: LossArg,
     /// Train GloGen without the class prior (ablation).
     #[arg(long)]
     no_class: bool,
@@ -75,14 +75,15 @@ fn stop_on_interrupt(cancel: Arc<AtomicBool>) -> Result<()> {
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
-    let mut opts = TrainOptions::new(args.dataset.parse()?, args.stage, args.out);
+    let stage: Stage = args.stage.into();
+    let mut opts = TrainOptions::new(args.dataset.parse()?, stage, args.out);
     opts.data = DataRoot::resolve(args.data.as_deref());
     opts.steps = args.steps;
     opts.seed = args.seed;
     opts.resume = args.resume;
     opts.batch = args.batch;
     opts.hidden = args.hidden;
-    opts.loss = args.loss;
+    opts.loss = args.loss.into();
     opts.use_class = !args.no_class;
     opts.rollout_blocks = args.rollout;
     opts.class_dropout = args.class_dropout;
@@ -118,7 +119,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     )?;
     bar.finish();
     if cancel.load(Ordering::SeqCst) {
-        let steps = match args.stage {
+        let steps = match stage {
             Stage::Glogen => spec.glogen_training.as_ref(),
             Stage::Locgen => spec.locgen_training.as_ref(),
         }
@@ -126,7 +127,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
         eprintln!("interrupted: checkpoint at step {steps} saved in {}; continue with --resume", opts.out.display());
         std::process::exit(130);
     }
-    let record = match args.stage {
+    let record = match stage {
         Stage::Glogen => spec.glogen_training,
         Stage::Locgen => spec.locgen_training,
     };

@@ -135,7 +135,8 @@ fn yaw(angle: f32) -> Quat {
     Quat::from_rotation_y(angle)
 }
 
-fn wrap(a: f32) -> f32 {
+/// An angle brought into [-pi, pi).
+pub fn wrap(a: f32) -> f32 {
     let tau = std::f32::consts::TAU;
     a - tau * ((a + std::f32::consts::PI) / tau).floor()
 }

@@ -5,15 +5,15 @@
 //! `UpperArm_L`, `Bip01 L Thigh`, `left_elbow`, `lfemur`), and what remains is looked up in a
 //! table of the words the common conventions use for each limb joint:
 //!
-//! | key | CMU (acLSTM) | CMU (ASF) | Mixamo / Human3.6M | Bandai | SMPL |
-//! |---|---|---|---|---|---|
-//! | arm | lShldr | lhumerus | LeftArm | UpperArm_L | left_shoulder |
-//! | forearm | lForeArm | lradius | LeftForeArm | LowerArm_L | left_elbow |
-//! | hand | lHand | lwrist | LeftHand | Hand_L | left_wrist |
-//! | thigh | lThigh | lfemur | LeftUpLeg | UpperLeg_L | left_hip |
-//! | shin | lShin | ltibia | LeftLeg | LowerLeg_L | left_knee |
-//! | foot | lFoot | lfoot | LeftFoot | Foot_L | left_ankle |
-//! | toes | - | ltoes | LeftToeBase | Toes_L | left_foot |
+//! | key | CMU (acLSTM) | CMU (ASF) | Mixamo / Human3.6M | Bandai | SMPL | Unreal |
+//! |---|---|---|---|---|---|---|
+//! | arm | lShldr | lhumerus | LeftArm | UpperArm_L | left_shoulder | upperarm_l |
+//! | forearm | lForeArm | lradius | LeftForeArm | LowerArm_L | left_elbow | lowerarm_l |
+//! | hand | lHand | lwrist | LeftHand | Hand_L | left_wrist | hand_l |
+//! | thigh | lThigh | lfemur | LeftUpLeg | UpperLeg_L | left_hip | thigh_l |
+//! | shin | lShin | ltibia | LeftLeg | LowerLeg_L | left_knee | calf_l |
+//! | foot | lFoot | lfoot | LeftFoot | Foot_L | left_ankle | foot_l |
+//! | toes | - | ltoes | LeftToeBase | Toes_L | left_foot | ball_l |
 //!
 //! Words shared between conventions with different meanings ("shoulder" is Mixamo's collar
 //! and SMPL's upper arm, "foot" Mixamo's ankle and SMPL's toes) are settled by the hierarchy:
@@ -31,6 +31,7 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
+use crate::motion::words::{ANKLE, FOREARM, HAND, SHIN, THIGH, TOES, UPPER_ARM};
 use crate::motion::{Key, KeyJoints, Skeleton};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,14 +41,6 @@ enum Side {
     Centre,
 }
 
-/// Words naming each limb joint, in no particular order (the hierarchy picks among them).
-const UPPER_ARM: &[&str] = &["arm", "upperarm", "armupper", "shldr", "shoulder", "humerus", "uparm"];
-const FOREARM: &[&str] = &["forearm", "lowerarm", "armlower", "elbow", "radius", "lowarm"];
-const HAND: &[&str] = &["hand", "wrist"];
-const THIGH: &[&str] = &["upleg", "upperleg", "legupper", "thigh", "femur", "hip"];
-const SHIN: &[&str] = &["leg", "lowerleg", "leglower", "knee", "shin", "calf", "tibia", "lowleg"];
-const ANKLE: &[&str] = &["foot", "ankle"];
-const TOES: &[&str] = &["toebase", "toe", "toes", "ball", "foot", "toe0"];
 /// Prefixes some exporters put before every name.
 const RIG_PREFIXES: &[&str] = &["mixamorig", "bip01", "bip001", "biped", "def", "jnt", "bn"];
 
@@ -117,6 +110,11 @@ impl UserJointMap {
         let name = path.display();
         let text = std::fs::read_to_string(path).with_context(|| format!("cannot read joint map {name}"))?;
         let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| anyhow::anyhow!("{name}: not JSON ({e})"))?;
+        Self::from_value(&value, &name.to_string())
+    }
+
+    /// The mapping in `value` (`name` names it in errors), as a file or a project holds it.
+    pub fn from_value(value: &serde_json::Value, name: &str) -> Result<UserJointMap> {
         let Some(object) = value.as_object() else {
             bail!("{name}: expected a JSON object of \"joint name\": \"Key\" pairs");
         };
@@ -144,8 +142,7 @@ pub fn key_joints(skeleton: &Skeleton, user: Option<&UserJointMap>, file: &str) 
         let j = skeleton.index_of(joint).with_context(|| format!("{file}: the joint map names '{joint}', which is not a joint of this skeleton"))?;
         keys.set(*key, Some(j));
     }
-    let finder = Finder { skeleton, parsed: skeleton.names().iter().map(|n| parse_name(n)).collect() };
-    finder.fill(&mut keys);
+    fill_by_names(skeleton, &mut keys);
     let missing = keys.missing_required();
     if !missing.is_empty() {
         let names: Vec<&str> = missing.iter().map(|k| k.name()).collect();
@@ -159,6 +156,20 @@ pub fn key_joints(skeleton: &Skeleton, user: Option<&UserJointMap>, file: &str) 
         );
     }
     Ok(keys)
+}
+
+/// What the name table and the hierarchy find in `skeleton`, missing keys left empty (the
+/// studio's joint-mapping editor starts from these guesses).
+pub fn guess_key_joints(skeleton: &Skeleton) -> KeyJoints {
+    let mut keys = KeyJoints::default();
+    fill_by_names(skeleton, &mut keys);
+    keys
+}
+
+/// Fills the keys `keys` does not have yet from the name table and the hierarchy.
+fn fill_by_names(skeleton: &Skeleton, keys: &mut KeyJoints) {
+    let finder = Finder { skeleton, parsed: skeleton.names().iter().map(|n| parse_name(n)).collect() };
+    finder.fill(keys);
 }
 
 struct Finder<'a> {
@@ -318,9 +329,29 @@ mod tests {
             ("Hips", Side::Centre, "hips"),
             ("lowerback", Side::Centre, "lowerback"),
             ("HeadTop_End", Side::Centre, "headtopend"),
+            ("upperarm_l", Side::Left, "upperarm"),
+            ("calf_r", Side::Right, "calf"),
+            ("ball_l", Side::Left, "ball"),
+            ("spine_01", Side::Centre, "spine01"),
         ];
         for (name, side, part) in cases {
             assert_eq!(parse_name(name), (side, part.to_string()), "{name}");
+        }
+    }
+
+    /// Blender's export of an Unreal-mannequin-named rig (tests/assets): the table and the
+    /// hierarchy put every key on the joint an Unreal user means.
+    #[test]
+    fn unreal_mannequin_names_find_their_keys() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/assets/blender-unreal-salsa.bvh");
+        let motion = crate::data::bvh::read_bvh(&std::fs::read_to_string(path).unwrap(), path).unwrap();
+        let keys = key_joints(&motion.skeleton, None, path).unwrap();
+        let expected = [
+            "pelvis", "spine_02", "neck_01", "head", "clavicle_l", "upperarm_l", "lowerarm_l", "hand_l", "clavicle_r", "upperarm_r", "lowerarm_r", "hand_r",
+            "thigh_l", "calf_l", "foot_l", "ball_l", "thigh_r", "calf_r", "foot_r", "ball_r",
+        ];
+        for (key, joint) in Key::ALL.iter().zip(expected) {
+            assert_eq!(keys.get(*key).map(|j| motion.skeleton.names()[j].as_str()), Some(joint), "{}", key.name());
         }
     }
 }

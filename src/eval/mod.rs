@@ -5,9 +5,10 @@
 
 pub mod baselines;
 pub mod classifier;
+pub mod constraints;
 pub mod metrics;
 pub mod motion;
-pub mod rollout;
 pub mod suites;
+pub mod table;
 
-pub use suites::{run_suite, SuiteOptions, SuiteReport, SUITES};
+pub use suites::{run_suite, Suite, SuiteOptions, SuiteReport};

@@ -10,6 +10,7 @@ use glam::Vec3;
 use serde_json::{json, Value};
 
 use super::suites::{model_dir, SuiteOptions};
+use super::table::{fixed_or, Markdown, Table};
 use crate::data::registry::Dataset;
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
@@ -297,7 +298,8 @@ fn metres(m: &Motion) -> Vec<Vec3> {
     m.positions().iter().map(|p| *p * unit).collect()
 }
 
-fn mean(v: &[f32]) -> f64 {
+/// The mean of `v`, NaN when it is empty.
+pub(crate) fn mean(v: &[f32]) -> f64 {
     if v.is_empty() {
         f64::NAN
     } else {
@@ -514,14 +516,10 @@ fn balanced(per_class: &[BTreeMap<&'static str, f64>], key: &str) -> f64 {
 }
 
 fn cell(v: f64, digits: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.digits$}")
-    } else {
-        "-".into()
-    }
+    fixed_or(v, digits, "-")
 }
 
-pub fn motion_suite(opts: &SuiteOptions, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+pub fn motion_suite(opts: &SuiteOptions, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
     let datasets: Vec<Dataset> = match &opts.model {
         Some(p) => vec![crate::model::spec::ModelSpec::read(p)?.dataset.parse()?],
         None => vec![Dataset::H36m, Dataset::Bandai],
@@ -530,9 +528,9 @@ pub fn motion_suite(opts: &SuiteOptions, cfg: &MotionSuiteConfig, log: &mut dyn 
     for dataset in datasets {
         results.push(model_result(dataset, opts, cfg, log)?);
     }
-    let mut md = format!("{DEFINITIONS}\n\nGenerated: the shipped defaults (anchored transitions, class strength, keep-alive, LocGen, bone projection) from each class's first {} seed-bank windows with noise seeds {:?}, {} s scored after the seed block per take; {} two-class takes per class ({} s + {} s); one {} s take per class for repeats. \"no lock\" is the same takes with `foot_lock` off.\n", cfg.variants, cfg.seeds, cfg.take_seconds, cfg.transitions, cfg.segment_seconds, cfg.segment_seconds, cfg.long_seconds);
+    let mut md = Markdown::new(format!("{DEFINITIONS}\n\nGenerated: the shipped defaults (anchored transitions, class strength, keep-alive, LocGen, bone projection) from each class's first {} seed-bank windows with noise seeds {:?}, {} s scored after the seed block per take; {} two-class takes per class ({} s + {} s); one {} s take per class for repeats. \"no lock\" is the same takes with `foot_lock` off.\n", cfg.variants, cfg.seeds, cfg.take_seconds, cfg.transitions, cfg.segment_seconds, cfg.segment_seconds, cfg.long_seconds));
     for r in &results {
-        md.push_str(&model_markdown(r));
+        model_markdown(r, &mut md);
     }
     let json = json!({
         "fps": COMMON_FPS,
@@ -568,30 +566,44 @@ fn model_result(dataset: Dataset, opts: &SuiteOptions, cfg: &MotionSuiteConfig, 
     })
 }
 
-fn model_markdown(r: &ModelResult) -> String {
+fn model_markdown(r: &ModelResult, md: &mut Markdown) {
     let [(_, real, real_prof), (_, unlocked, _), (_, shipped, shipped_prof)] = &r.sources;
-    let mut md = format!("\n**{} ({})**, class-balanced (mean over the {} classes)\n\n| measure | real test | no lock | generated | no lock / real | generated / real |\n|---|---|---|---|---|---|\n", r.dataset, r.dir, r.classes.len());
+    md.text(&format!("\n**{} ({})**, class-balanced (mean over the {} classes)\n\n", r.dataset, r.dir, r.classes.len()));
+    let mut balanced_table = Table::new(["measure", "real test", "no lock", "generated", "no lock / real", "generated / real"]);
     for (key, label, digits) in ROWS {
         let (a, b, c) = (balanced(real, key), balanced(unlocked, key), balanced(shipped, key));
-        md.push_str(&format!("| {label} | {} | {} | {} | {} | {} |\n", cell(a, digits), cell(b, digits), cell(c, digits), cell(b / a, 2), cell(c / a, 2)));
+        balanced_table.row([label.to_string(), cell(a, digits), cell(b, digits), cell(c, digits), cell(b / a, 2), cell(c / a, 2)]);
     }
     let real_p95 = balanced(real, "window_peak_p95");
-    md.push_str(&format!(
-        "| transition peak / real window peak p95 | | {} | {} | | |\n",
+    balanced_table.row([
+        "transition peak / real window peak p95".to_string(),
+        String::new(),
         cell(balanced(unlocked, "transition_peak") / real_p95, 2),
-        cell(balanced(shipped, "transition_peak") / real_p95, 2)
-    ));
+        cell(balanced(shipped, "transition_peak") / real_p95, 2),
+    ]);
+    md.table(balanced_table);
     let profile = |p: &[Vec<f64>]| -> String {
         let k = p.first().map_or(0, Vec::len);
         (0..k).map(|i| cell(p.iter().map(|c| c[i]).sum::<f64>() / p.len() as f64, 2)).collect::<Vec<_>>().join(" ")
     };
-    md.push_str(&format!("\nPose speed per sparse interval of a block, over the block's mean (class-balanced; the last interval crosses the seam): real {}; generated {}.\n", profile(real_prof), profile(shipped_prof)));
-    md.push_str("\nPer class (generated = shipped defaults, foot lock on):\n\n| class | joint speed real (m/s) | generated / real | no lock / real | support speed real / no lock / generated (cm/s) | skating real / no lock / generated | contact real / no lock / generated | floating real / no lock / generated | jerk mean generated / real |\n|---|---|---|---|---|---|---|---|---|\n");
+    md.text(&format!("\nPose speed per sparse interval of a block, over the block's mean (class-balanced; the last interval crosses the seam): real {}; generated {}.\n", profile(real_prof), profile(shipped_prof)));
+    md.text("\nPer class (generated = shipped defaults, foot lock on):\n\n");
+    let mut per_class = Table::new([
+        "class",
+        "joint speed real (m/s)",
+        "generated / real",
+        "no lock / real",
+        "support speed real / no lock / generated (cm/s)",
+        "skating real / no lock / generated",
+        "contact real / no lock / generated",
+        "floating real / no lock / generated",
+        "jerk mean generated / real",
+    ]);
     for (c, name) in r.classes.iter().enumerate() {
         let v = |s: &[BTreeMap<&str, f64>], key: &str| s[c].get(key).copied().unwrap_or(f64::NAN);
         let three = |key: &str, d: usize| format!("{} / {} / {}", cell(v(real, key), d), cell(v(unlocked, key), d), cell(v(shipped, key), d));
-        md.push_str(&format!(
-            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+        per_class.row([
+            name.clone(),
             cell(v(real, "joint_speed"), 3),
             cell(v(shipped, "joint_speed") / v(real, "joint_speed"), 2),
             cell(v(unlocked, "joint_speed") / v(real, "joint_speed"), 2),
@@ -600,9 +612,9 @@ fn model_markdown(r: &ModelResult) -> String {
             three("contact_fraction", 2),
             three("floating", 2),
             cell(v(shipped, "jerk_mean") / v(real, "jerk_mean"), 2),
-        ));
+        ]);
     }
-    md
+    md.table(per_class);
 }
 
 fn model_json(r: &ModelResult) -> Value {

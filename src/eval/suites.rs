@@ -3,10 +3,11 @@
 //! evaluation cache (`target/eval-cache`, or `$GLOCAL_EVAL_CACHE`).
 
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use glam::Vec3;
 use serde_json::{json, Value};
 
@@ -14,7 +15,7 @@ use super::baselines::{ArConfig, ArKind, ArModel};
 use super::classifier::{cache_dir, real_windows, Classifier, ClassifierConfig};
 use super::metrics::{self, HORIZONS_MS};
 use super::motion::{motion_suite, MotionSuiteConfig};
-use super::rollout::{densify, glogen_forecast};
+use super::table::{fixed as f, Markdown, Table};
 use crate::data::archive::DataRoot;
 use crate::data::expmap::front_view_2d;
 use crate::data::registry::{self, Dataset, Split};
@@ -25,7 +26,50 @@ use crate::model::train::{train, Stage, TrainOptions};
 use crate::motion::Motion;
 use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, Transition, DEFAULT_CLASS_STRENGTH};
 
-pub const SUITES: [&str; 7] = ["cmu-euclid", "h36m-mmd", "h36m", "bandai", "locgen", "long-term", "motion"];
+/// The suites behind `glocal eval --suite NAME`, in the order `all` runs them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Suite {
+    CmuEuclid,
+    H36mMmd,
+    H36m,
+    Bandai,
+    Locgen,
+    LongTerm,
+    Motion,
+    Constraints,
+}
+
+impl Suite {
+    pub const ALL: [Suite; 8] = [Suite::CmuEuclid, Suite::H36mMmd, Suite::H36m, Suite::Bandai, Suite::Locgen, Suite::LongTerm, Suite::Motion, Suite::Constraints];
+
+    /// The name on the command line, in the report and in the JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Suite::CmuEuclid => "cmu-euclid",
+            Suite::H36mMmd => "h36m-mmd",
+            Suite::H36m => "h36m",
+            Suite::Bandai => "bandai",
+            Suite::Locgen => "locgen",
+            Suite::LongTerm => "long-term",
+            Suite::Motion => "motion",
+            Suite::Constraints => "constraints",
+        }
+    }
+}
+
+impl std::fmt::Display for Suite {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Suite {
+    type Err = anyhow::Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        Self::ALL.into_iter().find(|x| x.name() == s).ok_or_else(|| anyhow!("unknown suite '{s}'; valid: {}", Self::ALL.map(Suite::name).join(", ")))
+    }
+}
 
 #[derive(Clone, Debug)]
 pub struct SuiteOptions {
@@ -53,26 +97,29 @@ impl Default for SuiteOptions {
 }
 
 pub struct SuiteReport {
-    pub name: String,
+    pub suite: Suite,
     pub markdown: String,
+    /// The suite's numbers, with its printed tables under `rendered_tables`.
     pub json: Value,
 }
 
-pub fn run_suite(name: &str, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<SuiteReport> {
+pub fn run_suite(suite: Suite, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<SuiteReport> {
     let start = Instant::now();
-    let (markdown, mut json) = match name {
-        "cmu-euclid" => cmu_euclid(opts, log)?,
-        "h36m-mmd" => h36m_mmd(opts, log)?,
-        "h36m" => class_generation(Dataset::H36m, opts, log)?,
-        "bandai" => class_generation(Dataset::Bandai, opts, log)?,
-        "locgen" => locgen_suite(opts, log)?,
-        "long-term" => long_term(opts, log)?,
-        "motion" => motion_suite(opts, &if opts.quick { MotionSuiteConfig::quick() } else { MotionSuiteConfig::full() }, log)?,
-        _ => bail!("unknown suite '{name}'; valid: {}", SUITES.join(", ")),
+    let (markdown, mut json) = match suite {
+        Suite::CmuEuclid => cmu_euclid(opts, log)?,
+        Suite::H36mMmd => h36m_mmd(opts, log)?,
+        Suite::H36m => class_generation(Dataset::H36m, opts, log)?,
+        Suite::Bandai => class_generation(Dataset::Bandai, opts, log)?,
+        Suite::Locgen => locgen_suite(opts, log)?,
+        Suite::LongTerm => long_term(opts, log)?,
+        Suite::Motion => motion_suite(opts, &if opts.quick { MotionSuiteConfig::quick() } else { MotionSuiteConfig::full() }, log)?,
+        Suite::Constraints => super::constraints::constraints_suite(opts, log)?,
     };
-    json["suite"] = json!(name);
+    let (markdown, tables) = markdown.into_parts();
+    json["suite"] = json!(suite.name());
     json["seconds"] = json!(start.elapsed().as_secs_f64());
-    Ok(SuiteReport { name: name.to_string(), markdown, json })
+    json["rendered_tables"] = tables.iter().map(Table::json).collect();
+    Ok(SuiteReport { suite, markdown, json })
 }
 
 pub(crate) fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {
@@ -84,14 +131,6 @@ pub(crate) fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {
             Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(dataset.name())
         }
     })
-}
-
-fn f(v: f64, digits: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.digits$}")
-    } else {
-        "n/a".into()
-    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -163,7 +202,7 @@ fn baseline(opts: &SuiteOptions, corpus: &Corpus, norm: &crate::data::features::
     Ok(Some(m))
 }
 
-fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
     let sets = [(Dataset::CmuExpmap, vec![("walking", "Walking")]), (Dataset::CmuDance, vec![("indian", "Indian Dance"), ("martial", "Martial Arts")])];
     let published: [(&str, [(&str, [f64; 8]); 4]); 3] = [
         ("Walking", [
@@ -185,8 +224,12 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String,
             ("GlocalNet (GloGen)", [0.40, 0.43, 0.47, 0.52, 0.55, 0.59, 0.67, 0.71]),
         ]),
     ];
-    let head = format!("| method | {} |\n|---|{}\n", HORIZONS_MS.map(|h| format!("{h} ms")).join(" | "), "---|".repeat(8));
-    let mut md = String::new();
+    let header = || std::iter::once("method".to_string()).chain(HORIZONS_MS.map(|h| format!("{h} ms")));
+    let intro = format!(
+        "Euclidean distance per frame at 80..640 ms (30 fps data, linear interpolation between frames; GloGen predicts sparse poses {CMU_STRIDE} frames apart from {} observed sparse poses, the baselines dense frames from {CMU_CONTEXT} observed frames). The paper's rows are in the paper's (unstated) units and are not directly comparable.\n",
+        10
+    );
+    let mut md = Markdown::new(intro);
     let mut out = Vec::new();
     for (dataset, classes) in sets {
         let mut glogens = Vec::new();
@@ -256,24 +299,26 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String,
                 for &(ti, t0) in &starts {
                     let m = &corpus.test[ti].motion;
                     let mut p = m.frame(t0).to_vec();
-                    p.extend(glogen_forecast(model, m, t0, k, 1, opts.join_seams)?);
+                    p.extend(model.forecast(m, t0, k, 1, opts.join_seams)?);
                     preds.push(p);
                 }
                 rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
             }
             let unit = corpus.layout.skeleton.meters_per_unit();
-            md.push_str(&format!(
-                "\n**{title}** ({dataset}, class `{class_name}`, {} test windows; mean joint distance in the files' own units, world positions including the root's path)\n\n{head}",
+            md.text(&format!(
+                "\n**{title}** ({dataset}, class `{class_name}`, {} test windows; mean joint distance in the files' own units, world positions including the root's path)\n\n",
                 starts.len()
             ));
+            let mut table = Table::new(header());
             for (label, r) in &rows {
-                md.push_str(&format!("| {label} | {} |\n", r.map(|v| f(v, 3)).join(" | ")));
+                table.row(std::iter::once(label.clone()).chain(r.map(|v| f(v, 3))));
             }
             if let Some((_, pubrows)) = published.iter().find(|(t, _)| *t == title) {
                 for (label, r) in pubrows {
-                    md.push_str(&format!("| *paper: {label}* | {} |\n", r.map(|v| f(v, 2)).join(" | ")));
+                    table.row(std::iter::once(format!("*paper: {label}*")).chain(r.map(|v| f(v, 2))));
                 }
             }
+            md.table(table);
             out.push(json!({
                 "motion": title, "dataset": dataset.name(), "class": class_name, "windows": starts.len(),
                 "unit_meters": unit,
@@ -281,11 +326,7 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String,
             }));
         }
     }
-    let intro = format!(
-        "Euclidean distance per frame at 80..640 ms (30 fps data, linear interpolation between frames; GloGen predicts sparse poses {CMU_STRIDE} frames apart from {} observed sparse poses, the baselines dense frames from {CMU_CONTEXT} observed frames). The paper's rows are in the paper's (unstated) units and are not directly comparable.\n",
-        10
-    );
-    Ok((intro + &md, json!({"horizons_ms": HORIZONS_MS, "tables": out})))
+    Ok((md, json!({"horizons_ms": HORIZONS_MS, "tables": out})))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -304,7 +345,7 @@ fn view2d(skeleton: &std::sync::Arc<crate::motion::Skeleton>, frames: Vec<Vec3>,
     front_view_2d(&m, joints, hips.0, hips.1).into_iter().flat_map(|p| [p[0] * unit, p[1] * unit]).collect()
 }
 
-fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
     let dir = model_dir(opts, Dataset::H36m);
     let mut model = GlocalModel::load(&dir)?;
     let spec = model.spec.clone();
@@ -360,9 +401,9 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, V
             let truth: Vec<Vec3> = (0..n_out).flat_map(|k| m16.frame(w + n_in + k).to_vec()).collect();
             real.push(view2d(&skel, truth, &model_joints, hips, unit));
             let observed = m25.frame(*t0).to_vec();
-            let sparse = glogen_forecast(&mut model, m25, *t0, class, blocks, opts.join_seams)?;
+            let keys: Vec<Vec3> = observed.iter().copied().chain(model.forecast(m25, *t0, class, blocks, opts.join_seams)?).collect();
             for (mi, locgen) in [(0, true), (1, false)] {
-                let dense = densify(&mut model, &observed, &sparse, locgen);
+                let dense = model.densify(&keys, locgen);
                 let frames: Vec<Vec3> = (1..=n_out).flat_map(|k| metrics::pose_at(&dense, skel.len(), spec.fps, k as f32 * dt16)).collect();
                 gens[mi].push(view2d(&skel, frames, &model_joints, hips, unit));
             }
@@ -396,18 +437,20 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, V
         log(&format!("h36m-mmd {name}: {} windows", real.len()));
         per_class.push(row);
     }
-    let mut md = String::from(
-        "Human3.6M, 2D front view of the 15 major joints (meters, root-relative), 16.7 fps (every third 50-fps frame), 50 predicted frames per test window of subject S11, up to 64 windows per class, 10 classes. MMD is the unbiased estimate of MMD² (Gaussian kernel, maximum over bandwidths 1e-4..1e9), per class then averaged. Our model observes the 2 s before the first predicted frame (10 sparse poses at 5 Hz, its own block), not the 10 frames at 16 fps of the published protocol: the published rows are printed for reference and are not directly comparable.\n\n| method | MMD_avg | MMD_seq | mean 2D distance to the true continuation (m) |\n|---|---|---|---|\n",
+    let mut md = Markdown::new(
+        "Human3.6M, 2D front view of the 15 major joints (meters, root-relative), 16.7 fps (every third 50-fps frame), 50 predicted frames per test window of subject S11, up to 64 windows per class, 10 classes. MMD is the unbiased estimate of MMD² (Gaussian kernel, maximum over bandwidths 1e-4..1e9), per class then averaged. Our model observes the 2 s before the first predicted frame (10 sparse poses at 5 Hz, its own block), not the 10 frames at 16 fps of the published protocol: the published rows are printed for reference and are not directly comparable.\n\n",
     );
+    let mut table = Table::new(["method", "MMD_avg", "MMD_seq", "mean 2D distance to the true continuation (m)"]);
     let mut summary = Vec::new();
     for (mi, label) in methods.iter().chain(std::iter::once(&"Real vs real (first vs second half of the S11 windows, reference)")).enumerate() {
         let e = errors.get(mi).copied().unwrap_or(f64::NAN);
-        md.push_str(&format!("| {label} | {} | {} | {} |\n", f(sums[mi].0, 3), f(sums[mi].1, 3), f(e, 3)));
+        table.row([label.to_string(), f(sums[mi].0, 3), f(sums[mi].1, 3), f(e, 3)]);
         summary.push(json!({"method": label, "mmd_avg": sums[mi].0, "mmd_seq": sums[mi].1, "mean_2d_error_m": e}));
     }
     for (label, a, sq) in [("SA-GCN (published)", 0.146, 0.134), ("GlocalNet (published)", 0.103, 0.102)] {
-        md.push_str(&format!("| *{label}, not directly comparable* | {a:.3} | {sq:.3} | |\n"));
+        table.row([format!("*{label}, not directly comparable*"), format!("{a:.3}"), format!("{sq:.3}")]);
     }
+    md.table(table);
     Ok((md, json!({"model": dir, "summary": summary, "per_class": per_class})))
 }
 
@@ -495,8 +538,8 @@ impl Scores {
         json!({"fid": self.fid, "accuracy": self.accuracy, "diversity": self.diversity, "multimodality": self.multimodality, "per_class_accuracy": self.per_class})
     }
 
-    fn row(&self, label: &str) -> String {
-        format!("| {label} | {} | {} | {} | {} |\n", f(self.fid, 2), f(self.accuracy, 3), f(self.diversity, 2), f(self.multimodality, 2))
+    fn row(&self, label: String) -> [String; 5] {
+        [label, f(self.fid, 2), f(self.accuracy, 3), f(self.diversity, 2), f(self.multimodality, 2)]
     }
 }
 
@@ -518,7 +561,7 @@ fn score(clf: &Classifier, clips: &[Vec<f32>], labels: &[usize], test_f: &[Vec<f
     })
 }
 
-fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
+fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
     let dir = model_dir(opts, dataset);
     let mut model = GlocalModel::load(&dir)?;
     let spec = model.spec.clone();
@@ -567,25 +610,25 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
             conditions.push((start, transition_s, clips.len(), score(&clf, &clips, &labels, &test_f, k)?));
         }
     }
-    let mut md = format!(
-        "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n| samples | FID | accuracy | diversity | multimodality |\n|---|---|---|---|---|\n",
+    let mut md = Markdown::new(format!(
+        "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n",
         dir.display(), opts.transition, opts.class_strength, if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
         gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), GEN_VARIANTS
-    );
-    md.push_str(&real.row("Real test split (reference; FID = train vs test)"));
-    md.push_str(&generated.row("GlocalNet, class-conditioned"));
+    ));
+    let mut samples = Table::new(["samples", "FID", "accuracy", "diversity", "multimodality"]);
+    samples.row(real.row("Real test split (reference; FID = train vs test)".into()));
+    samples.row(generated.row("GlocalNet, class-conditioned".into()));
     for (start, transition_s, n, s) in &conditions {
-        md.push_str(&s.row(&format!("class control: {}, {transition_s} s transition ({n} clips)", start.label())));
+        samples.row(s.row(format!("class control: {}, {transition_s} s transition ({n} clips)", start.label())));
     }
-    md.push_str("\nPer class, accuracy of the requested class (class control after a 2 s transition):\n\n| class | conditioned | same class's seed | other class's seed | previous segment |\n|---|---|---|---|---|\n");
+    md.table(samples);
+    md.text("\nPer class, accuracy of the requested class (class control after a 2 s transition):\n\n");
+    let mut per_class = Table::new(["class", "conditioned", "same class's seed", "other class's seed", "previous segment"]);
     let after_2s: Vec<&Scores> = conditions.iter().filter(|c| c.1 == 2.0).map(|c| &c.3).collect();
     for c in 0..k {
-        md.push_str(&format!("| {} | {} |", spec.classes[c], f(generated.per_class[c], 2)));
-        for s in &after_2s {
-            md.push_str(&format!(" {} |", f(s.per_class[c], 2)));
-        }
-        md.push('\n');
+        per_class.row([spec.classes[c].clone(), f(generated.per_class[c], 2)].into_iter().chain(after_2s.iter().map(|s| f(s.per_class[c], 2))));
     }
+    md.table(per_class);
     Ok((md, json!({
         "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.class_strength, "keep_alive": opts.keep_alive,
         "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
@@ -598,8 +641,9 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
 // ---------------------------------------------------------------------------------------
 // locgen
 
-fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
-    let mut md = String::from("Dense frames rebuilt from the true sparse keyframes of the real test split (h36m, subject S11): plain linear interpolation against LocGen. Mean joint distance over all frames of each window and over the frames between keyframes only, in mm.\n\n| model | windows | interpolation (all) | LocGen (all) | interpolation (between keys) | LocGen (between keys) |\n|---|---|---|---|---|---|\n");
+fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let mut md = Markdown::new("Dense frames rebuilt from the true sparse keyframes of the real test split (h36m, subject S11): plain linear interpolation against LocGen. Mean joint distance over all frames of each window and over the frames between keyframes only, in mm.\n\n");
+    let mut table = Table::new(["model", "windows", "interpolation (all)", "LocGen (all)", "interpolation (between keys)", "LocGen (between keys)"]);
     let mut rows = Vec::new();
     let mut dirs = vec![model_dir(opts, Dataset::H36m)];
     let paper = Path::new("models/h36m-paper");
@@ -610,7 +654,7 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Strin
     for dir in dirs {
         let mut model = GlocalModel::load(&dir)?;
         if !model.has_locgen() {
-            md.push_str(&format!("| {} | no LocGen | | | | |\n", dir.display()));
+            table.row([dir.display().to_string(), "no LocGen".into()]);
             continue;
         }
         let spec = model.spec.clone();
@@ -619,28 +663,20 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Strin
             corpus_cache = Some(Corpus::load(Dataset::H36m, &opts.data, spec.stride, 3)?);
         }
         let corpus = corpus_cache.as_ref().expect("loaded");
-        let (s, w, layout) = (spec.stride, spec.locgen.window, &spec.layout);
-        let dim = layout.dim();
-        let j = layout.joints();
-        let mut feats = Vec::new();
+        let (s, w, j) = (spec.stride, spec.locgen.window, spec.layout.joints());
         let mut meta = Vec::new();
         for t in &corpus.test {
             let m = &t.motion;
             let mut frame = s;
             while frame + w + s + 1 < m.frames() && meta.len() < 4000 {
-                let interp = crate::model::corpus::interpolated_window(m, frame, w, s, spec.locgen.interpolation);
-                let refs: Vec<&[Vec3]> = interp.chunks_exact(j).collect();
-                feats.extend(layout.encode(&refs, Some(m.frame(frame - 1))));
-                meta.push((m, frame, interp));
+                meta.push((m, frame, model.keyframe_window(m, frame)));
                 frame += 2 * w;
             }
         }
-        spec.dense_norm.normalize(&mut feats);
-        model.locgen(&mut feats, meta.len());
-        spec.dense_norm.denormalize(&mut feats);
+        let windows: Vec<(&[Vec3], &[Vec3])> = meta.iter().map(|(m, frame, interp)| (interp.as_slice(), m.frame(frame - 1))).collect();
+        let refined = model.refine_windows(&windows).expect("the model has LocGen");
         let (mut ia, mut la, mut ib, mut lb, mut na, mut nb) = (0.0, 0.0, 0.0, 0.0, 0usize, 0usize);
-        for (i, (m, frame, interp)) in meta.iter().enumerate() {
-            let (pos, _) = layout.decode(&feats[i * w * dim..(i + 1) * w * dim], layout.placement(m.frame(frame - 1)));
+        for ((m, frame, interp), pos) in meta.iter().zip(refined.chunks_exact(w * j)) {
             for k in 0..w {
                 let truth = m.frame(frame + k);
                 let ei = metrics::pose_error(&interp[k * j..(k + 1) * j], truth);
@@ -657,18 +693,19 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Strin
         }
         let mm = spec.source_skeleton.meters_per_unit() as f64 * 1000.0;
         let r = [ia / na as f64 * mm, la / na as f64 * mm, ib / nb.max(1) as f64 * mm, lb / nb.max(1) as f64 * mm];
-        md.push_str(&format!("| {} | {} | {} | {} | {} | {} |\n", dir.display(), meta.len(), f(r[0], 1), f(r[1], 1), f(r[2], 1), f(r[3], 1)));
+        table.row([dir.display().to_string(), meta.len().to_string(), f(r[0], 1), f(r[1], 1), f(r[2], 1), f(r[3], 1)]);
         rows.push(json!({"model": dir, "windows": meta.len(), "interp_all_mm": r[0], "locgen_all_mm": r[1], "interp_between_mm": r[2], "locgen_between_mm": r[3]}));
     }
-    md.push_str("\n*Paper (NTU RGB+D 3D, GloGen outputs, its own units): LocGen 0.172 vs interpolation 0.177; not comparable.*\n");
+    md.table(table);
+    md.text("\n*Paper (NTU RGB+D 3D, GloGen outputs, its own units): LocGen 0.172 vs interpolation 0.177; not comparable.*\n");
     Ok((md, json!({"rows": rows})))
 }
 
 // ---------------------------------------------------------------------------------------
 // long-term
 
-fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, Value)> {
-    let mut md = String::from("Each class generated for 120 s from its first seed (noise seed 1), judged per 10 s window: mean joint speed over the class's real mean speed (training split), relative bone-length error (after the shipped bone projection, and of the raw network output without it), and whether every value is finite. Keep-alive (re-anchoring a stalled segment on its class's seed windows) is on, as shipped; one column gives the lowest window speed with it off. The 60 s columns are the first six windows of the same take.\n");
+fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let mut md = Markdown::new("Each class generated for 120 s from its first seed (noise seed 1), judged per 10 s window: mean joint speed over the class's real mean speed (training split), relative bone-length error (after the shipped bone projection, and of the raw network output without it), and whether every value is finite. Keep-alive (re-anchoring a stalled segment on its class's seed windows) is on, as shipped; one column gives the lowest window speed with it off. The 60 s columns are the first six windows of the same take.\n");
     let mut out = Vec::new();
     let datasets: Vec<Dataset> = match &opts.model {
         Some(p) => vec![ModelSpec::read(p)?.dataset.parse()?],
@@ -677,13 +714,14 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, 
     for dataset in datasets {
         let dir = model_dir(opts, dataset);
         if !dir.join("glogen.safetensors").exists() {
-            md.push_str(&format!("\n{}: no model.\n", dir.display()));
+            md.text(&format!("\n{}: no model.\n", dir.display()));
             continue;
         }
         let mut model = GlocalModel::load(&dir)?;
         let spec = model.spec.clone();
         log(&format!("long-term: {}", dir.display()));
-        md.push_str(&format!("\n**{}** ({}; LocGen: {})\n\n| class | speed ratio 0-10 s | 50-60 s | 110-120 s | min / max over 120 s | min without keep-alive | bone error (projected, max) | bone error (raw, mean / max) | finite |\n|---|---|---|---|---|---|---|---|---|\n", dir.display(), dataset, model.has_locgen()));
+        md.text(&format!("\n**{}** ({}; LocGen: {})\n\n", dir.display(), dataset, model.has_locgen()));
+        let mut table = Table::new(["class", "speed ratio 0-10 s", "50-60 s", "110-120 s", "min / max over 120 s", "min without keep-alive", "bone error (projected, max)", "bone error (raw, mean / max)", "finite"]);
         let rest = spec.layout.skeleton.rest_bone_lengths();
         let min_bone = 0.02 * rest.iter().cloned().fold(0.0, f32::max);
         for class in 0..spec.classes.len() {
@@ -715,12 +753,20 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(String, 
             let rmean = raw.iter().map(|w| w.bone_error).sum::<f32>() / raw.len().max(1) as f32;
             let rmax = raw.iter().map(|w| w.bone_error).fold(0.0, f32::max);
             let finite = !p.is_empty() && p.iter().chain(raw.iter()).all(|w| w.finite && w.speed_ratio.is_finite());
-            md.push_str(&format!(
-                "| {} | {} | {} | {} | {} / {} | {} | {} | {} / {} | {} |\n",
-                spec.classes[class], f(sr(0), 2), f(sr(5), 2), f(sr(11), 2), f(min as f64, 2), f(max as f64, 2), f(min_stalling as f64, 2), f(bmax as f64, 4), f(rmean as f64, 3), f(rmax as f64, 3), if finite { "yes" } else { "NO" }
-            ));
+            table.row([
+                spec.classes[class].clone(),
+                f(sr(0), 2),
+                f(sr(5), 2),
+                f(sr(11), 2),
+                format!("{} / {}", f(min as f64, 2), f(max as f64, 2)),
+                f(min_stalling as f64, 2),
+                f(bmax as f64, 4),
+                format!("{} / {}", f(rmean as f64, 3), f(rmax as f64, 3)),
+                (if finite { "yes" } else { "NO" }).into(),
+            ]);
             out.push(json!({"dataset": dataset.name(), "class": spec.classes[class], "windows_projected": p, "windows_raw": raw, "windows_without_keep_alive": stalling, "finite": finite}));
         }
+        md.table(table);
     }
     Ok((md, json!({"classes": out})))
 }

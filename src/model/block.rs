@@ -6,7 +6,7 @@
 //! Weight names under the block's `VarBuilder`: `enc.*` and `dec.*` (see [`super::lstm::BiLstm`]:
 //! `weight_ih_l0`, `weight_hh_l0`, `bias_ih_l0`, `bias_hh_l0` and the same with `_reverse`), and
 //! `head.weight [out_dim, 2H]`, `head.bias [out_dim]`.
-use super::lstm::{with_f32, BiLstm, CpuBiLstm, Scratch};
+use super::lstm::{matmul, with_f32, BiLstm, CpuBiLstm, Scratch, Strided};
 use candle_core::{bail, CpuStorage, CustomOp1, DType, Device, Layout, Result, Shape, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
@@ -336,29 +336,7 @@ impl FrozenBlock {
             out[r * o..r * o + o].copy_from_slice(&self.head_b);
         }
         // out[B*T, O] += d[B*T, 2H] · W_headᵀ
-        unsafe {
-            gemm::gemm(
-                b * t,
-                o,
-                h2,
-                out.as_mut_ptr(),
-                1,
-                o as isize,
-                true,
-                d.as_ptr(),
-                1,
-                h2 as isize,
-                self.head_w.as_ptr(),
-                h2 as isize,
-                1,
-                1.0f32,
-                1.0f32,
-                false,
-                false,
-                false,
-                gemm::Parallelism::None,
-            );
-        }
+        matmul((b * t, o, h2), out, o, Strided::rows(d, h2), Strided::transpose_of(&self.head_w, h2), true, gemm::Parallelism::None);
     }
 
     /// The encoder outputs `[B*T*2H]` of the last `infer` or `encode_infer` call.

@@ -3,15 +3,17 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
 use glam::Vec3;
 
 use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
+use super::corpus::interpolated_window;
 use super::spec::{ModelSpec, Seed};
+use super::Error;
 use crate::data::features::{interpolate, Placement, ROOT_FEATURES};
-use crate::motion::floor_height;
+use crate::motion::{floor_height, Motion};
 
 pub const GLOGEN_FILE: &str = "glogen.safetensors";
 pub const LOCGEN_FILE: &str = "locgen.safetensors";
@@ -31,19 +33,18 @@ pub struct GlocalModel {
 impl GlocalModel {
     /// Loads a model folder; every file is checked, and a missing or mismatched one is an
     /// error that names it. A folder without LocGen still generates (plain interpolation).
-    pub fn load(dir: &Path) -> Result<Self> {
+    pub fn load(dir: &Path) -> Result<Self, Error> {
         let spec = ModelSpec::read_verified(dir)?;
         let glogen = load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?;
         let locgen_path = dir.join(LOCGEN_FILE);
         let locgen = if locgen_path.exists() { Some(load_block(&locgen_path, &spec.locgen.block)?.freeze()?) } else { None };
         let seeds_path = dir.join(SEEDS_FILE);
-        let seeds: Vec<Seed> = serde_json::from_str(
-            &std::fs::read_to_string(&seeds_path).with_context(|| format!("model folder has no readable {}", seeds_path.display()))?,
-        )
-        .with_context(|| format!("{} is not a valid seed bank", seeds_path.display()))?;
+        let text = std::fs::read_to_string(&seeds_path).map_err(|e| file_error(format!("model folder has no readable {}", seeds_path.display()), e))?;
+        let seeds: Vec<Seed> = serde_json::from_str(&text).map_err(|e| file_error(format!("{} is not a valid seed bank", seeds_path.display()), e))?;
         let width = spec.block_len * spec.layout.dim();
         if let Some(bad) = seeds.iter().position(|s| s.features.len() != width || s.class >= spec.classes.len()) {
-            bail!("{}: seed {bad} does not fit the model ({} sparse poses of {} features, {} classes)", seeds_path.display(), spec.block_len, spec.layout.dim(), spec.classes.len());
+            let problem = format!("seed {bad} does not fit the model ({} sparse poses of {} features, {} classes)", spec.block_len, spec.layout.dim(), spec.classes.len());
+            return Err(Error::Mismatch { path: seeds_path, problem });
         }
         Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen })
     }
@@ -147,6 +148,56 @@ impl GlocalModel {
 }
 
 impl GlocalModel {
+    /// GloGen continuing real motion: `blocks * block_len` sparse poses after frame `t0` of
+    /// `m` (on the model's skeleton and frame rate), the `k`-th at frame `t0 + (k + 1) *
+    /// stride`, rolled out block by block with [`Self::rollout_block`] from the `block_len`
+    /// observed sparse poses ending at `t0`. Positions are in the motion's own world frame.
+    pub fn forecast(&mut self, m: &Motion, t0: usize, class: usize, blocks: usize, join_seams: bool) -> Result<Vec<Vec3>> {
+        let (s, t, dim) = (self.spec.stride, self.spec.block_len, self.spec.layout.dim());
+        let first = t0 as isize - ((t - 1) * s) as isize;
+        if first < s as isize || t0 >= m.frames() {
+            bail!("frame {t0} has too little observed motion before it for the model ({} frames needed)", t * s);
+        }
+        let mut sparse = self.spec.layout.encode_motion(m, first as usize, s, t);
+        self.spec.sparse_norm.normalize(&mut sparse);
+        let class_vec = self.class_vector(class);
+        let mut out = vec![0.0; t * dim];
+        for _ in 0..blocks {
+            let input = sparse[sparse.len() - t * dim..].to_vec();
+            self.rollout_block(&input, &input[(t - 2) * dim..], &class_vec, 1.0, join_seams, &mut out);
+            sparse.extend_from_slice(&out);
+        }
+        let mut predicted = sparse.split_off(t * dim);
+        self.spec.sparse_norm.denormalize(&mut predicted);
+        Ok(self.spec.layout.decode(&predicted, self.spec.layout.placement(m.frame(t0))).0)
+    }
+
+    /// The model's interpolation of the true sparse keyframes of `m` over the LocGen window
+    /// that starts at frame `start` (what LocGen refines).
+    pub fn keyframe_window(&self, m: &Motion, start: usize) -> Vec<Vec3> {
+        interpolated_window(m, start, self.spec.locgen.window, self.spec.stride, self.spec.locgen.interpolation)
+    }
+
+    /// LocGen over whole windows of interpolated dense poses, each given with the pose just
+    /// before it (which places it and starts its velocities); the refined poses, window after
+    /// window. None without LocGen.
+    pub fn refine_windows(&mut self, windows: &[(&[Vec3], &[Vec3])]) -> Option<Vec<Vec3>> {
+        if !self.has_locgen() {
+            return None;
+        }
+        let (layout, norm) = (self.spec.layout.clone(), self.spec.dense_norm.clone());
+        let (j, width) = (layout.joints(), self.spec.locgen.window * layout.dim());
+        let mut feats = Vec::with_capacity(windows.len() * width);
+        for (poses, before) in windows {
+            let refs: Vec<&[Vec3]> = poses.chunks_exact(j).collect();
+            feats.extend(layout.encode(&refs, Some(before)));
+        }
+        norm.normalize(&mut feats);
+        self.locgen(&mut feats, windows.len());
+        norm.denormalize(&mut feats);
+        Some(feats.chunks_exact(width).zip(windows).flat_map(|(f, (_, before))| layout.decode(f, layout.placement(before)).0).collect())
+    }
+
     /// Dense frames between sparse poses at the model's native stride: their linear
     /// interpolation, refined by LocGen when asked and available.
     pub fn densify(&mut self, sparse: &[Vec3], refine: bool) -> Vec<Vec3> {
@@ -201,7 +252,7 @@ fn join_seam(previous: &[f32], block: &mut [f32], dim: usize) {
 }
 
 /// Builds a block and fills it from a safetensors file.
-pub fn load_block(path: &Path, cfg: &BlockConfig) -> Result<Seq2SeqBlock> {
+pub fn load_block(path: &Path, cfg: &BlockConfig) -> Result<Seq2SeqBlock, Error> {
     let varmap = VarMap::new();
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
     load_weights(path, &varmap)?;
@@ -210,26 +261,31 @@ pub fn load_block(path: &Path, cfg: &BlockConfig) -> Result<Seq2SeqBlock> {
 
 /// Fills every variable from a safetensors file after checking that each is there with
 /// the right shape and dtype and holds only finite values.
-pub fn load_weights(path: &Path, varmap: &VarMap) -> Result<()> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let file = safetensors::SafeTensors::deserialize(&bytes).with_context(|| format!("{} is not a safetensors file", path.display()))?;
-    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
+pub fn load_weights(path: &Path, varmap: &VarMap) -> Result<(), Error> {
+    let bytes = std::fs::read(path).map_err(|e| file_error(format!("cannot read {}", path.display()), e))?;
+    let file = safetensors::SafeTensors::deserialize(&bytes).map_err(|e| file_error(format!("{} is not a safetensors file", path.display()), e))?;
+    let vars = varmap.data().lock().expect("no thread panics holding the variable map");
     let mut names: Vec<&String> = vars.keys().collect();
     names.sort();
+    let mismatch = |problem: String| Error::Mismatch { path: path.to_path_buf(), problem };
     for name in names {
         let var = &vars[name];
-        let view = file.tensor(name).with_context(|| format!("{} has no tensor '{name}': it was saved for a different model", path.display()))?;
+        let view = file.tensor(name).map_err(|e| file_error(format!("{} has no tensor '{name}': it was saved for a different model", path.display()), e))?;
         if view.dtype() != safetensors::Dtype::F32 {
-            bail!("{}: tensor '{name}' is {:?}, expected F32", path.display(), view.dtype());
+            return Err(mismatch(format!("tensor '{name}' is {:?}, expected F32", view.dtype())));
         }
         if view.shape() != var.dims() {
-            bail!("{}: tensor '{name}' has shape {:?}, the model needs {:?}", path.display(), view.shape(), var.dims());
+            return Err(mismatch(format!("tensor '{name}' has shape {:?}, the model needs {:?}", view.shape(), var.dims())));
         }
         let values: Vec<f32> = view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         if values.iter().any(|v| !v.is_finite()) {
-            bail!("{}: tensor '{name}' holds NaN or infinite values", path.display());
+            return Err(mismatch(format!("tensor '{name}' holds NaN or infinite values")));
         }
         var.set(&candle_core::Tensor::from_vec(values, var.shape(), &Device::Cpu)?)?;
     }
     Ok(())
+}
+
+fn file_error(what: String, cause: impl std::error::Error + Send + Sync + 'static) -> Error {
+    Error::File { what, cause: cause.into() }
 }

@@ -7,3 +7,54 @@ pub mod corpus;
 pub mod glocal;
 pub mod spec;
 pub mod train;
+
+use std::path::PathBuf;
+
+/// What goes wrong reading a model folder: its model.json, its checksums, its weight files
+/// and its seed bank. Each message names the file and what is wrong with it.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{} is a file; --model takes the model folder (the one holding model.json)", .0.display())]
+    FileNotFolder(PathBuf),
+    #[error("model folder {} does not exist", .0.display())]
+    NoFolder(PathBuf),
+    /// A model.json that is not JSON of the right shape (`name` is the file).
+    #[error("{name}: line {line}: {message}")]
+    SpecSyntax { name: String, line: usize, message: String },
+    /// A model.json with a field out of range or inconsistent with the others.
+    #[error("{name}: {problem}")]
+    SpecInvalid { name: String, problem: spec::SpecError },
+    #[error("{}: checksum {found} does not match the {expected} in model.json: the file is damaged, or training was stopped between writing it and model.json (finish it with `glocal train --resume`)", path.display())]
+    Checksum { path: PathBuf, found: String, expected: String },
+    /// A file that cannot be read or is not what it should be; the cause is its source.
+    #[error("{what}")]
+    File {
+        what: String,
+        #[source]
+        cause: anyhow::Error,
+    },
+    /// Weights or seeds that do not fit the model described by model.json.
+    #[error("{}: {problem}", path.display())]
+    Mismatch { path: PathBuf, problem: String },
+    #[error(transparent)]
+    Candle(#[from] candle_core::Error),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spec::ModelSpec;
+    use super::Error;
+
+    #[test]
+    fn a_wrong_model_folder_is_told_apart_by_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("none");
+        assert!(matches!(ModelSpec::read(&missing), Err(Error::NoFolder(p)) if p == missing));
+        let file = dir.path().join("model.json");
+        std::fs::write(&file, "{").unwrap();
+        assert!(matches!(ModelSpec::read(&file), Err(Error::FileNotFolder(_))));
+        let e = ModelSpec::read(dir.path()).unwrap_err();
+        assert!(matches!(&e, Error::SpecSyntax { line: 1, .. }), "{e}");
+        assert!(e.to_string().starts_with(&format!("{}: line 1:", file.display())), "{e}");
+    }
+}

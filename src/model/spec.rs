@@ -5,10 +5,11 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::block::BlockConfig;
+use super::Error;
 use super::glocal::{GLOGEN_FILE, LOCGEN_FILE};
 use crate::data::features::{FeatureLayout, Interpolation, Normalizer};
 use crate::data::input::{read_bytes, read_text};
@@ -19,16 +20,13 @@ use crate::motion::{clipped, Skeleton};
 pub const FORMAT_VERSION: u32 = 1;
 
 /// Which terms the training loss has (the paper's ablations).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum LossKind {
     /// Joint error only (L_J).
-    #[value(name = "j")]
     Joint,
     /// Motion-flow error only (L_MF).
-    #[value(name = "mf")]
     Flow,
     /// Both, as the paper trains (L_J + L_MF).
-    #[value(name = "j+mf")]
     JointFlow,
 }
 
@@ -197,36 +195,36 @@ fn locks_feet() -> bool {
 impl ModelSpec {
     /// Reads and validates `dir/model.json` (see [`ModelSpec::validate`]). A missing folder, a
     /// file given as the folder and an unreadable file are each named as such.
-    pub fn read(dir: &Path) -> Result<Self> {
+    pub fn read(dir: &Path) -> Result<Self, Error> {
         let path = dir.join("model.json");
         if dir.is_file() {
-            bail!("{} is a file; --model takes the model folder (the one holding model.json)", dir.display());
+            return Err(Error::FileNotFolder(dir.to_path_buf()));
         }
         if !dir.is_dir() {
-            bail!("model folder {} does not exist", dir.display());
+            return Err(Error::NoFolder(dir.to_path_buf()));
         }
-        let text = read_text(&path, MAX_SPEC_BYTES).with_context(|| format!("model folder {} has no readable model.json", dir.display()))?;
+        let text = read_text(&path, MAX_SPEC_BYTES).map_err(|cause| Error::File { what: format!("model folder {} has no readable model.json", dir.display()), cause })?;
         Self::from_json(&text, &path.display().to_string())
     }
 
     /// Parses and validates the text of a model.json; errors start with `name`.
-    pub fn from_json(text: &str, name: &str) -> Result<Self> {
-        let spec: ModelSpec = serde_json::from_str(text).map_err(|e| anyhow::anyhow!("{name}: line {}: {e}", e.line()))?;
-        spec.validate().map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    pub fn from_json(text: &str, name: &str) -> Result<Self, Error> {
+        let spec: ModelSpec = serde_json::from_str(text).map_err(|e| Error::SpecSyntax { name: name.to_string(), line: e.line(), message: e.to_string() })?;
+        spec.validate().map_err(|problem| Error::SpecInvalid { name: name.to_string(), problem })?;
         Ok(spec)
     }
 
     /// Reads `dir/model.json` and checks each weight file's checksum against it, for
     /// loading a model to generate with. A model.json without checksums (written before
     /// they existed) is accepted as it is.
-    pub fn read_verified(dir: &Path) -> Result<Self> {
+    pub fn read_verified(dir: &Path) -> Result<Self, Error> {
         let spec = Self::read(dir)?;
         for (file, expected) in &spec.weights_sha256 {
             let path = dir.join(file);
             let Ok(bytes) = read_bytes(&path, MAX_WEIGHTS_BYTES) else { continue };
             let found = sha256_hex(&bytes);
             if &found != expected {
-                bail!("{}: checksum {found} does not match the {expected} in model.json: the file is damaged, or training was stopped between writing it and model.json (finish it with `glocal train --resume`)", path.display());
+                return Err(Error::Checksum { path, found, expected: expected.clone() });
             }
         }
         Ok(spec)

@@ -28,7 +28,7 @@ use crate::data::input::read_bytes;
 use crate::data::write::{write_atomic, FolderLock};
 use crate::motion::clipped;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
     Glogen,
     Locgen,

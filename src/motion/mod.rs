@@ -14,7 +14,7 @@ mod take;
 
 pub use kinematics::{forward_kinematics, LocalPose};
 pub use retarget::{mapped_bones, Key, KeyJoints, RestPose, Retarget, RetargetError};
-pub use roles::{JointRoles, Leg, RolesError, Side};
+pub use roles::{words, JointRoles, Leg, RolesError, Side};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError};
 pub use solve::solve_local_poses;

@@ -8,6 +8,19 @@ use glam::Vec3;
 
 use super::Skeleton;
 
+/// Words naming each limb joint in the common rig conventions (h36m, Bandai, CMU, Mixamo,
+/// Unreal, ...), lower-case: the one vocabulary of the roles here and of the retargeting key
+/// joints (`data::joint_map`), which parses names into words and lets the hierarchy choose.
+pub mod words {
+    pub const UPPER_ARM: &[&str] = &["arm", "upperarm", "armupper", "shldr", "shoulder", "humerus", "uparm"];
+    pub const FOREARM: &[&str] = &["forearm", "lowerarm", "armlower", "elbow", "radius", "lowarm"];
+    pub const HAND: &[&str] = &["hand", "wrist"];
+    pub const THIGH: &[&str] = &["upleg", "upperleg", "legupper", "thigh", "femur", "hip"];
+    pub const SHIN: &[&str] = &["leg", "lowerleg", "leglower", "knee", "shin", "calf", "tibia", "lowleg"];
+    pub const ANKLE: &[&str] = &["foot", "ankle"];
+    pub const TOES: &[&str] = &["toebase", "toe", "toes", "ball", "foot", "toe0"];
+}
+
 /// Bones shorter than this fraction of the longest bone are duplicates or collapsed end
 /// sites, and do not count as a segment of a limb.
 const MIN_SEGMENT_FRACTION: f32 = 0.02;
@@ -119,13 +132,13 @@ impl Partial {
     fn by_name(s: &Skeleton) -> Self {
         let mut out = Partial::default();
         for (k, side) in Side::BOTH.into_iter().enumerate() {
-            let hip = named(s, Some(side), &["upleg", "upperleg", "thigh", "hip"], None);
-            let knee = hip.and_then(|h| named(s, Some(side), &["lowerleg", "knee", "shin", "calf", "leg"], Some(h)));
-            let ankle = knee.and_then(|k| named(s, Some(side), &["foot", "ankle"], Some(k)));
-            let toe = ankle.and_then(|a| named(s, Some(side), &["toe", "ball"], Some(a)).or_else(|| farthest_child(s, a)));
+            let hip = named(s, Some(side), words::THIGH, None);
+            let knee = hip.and_then(|h| named(s, Some(side), words::SHIN, Some(h)));
+            let ankle = knee.and_then(|k| named(s, Some(side), words::ANKLE, Some(k)));
+            let toe = ankle.and_then(|a| named(s, Some(side), words::TOES, Some(a)).or_else(|| farthest_child(s, a)));
             let toe_end = toe.and_then(|t| farthest_child(s, t));
             out.legs[k] = Some(PartialLeg { hip, knee, ankle, toe, toe_end });
-            out.hands[k] = named(s, Some(side), &["hand", "wrist"], None);
+            out.hands[k] = named(s, Some(side), words::HAND, None);
         }
         if let [Some(PartialLeg { hip: Some(l), .. }), Some(PartialLeg { hip: Some(r), .. })] = out.legs {
             out.body_root = common_ancestor(s, l, r);

@@ -8,9 +8,10 @@ use std::sync::Arc;
 use egui::{Key, KeyboardShortcut, Modifiers};
 
 use super::dialogs::{self, Dialogs, Outcome, Purpose};
+use super::joint_mapping::PreviewFor;
 use super::messages::{Level, Messages, Topic};
 use super::project::{self, History, Project, StudioState};
-use super::timeline::{Action, TimelineState, MIN_SECONDS};
+use super::timeline::{Action, Mark, TimelineState, MIN_SECONDS};
 use super::transport::Playback;
 use super::viewport::Viewport;
 use super::worker::{ModelInfo, Reply, SeedMap, Take, Worker};
@@ -118,6 +119,11 @@ pub struct Fields {
     pub new_class: usize,
     /// The seed the Seed tab offers.
     pub seed_index: usize,
+    /// The seed "Key from seed pose" keys.
+    pub key_seed: usize,
+    /// The file and frame the last "Key from file" used.
+    pub key_path: String,
+    pub key_frame: usize,
 }
 
 /// The furthest "from frame" the UI accepts for an initial-pose file (a day at 120 fps).
@@ -152,6 +158,12 @@ pub struct StudioApp {
     pub(super) viewport: Viewport,
     pub(super) timeline_state: TimelineState,
     pub(super) selected: Option<usize>,
+    /// The key or waypoint selected on its track.
+    pub(super) selected_mark: Option<Mark>,
+    /// Clicks on the viewport's ground add path waypoints.
+    pub(super) path_edit: bool,
+    /// The advice last given (a message is posted when it changes).
+    pub(super) advised: Option<String>,
     pub(super) messages: Messages,
     pub(super) fields: Fields,
     pub(super) init_tab: InitTab,
@@ -176,6 +188,8 @@ pub struct StudioApp {
     pub(super) shipped: Vec<PathBuf>,
     pub(super) model_roots: Vec<PathBuf>,
     pub(super) now: f64,
+    /// A foreign BVH's retarget preview, failure and mapping editor.
+    pub(super) rig: super::joint_mapping::RigState,
 }
 
 impl StudioApp {
@@ -218,11 +232,14 @@ impl StudioApp {
             init_frame: 0,
             new_class: 0,
             seed_index: 0,
+            key_seed: 0,
+            key_path: String::new(),
+            key_frame: 0,
         };
         let saved = if restored { Project::new(doc.model.clone()) } else { doc.clone() };
         Self {
             model_loading: Some(doc.model.clone()),
-            init_tab: InitTab::of(&doc.init),
+            init_tab: InitTab::of(&doc.options.init),
             saved,
             doc,
             history: History::default(),
@@ -244,6 +261,9 @@ impl StudioApp {
             viewport: Viewport::new(),
             timeline_state: TimelineState::default(),
             selected: None,
+            selected_mark: None,
+            path_edit: false,
+            advised: None,
             messages,
             fields,
             init_after_switch: false,
@@ -265,6 +285,7 @@ impl StudioApp {
             shipped,
             model_roots: options.model_roots,
             now: 0.0,
+            rig: Default::default(),
         }
     }
 
@@ -342,7 +363,7 @@ impl StudioApp {
         if self.model.as_ref().is_none_or(|m| m.dir != take.model_dir) || self.doc.model != take.model_dir {
             return Some("it was generated with another model".into());
         }
-        if take.options == self.doc.options() {
+        if take.options == self.engine_options() {
             return None;
         }
         Some(match (&self.generation_error, self.pending) {
@@ -365,7 +386,7 @@ impl StudioApp {
     pub fn edit(&mut self, f: impl FnOnce(&mut Project)) {
         let before = self.doc.clone();
         f(&mut self.doc);
-        if self.doc.options() != before.options() {
+        if self.doc.options != before.options {
             self.history.record(before);
         }
     }
@@ -387,9 +408,10 @@ impl StudioApp {
     }
 
     fn after_history_step(&mut self) {
-        let n = self.doc.timeline.segments.len();
+        let n = self.doc.options.timeline.segments.len();
         self.selected = self.selected.filter(|&k| k < n);
-        self.init_tab = InitTab::of(&self.doc.init);
+        self.selected_mark = None;
+        self.init_tab = InitTab::of(&self.doc.options.init);
     }
 
     pub fn classes(&self) -> &[String] {
@@ -402,24 +424,24 @@ impl StudioApp {
             self.messages.error("Load a model before adding segments");
             return;
         };
-        let at = self.selected.map_or(self.doc.timeline.segments.len(), |k| k + 1).min(self.doc.timeline.segments.len());
-        self.edit(|d| d.timeline.segments.insert(at, Segment::new(class, 3.0)));
+        let at = self.selected.map_or(self.doc.options.timeline.segments.len(), |k| k + 1).min(self.doc.options.timeline.segments.len());
+        self.edit(|d| d.options.timeline.segments.insert(at, Segment::new(class, 3.0)));
         self.selected = Some(at);
     }
 
     pub fn delete_segment(&mut self, k: usize) {
-        if k < self.doc.timeline.segments.len() {
+        if k < self.doc.options.timeline.segments.len() {
             self.edit(|d| {
-                d.timeline.segments.remove(k);
+                d.options.timeline.segments.remove(k);
             });
-            let n = self.doc.timeline.segments.len();
+            let n = self.doc.options.timeline.segments.len();
             self.selected = self.selected.filter(|&s| s < n);
         }
     }
 
     pub fn set_segment_class(&mut self, k: usize, class: &str) {
-        if k < self.doc.timeline.segments.len() {
-            self.edit(|d| d.timeline.segments[k].class = class.to_string());
+        if k < self.doc.options.timeline.segments.len() {
+            self.edit(|d| d.options.timeline.segments[k].class = class.to_string());
         }
     }
 
@@ -431,16 +453,16 @@ impl StudioApp {
         let Some(model) = self.model.clone() else { return };
         match tab {
             InitTab::Class => {
-                if !matches!(self.doc.init, InitPose::SeedClass { .. }) {
-                    let first = self.doc.timeline.segments.first().and_then(|s| model.spec.class_index(&s.class).ok()).unwrap_or(0);
+                if !matches!(self.doc.options.init, InitPose::SeedClass { .. }) {
+                    let first = self.doc.options.timeline.segments.first().and_then(|s| model.spec.class_index(&s.class).ok()).unwrap_or(0);
                     self.set_init_class(first, 0);
                 }
             }
-            InitTab::Seed => self.doc.init = InitPose::SeedIndex(self.fields.seed_index.min(model.seeds.len().saturating_sub(1))),
+            InitTab::Seed => self.doc.options.init = InitPose::SeedIndex(self.fields.seed_index.min(model.seeds.len().saturating_sub(1))),
             InitTab::File => {
                 if self.fields.init_path.trim().is_empty() {
                     self.messages.set(Topic::Init, Level::Info, "Choose a motion file: the take starts from it once it has been checked");
-                } else if !matches!(self.doc.init, InitPose::File { .. }) {
+                } else if !matches!(self.doc.options.init, InitPose::File { .. }) {
                     let p = PathBuf::from(self.fields.init_path.trim());
                     self.use_init_file(p, self.fields.init_frame);
                 }
@@ -453,7 +475,7 @@ impl StudioApp {
         let Some(model) = self.model.clone() else { return };
         let Some(name) = model.spec.classes.get(class).cloned() else { return };
         self.init_tab = InitTab::Class;
-        self.doc.init = InitPose::SeedClass { class: name, variant: model.typical_variant(class, rank) };
+        self.doc.options.init = InitPose::SeedClass { class: name, variant: model.typical_variant(class, rank) };
     }
 
     /// Applies what the timeline widget reports.
@@ -461,28 +483,31 @@ impl StudioApp {
         let frames = self.take.as_ref().map_or(0, |t| t.motion.frames());
         for a in actions {
             match a {
-                Action::Select(k) => self.selected = k,
+                Action::Select(k) => {
+                    self.selected = k;
+                    self.selected_mark = None;
+                }
                 Action::BeginEdit => {
                     self.history.record(self.doc.clone());
                     self.edit_open = true;
                 }
                 Action::Resize { index, seconds } => {
-                    if let Some(s) = self.doc.timeline.segments.get_mut(index) {
+                    if let Some(s) = self.doc.options.timeline.segments.get_mut(index) {
                         s.seconds = seconds.max(MIN_SECONDS);
                     }
                 }
                 Action::Move { from, to } => {
-                    let n = self.doc.timeline.segments.len();
+                    let n = self.doc.options.timeline.segments.len();
                     if from < n && to < n {
-                        let s = self.doc.timeline.segments.remove(from);
-                        self.doc.timeline.segments.insert(to, s);
+                        let s = self.doc.options.timeline.segments.remove(from);
+                        self.doc.options.timeline.segments.insert(to, s);
                         self.selected = Some(to);
                     }
                 }
                 Action::SetClass { index, class } => self.set_segment_class(index, &class),
                 Action::Duplicate(k) => {
-                    if let Some(s) = self.doc.timeline.segments.get(k).cloned() {
-                        self.edit(|d| d.timeline.segments.insert(k + 1, s));
+                    if let Some(s) = self.doc.options.timeline.segments.get(k).cloned() {
+                        self.edit(|d| d.options.timeline.segments.insert(k + 1, s));
                         self.selected = Some(k + 1);
                     }
                 }
@@ -492,6 +517,13 @@ impl StudioApp {
                     self.playback.seek(f, frames);
                 }
                 Action::SetSelection(s) => self.playback.selection = s,
+                Action::SelectMark(m) => {
+                    self.selected_mark = m;
+                    self.selected = None;
+                }
+                Action::MoveMark { mark, seconds } => self.move_mark(mark, seconds),
+                Action::DeleteMark(m) => self.delete_mark(m),
+                Action::ClearWaypointTime(k) => self.clear_waypoint_time(k),
             }
         }
     }
@@ -531,13 +563,13 @@ impl StudioApp {
         let classes = self.classes().to_vec();
         self.edit(|d| {
             *d = Project::new(model);
-            d.timeline = Project::default_timeline(&classes);
+            d.options.timeline = Project::default_timeline(&classes);
         });
         self.saved = self.doc.clone();
         self.project_path = None;
         self.fields.project_path = project::default_work_folder().join("project.glocal.json").display().to_string();
         self.selected = None;
-        self.init_tab = InitTab::of(&self.doc.init);
+        self.init_tab = InitTab::of(&self.doc.options.init);
         self.save_state();
         self.messages.set(Topic::Project, Level::Info, "New project (not saved yet)");
     }
@@ -573,7 +605,7 @@ impl StudioApp {
                 self.project_path = Some(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
                 self.fields.project_path = shown.clone();
                 self.selected = None;
-                self.init_tab = InitTab::of(&self.doc.init);
+                self.init_tab = InitTab::of(&self.doc.options.init);
                 if model_changed {
                     // The project's model replaces the current one only once it has loaded.
                     let wanted = std::mem::replace(&mut self.doc.model, current_model);
@@ -653,6 +685,7 @@ impl StudioApp {
             Purpose::SaveProject | Purpose::OpenProject => Some(PathBuf::from(&self.fields.project_path)),
             Purpose::Export => Some(PathBuf::from(&self.fields.export_path)),
             Purpose::InitFile => Some(PathBuf::from(&self.fields.init_path)).filter(|p| !p.as_os_str().is_empty()),
+            Purpose::KeyFile => Some(PathBuf::from(&self.fields.key_path)).filter(|p| !p.as_os_str().is_empty()),
             Purpose::OpenModel => Some(PathBuf::from(&self.fields.model_path)),
         }
     }
@@ -695,8 +728,14 @@ impl StudioApp {
             }
             Purpose::Export => self.export_to(path),
             Purpose::InitFile => {
+                self.fields.init_path = path.display().to_string();
                 let frame = self.fields.init_frame;
-                self.use_init_file(path, frame);
+                self.retarget_file(PreviewFor::Init, path, frame);
+            }
+            Purpose::KeyFile => {
+                self.fields.key_path = path.display().to_string();
+                let frame = self.fields.key_frame;
+                self.retarget_file(PreviewFor::Key, path, frame);
             }
         }
     }
@@ -745,6 +784,7 @@ impl StudioApp {
                     self.messages.resolve(Topic::Generation);
                     self.messages.resolve(Topic::Stale);
                     let frames = take.motion.frames();
+                    self.show_warnings(&take.warnings);
                     if let Some(old) = self.take.replace(take) {
                         let white = Arc::new(vec![PREVIOUS_TAKE_COLOR; old.motion.frames()]);
                         self.previous = Some((old, white));
@@ -776,16 +816,16 @@ impl StudioApp {
                         _ => String::new(),
                     };
                     self.init_after_switch = false;
-                    self.edit(|d| d.init = init);
+                    self.edit(|d| d.options.init = init);
                     self.init_tab = InitTab::File;
                     self.messages.set(Topic::Init, Level::Info, format!("Initial pose: {name}"));
                 }
                 Reply::InitFailed { error, .. } if self.init_after_switch => {
                     self.init_after_switch = false;
                     let dataset = self.model.as_ref().map_or_else(String::new, |m| m.spec.dataset.clone());
-                    let first = self.doc.timeline.segments.first().and_then(|s| self.model.as_ref().and_then(|m| m.spec.class_index(&s.class).ok())).unwrap_or(0);
+                    let first = self.doc.options.timeline.segments.first().and_then(|s| self.model.as_ref().and_then(|m| m.spec.class_index(&s.class).ok())).unwrap_or(0);
                     self.set_init_class(first, 0);
-                    let class = match &self.doc.init {
+                    let class = match &self.doc.options.init {
                         InitPose::SeedClass { class, .. } => class.clone(),
                         _ => String::new(),
                     };
@@ -794,6 +834,7 @@ impl StudioApp {
                 Reply::InitFailed { error, .. } => {
                     self.messages.set(Topic::Init, Level::Error, format!("That file cannot start a take: {}", first_line(&error)));
                 }
+                reply @ (Reply::Retargeted(_) | Reply::RetargetFailed(_) | Reply::NotForeign { .. }) => self.retarget_reply(reply),
                 Reply::Exported(path) => self.messages.set(Topic::Export, Level::Info, format!("Exported {}", project::shown_path(&path))),
                 Reply::ExportFailed { path, error } => self.messages.set(Topic::Export, Level::Error, format!("Could not export {}: {error}", project::shown_path(&path))),
             }
@@ -807,10 +848,10 @@ impl StudioApp {
         self.map_error = None;
         self.doc.model = info.dir.clone();
         self.fields.model_path = info.dir.display().to_string();
-        if self.doc.timeline.segments.is_empty() {
-            self.doc.timeline = Project::default_timeline(&info.spec.classes);
+        if self.doc.options.timeline.segments.is_empty() {
+            self.doc.options.timeline = Project::default_timeline(&info.spec.classes);
         }
-        if previous.is_none() && self.saved.timeline.segments.is_empty() {
+        if previous.is_none() && self.saved.options.timeline.segments.is_empty() {
             // The first model of a fresh start: its default timeline is not unsaved work.
             self.saved = self.doc.clone();
         }
@@ -835,7 +876,7 @@ impl StudioApp {
     fn carry_classes(&mut self, info: &ModelInfo) {
         let classes = &info.spec.classes;
         let mut unknown: Vec<String> = Vec::new();
-        for s in &self.doc.timeline.segments {
+        for s in &self.doc.options.timeline.segments {
             if info.spec.class_index(&s.class).is_err() && !unknown.contains(&s.class) {
                 unknown.push(s.class.clone());
             }
@@ -845,13 +886,13 @@ impl StudioApp {
         }
         let table: Vec<(String, String)> = self.class_table.iter().cloned().chain(ClassMap::shipped_table()).collect();
         let map = ClassMap::build(&unknown, classes, &table);
-        let described = map.describe(&self.doc.timeline);
-        let segments = map.pairs.iter().map(|p| self.doc.timeline.segments.iter().enumerate().filter(|(_, s)| s.class == p.from).map(|(k, _)| k).collect()).collect();
-        let (timeline, changed) = map.apply(&self.doc.timeline);
-        self.doc.timeline = timeline;
+        let described = map.describe(&self.doc.options.timeline);
+        let segments = map.pairs.iter().map(|p| self.doc.options.timeline.segments.iter().enumerate().filter(|(_, s)| s.class == p.from).map(|(k, _)| k).collect()).collect();
+        let (timeline, changed) = map.apply(&self.doc.options.timeline);
+        self.doc.options.timeline = timeline;
         let carry = |p: &mut Project| {
-            p.timeline = map.apply(&p.timeline).0;
-            if let InitPose::SeedClass { class, .. } = &mut p.init {
+            p.options.timeline = map.apply(&p.options.timeline).0;
+            if let InitPose::SeedClass { class, .. } = &mut p.options.init {
                 if let Some(to) = map.get(class) {
                     *class = to.to_string();
                 }
@@ -863,24 +904,24 @@ impl StudioApp {
             Level::Info,
             format!("Classes carried over to {}: {described} ({changed} segments, durations kept). Edit > Class mapping… changes a pairing.", info.spec.dataset),
         );
-        self.mapping = Some(MappingNote { map, classes: classes.clone(), segments, timeline: self.doc.timeline.clone() });
+        self.mapping = Some(MappingNote { map, classes: classes.clone(), segments, timeline: self.doc.options.timeline.clone() });
     }
 
     /// Keeps the initial pose meaningful on a new model: a class start moves to the mapped
     /// class's typical window, a seed index out of range is reset, and a file is checked
     /// again (and reset with a message if it does not fit).
     fn carry_init(&mut self, info: &ModelInfo) {
-        match self.doc.init.clone() {
+        match self.doc.options.init.clone() {
             InitPose::SeedClass { class, variant } => {
                 let k = match info.spec.class_index(&class) {
                     Ok(k) => k,
                     Err(_) => self.mapping.as_ref().and_then(|m| m.map.get(&class)).and_then(|c| info.spec.class_index(c).ok()).unwrap_or(0),
                 };
                 let variant = if info.spec.classes[k] == class { variant } else { info.typical_variant(k, 0) };
-                self.doc.init = InitPose::SeedClass { class: info.spec.classes[k].clone(), variant };
+                self.doc.options.init = InitPose::SeedClass { class: info.spec.classes[k].clone(), variant };
             }
             InitPose::SeedIndex(i) if i >= info.seeds.len() => {
-                self.doc.init = InitPose::SeedIndex(0);
+                self.doc.options.init = InitPose::SeedIndex(0);
                 self.messages.set(Topic::Init, Level::Info, format!("Seed {i} does not exist in the {} model: the take starts from seed 0", info.spec.dataset));
             }
             InitPose::SeedIndex(_) => {}
@@ -900,11 +941,11 @@ impl StudioApp {
         note.map.set(from, to);
         self.class_table.retain(|(a, _)| a != from);
         self.class_table.insert(0, (from.to_string(), to.to_string()));
-        if self.doc.timeline.segments.len() == note.timeline.segments.len() {
+        if self.doc.options.timeline.segments.len() == note.timeline.segments.len() {
             let indices = note.segments[k].clone();
-            self.edit(|d| indices.iter().for_each(|&i| d.timeline.segments[i].class = to.to_string()));
+            self.edit(|d| indices.iter().for_each(|&i| d.options.timeline.segments[i].class = to.to_string()));
             if let Some(note) = self.mapping.as_mut() {
-                note.timeline = self.doc.timeline.clone();
+                note.timeline = self.doc.options.timeline.clone();
             }
         }
         self.save_state();
@@ -918,7 +959,7 @@ impl StudioApp {
         if model.dir != self.doc.model || self.model_loading.is_some() || self.init_after_switch {
             return;
         }
-        let options = self.doc.options();
+        let options = self.engine_options();
         if self.requested.as_ref() != Some(&options) && self.auto_regen && self.regen_at.is_none() {
             self.regen_at = Some(self.now + DEBOUNCE);
         }
@@ -939,8 +980,8 @@ impl StudioApp {
         if self.model.is_none() {
             return;
         }
-        let options = self.doc.options();
-        let id = self.worker.generate(options.clone());
+        let options = self.engine_options();
+        let id = self.worker.generate(options.clone(), self.doc.joint_map.as_ref().map(super::joint_mapping::user_map));
         self.requested = Some(options);
         self.generation_error = None;
         self.pending = Some((id, 0.0));
@@ -1017,7 +1058,9 @@ impl StudioApp {
             self.playback.seek(frames.saturating_sub(1), frames);
         }
         if del {
-            if let Some(k) = self.selected {
+            if let Some(mark) = self.selected_mark {
+                self.delete_mark(mark);
+            } else if let Some(k) = self.selected {
                 self.delete_segment(k);
             }
         }
@@ -1040,13 +1083,28 @@ impl StudioApp {
     /// Closes the open edit once the pointer is released, and records edits made by
     /// ordinary widgets this frame as one undo step each.
     fn finish_edits(&mut self, ctx: &egui::Context, before: Project) {
-        if self.doc.options() != before.options() && !self.edit_open {
+        if self.doc.options != before.options && !self.edit_open {
             self.history.record(before);
             self.edit_open = true;
         }
         if ctx.input(|i| !i.pointer.any_down()) {
             self.edit_open = false;
         }
+    }
+
+    /// Says when the model will not follow the timeline as written, once per piece of
+    /// advice (the fixes are in the sidebar).
+    fn advise(&mut self) {
+        let found = super::advice::seated_too_short(&self.doc.options.timeline, self.classes());
+        let advice = found.first().map(|short| format!("{} The sidebar proposes a fix.", short.message()));
+        if advice == self.advised {
+            return;
+        }
+        match &advice {
+            Some(text) => self.messages.set(Topic::Advice, Level::Info, text.clone()),
+            None => self.messages.resolve(Topic::Advice),
+        }
+        self.advised = advice;
     }
 
     /// The question before New or Open discards unsaved work.
@@ -1091,7 +1149,7 @@ impl StudioApp {
 /// The previous take's overlay colour: white, unlike any class colour (ghosts keep theirs).
 pub const PREVIOUS_TAKE_COLOR: [u8; 3] = [245, 245, 245];
 
-fn first_line(text: &str) -> &str {
+pub(super) fn first_line(text: &str) -> &str {
     text.lines().next().unwrap_or("")
 }
 
@@ -1141,6 +1199,7 @@ impl eframe::App for StudioApp {
         self.messages.tick(&ctx);
         self.handle_replies();
         self.handle_dialogs(&ctx);
+        self.rig_windows(&ctx);
         self.shortcuts(&ctx);
         let before = self.doc.clone();
 
@@ -1162,6 +1221,7 @@ impl eframe::App for StudioApp {
         self.confirm_ui(&ctx);
 
         self.finish_edits(&ctx, before);
+        self.advise();
         self.schedule(&ctx);
         self.autosave_tick(&ctx);
         let frames = self.take.as_ref().map_or(0, |t| t.motion.frames());
@@ -1199,6 +1259,7 @@ fn clone_take(t: &Take) -> Take {
         block_classes: t.block_classes.clone(),
         path: t.path.clone(),
         options: t.options.clone(),
+        warnings: t.warnings.clone(),
         millis: t.millis,
     }
 }

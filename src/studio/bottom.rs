@@ -7,7 +7,7 @@ use super::app::StudioApp;
 use super::project::LoopMode;
 use super::timeline::{self, class_index, color32, timeline_ui, Input, MIN_SECONDS};
 use crate::synth::render::class_color;
-use crate::synth::timeline::{MAX_PACE, MIN_PACE};
+use crate::synth::timeline::{MAX_PACE, MAX_TRANSITION_SECONDS, MIN_PACE};
 
 impl StudioApp {
     pub(super) fn bottom_panel(&mut self, ui: &mut egui::Ui) {
@@ -16,9 +16,10 @@ impl StudioApp {
         ui.add_space(2.0);
         let classes = self.classes().to_vec();
         let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
-        let spans = self.take.as_ref().filter(|t| t.options.timeline == self.doc.timeline).map(|t| t.segments.clone());
+        let spans = self.take.as_ref().filter(|t| t.options.timeline == self.doc.options.timeline).map(|t| t.segments.clone());
+        let waypoint_times = self.waypoint_times();
         let input = Input {
-            timeline: &self.doc.timeline,
+            timeline: &self.doc.options.timeline,
             classes: &classes,
             spans: spans.as_deref(),
             frames,
@@ -26,6 +27,10 @@ impl StudioApp {
             frame: self.playback.frame(),
             selection: self.playback.selection,
             selected: self.selected,
+            keys: &self.doc.options.keys,
+            path: self.doc.options.path.as_ref(),
+            waypoint_times: &waypoint_times,
+            selected_mark: self.selected_mark,
         };
         let actions = timeline_ui(ui, &mut self.timeline_state, &input);
         self.apply_timeline(actions);
@@ -109,12 +114,13 @@ impl StudioApp {
                 ui.label(RichText::new(hint).weak());
                 return;
             }
-            let Some(k) = self.selected.filter(|&k| k < self.doc.timeline.segments.len()) else {
+            let Some(k) = self.selected.filter(|&k| k < self.doc.options.timeline.segments.len()) else {
                 ui.label(RichText::new("Select a segment to edit it · drag blocks to reorder, their right edge to resize · right-click for more").weak());
                 return;
             };
-            let n = self.doc.timeline.segments.len();
-            let seg = &mut self.doc.timeline.segments[k];
+            let n = self.doc.options.timeline.segments.len();
+            let global_transition = self.doc.options.transition_seconds;
+            let seg = &mut self.doc.options.timeline.segments[k];
             let (r, _) = ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
             let color = class_index(classes, &seg.class).map_or(egui::Color32::GRAY, |c| color32(class_color(c)));
             ui.painter().circle_filled(r.center(), 6.0, color);
@@ -127,10 +133,20 @@ impl StudioApp {
             ui.add(egui::DragValue::new(&mut seg.seconds).range(MIN_SECONDS..=600.0).speed(0.05).suffix(" s").fixed_decimals(1));
             let mut own = seg.pace.is_some();
             if ui.checkbox(&mut own, "own pace").on_hover_text("This segment's pace replaces the global pace (it does not multiply it)").changed() {
-                seg.pace = own.then_some(self.doc.pace);
+                seg.pace = own.then_some(self.doc.options.pace);
             }
             if let Some(p) = seg.pace.as_mut() {
                 ui.add(Slider::new(p, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true));
+            }
+            if k > 0 {
+                // The transition into this segment, from the one before it.
+                let mut own = seg.transition.is_some();
+                if ui.checkbox(&mut own, "own transition").on_hover_text("How long the change from the previous segment into this one lasts, centred on the boundary (0: a cut); otherwise the global transition length").changed() {
+                    seg.transition = own.then_some(global_transition);
+                }
+                if let Some(t) = seg.transition.as_mut() {
+                    ui.add(egui::DragValue::new(t).range(0.0..=MAX_TRANSITION_SECONDS).speed(0.05).suffix(" s").fixed_decimals(1));
+                }
             }
             ui.separator();
             if ui.add_enabled(k > 0, Button::new("Move earlier")).clicked() {

@@ -4,13 +4,16 @@
 use egui::{Align2, Color32, FontId, RichText};
 
 use super::app::StudioApp;
-use super::viewport::{Layer, Scene};
+use super::timeline::Mark;
+use super::viewport::{Layer, PathOverlay, Scene};
 
 impl StudioApp {
     pub(super) fn central(&mut self, ui: &mut egui::Ui) {
         let rect = ui.available_rect_before_wrap();
         let mut layers = Vec::new();
-        if let Some(t) = &self.take {
+        if let Some(preview) = self.preview_layers() {
+            layers = preview;
+        } else if let Some(t) = &self.take {
             layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0 });
             if self.compare {
                 if let Some((p, white)) = &self.previous {
@@ -19,8 +22,17 @@ impl StudioApp {
             }
         }
         let frame = self.playback.frame();
-        let scene = Scene { layers: &layers, frame, settings: &self.doc.view };
+        let waypoints: Vec<[f32; 2]> = self.doc.options.path.as_ref().map_or_else(Vec::new, |p| p.waypoints.iter().map(|w| [w.x, w.z]).collect());
+        let selected = match self.selected_mark {
+            Some(Mark::Waypoint(k)) => Some(k),
+            _ => None,
+        };
+        let path = (self.path_edit || !waypoints.is_empty()).then_some(PathOverlay { waypoints: &waypoints, selected, editing: self.path_edit });
+        let scene = Scene { layers: &layers, frame, settings: &self.doc.view, path };
         self.viewport.ui(ui, &scene);
+        for edit in self.viewport.take_path_edits() {
+            self.apply_path_edit(edit);
+        }
 
         // Overlay: where we are, and what the worker is doing.
         let painter = ui.painter_at(rect);

@@ -14,6 +14,7 @@ pub enum Purpose {
     SaveProject,
     Export,
     InitFile,
+    KeyFile,
 }
 
 impl Purpose {
@@ -24,6 +25,7 @@ impl Purpose {
             Purpose::SaveProject => "Save the project",
             Purpose::Export => "Export the take",
             Purpose::InitFile => "Initial pose from a motion file",
+            Purpose::KeyFile => "Key from a motion file",
         }
     }
 }
@@ -100,7 +102,7 @@ impl Dialogs {
                 Purpose::OpenProject => d.add_filter("Glocal project", &["json"]).pick_file(),
                 Purpose::SaveProject => d.add_filter("Glocal project", &["json"]).save_file(),
                 Purpose::Export => d.add_filter("Motion", &["bvh", "json", "npy"]).save_file(),
-                Purpose::InitFile => d.add_filter("Motion", &["bvh", "npy", "txt"]).pick_file(),
+                Purpose::InitFile | Purpose::KeyFile => d.add_filter("Motion", &["bvh", "npy", "txt"]).pick_file(),
             };
             let outcome = match path {
                 Some(p) => Outcome::Chosen(p),

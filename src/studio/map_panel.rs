@@ -31,7 +31,7 @@ impl StudioApp {
         let classes = &model.spec.classes;
         // Seeds of each class, in map order.
         let by_class: Vec<Vec<usize>> = (0..classes.len()).map(|c| (0..model.seeds.len()).filter(|&i| model.seeds[i].class == c).collect()).collect();
-        let chosen = match &self.doc.init {
+        let chosen = match &self.doc.options.init {
             InitPose::SeedIndex(i) => Some(*i),
             InitPose::SeedClass { class, variant } => classes
                 .iter()
@@ -106,7 +106,7 @@ impl StudioApp {
                     .min_by(|a, b| a.1.total_cmp(&b.1));
                 if let Some((i, d)) = nearest {
                     if d < 10.0 {
-                        self.doc.init = InitPose::SeedIndex(i);
+                        self.doc.options.init = InitPose::SeedIndex(i);
                         self.init_tab = InitTab::Seed;
                         self.fields.seed_index = i;
                     }

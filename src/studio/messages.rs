@@ -27,6 +27,10 @@ pub enum Topic {
     Classes,
     Autosave,
     Dialog,
+    /// What a take could not do as its keys and path asked.
+    Constraints,
+    /// A timeline the model will not follow as written (see `studio::advice`).
+    Advice,
 }
 
 #[derive(Clone, Debug)]
@@ -123,7 +127,7 @@ impl Messages {
         match (m.level, m.topic) {
             (Level::Error, Some(_)) => None,
             (Level::Error, None) => Some(Self::ERROR_SECONDS),
-            (Level::Info, Some(Topic::Classes)) => Some(Self::ERROR_SECONDS),
+            (Level::Info, Some(Topic::Classes | Topic::Constraints)) => Some(Self::ERROR_SECONDS),
             (Level::Info, _) => Some(Self::INFO_SECONDS),
         }
     }

@@ -1,19 +1,24 @@
 //! The desktop studio (egui). Nothing below this module knows egui exists.
 //!
+//! - [`advice`]: timelines the model will not follow as written, and their fixes
 //! - [`project`]: the document (timeline, pace, initial pose, settings) and its undo history
 //! - [`worker`]: the background thread that owns the model
 //! - [`tsne`]: the seed map
 //! - [`transport`]: playback
-//! - [`timeline`]: the timeline widget
+//! - [`timeline`]: the timeline widget (segments, key and path tracks)
+//! - `keys`: keys and the root path (edits, their sidebar section)
 //! - [`app`]: the application state and frame loop; the panels are in `menu`, `sidebar`,
 //!   `bottom`, `central` and `map_panel`
 //! - [`viewport`]: the 3D view
 
+pub mod advice;
 pub mod app;
 pub mod bench;
 mod bottom;
 mod central;
 pub mod dialogs;
+pub mod joint_mapping;
+mod keys;
 mod map_panel;
 mod menu;
 pub mod messages;

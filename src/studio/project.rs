@@ -9,10 +9,13 @@ use serde::{Deserialize, Serialize};
 
 use super::viewport::ViewSettings;
 use crate::data::write::write_atomic;
-use crate::synth::{GenerateOptions, InitPose, Segment, Timeline, Transition, DEFAULT_CLASS_STRENGTH};
+use crate::synth::{GenerateOptions, InitPose, Segment, Timeline, Transition};
 
-/// The project file format this build writes; files of a newer version are refused.
-pub const PROJECT_VERSION: u32 = 1;
+/// The project file format this build writes; files of a newer version are refused and
+/// older ones migrated ([`Project::from_json`]). Version 2 holds the engine's
+/// [`GenerateOptions`] as they are (keys and a root path included); version 1 had the
+/// timeline and settings as separate fields.
+pub const PROJECT_VERSION: u32 = 2;
 
 /// How playback repeats.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -41,38 +44,55 @@ pub struct Project {
     pub version: u32,
     /// Model folder.
     pub model: PathBuf,
-    pub timeline: Timeline,
-    /// Global pace (a segment's own pace replaces it for that segment).
-    pub pace: f32,
-    pub init: InitPose,
-    pub transition: Transition,
-    /// Classifier-free guidance weight (1: plain conditioning).
-    pub class_strength: f32,
-    /// LocGen refinement between sparse poses (off: plain interpolation).
-    pub locgen: bool,
-    /// Variation seed: 0 gives the model's deterministic take.
-    pub variation_seed: u64,
+    /// What the engine generates the take from, exactly as it takes it. The variation seed
+    /// is set through [`GenerateOptions::varied`] so its noise goes with it.
+    pub options: GenerateOptions,
     #[serde(default)]
     pub view: ViewSettings,
     #[serde(default)]
     pub playback: PlaybackSettings,
+    /// Joints of foreign BVH files (start and key files) for the model's key joints, as
+    /// `{"joint in the file": "Key"}` like a `--joint-map` file (see `joint_mapping`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_map: Option<std::collections::BTreeMap<String, String>>,
+}
+
+/// A version 1 project: the generation settings as fields of their own.
+#[derive(Deserialize)]
+struct ProjectV1 {
+    model: PathBuf,
+    timeline: Timeline,
+    pace: f32,
+    init: InitPose,
+    transition: Transition,
+    class_strength: f32,
+    locgen: bool,
+    variation_seed: u64,
+    #[serde(default)]
+    view: ViewSettings,
+    #[serde(default)]
+    playback: PlaybackSettings,
+}
+
+impl From<ProjectV1> for Project {
+    fn from(v1: ProjectV1) -> Self {
+        let options = GenerateOptions {
+            timeline: v1.timeline,
+            pace: v1.pace,
+            init: v1.init,
+            locgen: v1.locgen,
+            transition: v1.transition,
+            class_strength: v1.class_strength,
+            ..Default::default()
+        }
+        .varied(v1.variation_seed);
+        Self { version: PROJECT_VERSION, model: v1.model, options, view: v1.view, playback: v1.playback, joint_map: None }
+    }
 }
 
 impl Project {
     pub fn new(model: PathBuf) -> Self {
-        Self {
-            version: PROJECT_VERSION,
-            model,
-            timeline: Timeline::default(),
-            pace: 1.0,
-            init: InitPose::SeedIndex(0),
-            transition: Transition::Anchor,
-            class_strength: DEFAULT_CLASS_STRENGTH,
-            locgen: true,
-            variation_seed: 0,
-            view: ViewSettings::default(),
-            playback: PlaybackSettings::default(),
-        }
+        Self { version: PROJECT_VERSION, model, options: GenerateOptions::default(), view: ViewSettings::default(), playback: PlaybackSettings::default(), joint_map: None }
     }
 
     /// A first timeline for a model's classes: a walk and then a second activity.
@@ -87,24 +107,15 @@ impl Project {
         Timeline { segments }
     }
 
-    /// What the engine needs to generate this project's take.
-    pub fn options(&self) -> GenerateOptions {
-        GenerateOptions {
-            timeline: self.timeline.clone(),
-            pace: self.pace,
-            init: self.init.clone(),
-            locgen: self.locgen,
-            transition: self.transition,
-            class_strength: self.class_strength,
-            ..Default::default()
-        }
-        .varied(self.variation_seed)
+    /// Sets the variation seed (0: the model's deterministic take).
+    pub fn set_variation_seed(&mut self, seed: u64) {
+        self.options = std::mem::take(&mut self.options).varied(seed);
     }
 
     /// Whether a change from `other` to `self` changes the generated take (and not only how
     /// it is viewed or played).
     pub fn same_take(&self, other: &Project) -> bool {
-        self.options() == other.options() && self.model == other.model
+        self.options == other.options && self.model == other.model
     }
 
     pub fn to_json(&self) -> String {
@@ -112,7 +123,8 @@ impl Project {
     }
 
     /// Parses a project file; `name` names it in errors. The version is checked before
-    /// anything else so a newer file says so instead of failing on an unknown field.
+    /// anything else so a newer file says so instead of failing on an unknown field; a
+    /// version 1 file is migrated.
     pub fn from_json(text: &str, name: &str) -> Result<Self> {
         let value: serde_json::Value = serde_json::from_str(text).with_context(|| format!("{name} is not a valid project file (not JSON)"))?;
         let version = value
@@ -122,11 +134,18 @@ impl Project {
         if version > u64::from(PROJECT_VERSION) {
             bail!("{name} is a version {version} project, newer than this studio understands (version {PROJECT_VERSION}); update Glocal Studio to open it");
         }
-        let project: Project = serde_json::from_value(value).with_context(|| format!("{name} is not a valid project file"))?;
-        for (k, s) in project.timeline.segments.iter().enumerate() {
+        let project: Project = if version == 1 {
+            serde_json::from_value::<ProjectV1>(value).with_context(|| format!("{name} is not a valid version 1 project file"))?.into()
+        } else {
+            serde_json::from_value(value).with_context(|| format!("{name} is not a valid project file"))?
+        };
+        for (k, s) in project.options.timeline.segments.iter().enumerate() {
             if !(s.seconds > 0.0 && s.seconds.is_finite()) {
                 bail!("{name}: segment {} has a duration of {} seconds", k + 1, s.seconds);
             }
+        }
+        if let Some(path) = &project.options.path {
+            path.check().with_context(|| format!("{name}: root path"))?;
         }
         Ok(Project { version: PROJECT_VERSION, ..project })
     }
@@ -277,7 +296,7 @@ mod tests {
 
     fn sample() -> Project {
         let mut p = Project::new(PathBuf::from("models/h36m"));
-        p.timeline = "walking:4,sitting:3@1.5".parse().unwrap();
+        p.options.timeline = "walking:4,sitting:3@1.5".parse().unwrap();
         p
     }
 
@@ -285,10 +304,70 @@ mod tests {
     fn round_trips_and_refuses_newer_or_broken_files() {
         let p = sample();
         assert_eq!(Project::from_json(&p.to_json(), "p").unwrap(), p);
-        let newer = p.to_json().replace("\"version\": 1", "\"version\": 99");
+        let newer = p.to_json().replace("\"version\": 2", "\"version\": 99");
         assert!(format!("{:#}", Project::from_json(&newer, "p").unwrap_err()).contains("newer"));
         assert!(Project::from_json("{ not json", "p").is_err());
         assert!(format!("{:#}", Project::from_json("{}", "p").unwrap_err()).contains("version"));
+    }
+
+    /// A version 1 project exactly as the studio wrote it before version 2.
+    const V1: &str = r#"{
+  "version": 1,
+  "model": "models/h36m",
+  "timeline": {
+    "segments": [
+      {
+        "class": "walking",
+        "seconds": 4.0
+      },
+      {
+        "class": "sitting",
+        "seconds": 3.0,
+        "pace": 1.5
+      }
+    ]
+  },
+  "pace": 1.2,
+  "init": {
+    "SeedClass": {
+      "class": "sitting",
+      "variant": 3
+    }
+  },
+  "transition": "Blend",
+  "class_strength": 2.0,
+  "locgen": false,
+  "variation_seed": 7,
+  "view": {
+    "ghosts": 2,
+    "ghost_step": 5,
+    "trail": true,
+    "follow_root": false,
+    "grid": true
+  },
+  "playback": {
+    "speed": 1.0,
+    "loop_mode": "All"
+  }
+}"#;
+
+    #[test]
+    fn a_version_1_project_is_migrated() {
+        let p = Project::from_json(V1, "v1.json").unwrap();
+        assert_eq!(p.version, PROJECT_VERSION);
+        let o = &p.options;
+        assert_eq!(o.timeline, "walking:4,sitting:3@1.5".parse().unwrap());
+        assert_eq!((o.pace, o.transition, o.class_strength, o.locgen), (1.2, Transition::Blend, 2.0, false));
+        assert_eq!(o.init, InitPose::SeedClass { class: "sitting".into(), variant: 3 });
+        assert_eq!(*o, o.clone().varied(7), "the seed comes with its variation");
+        assert_eq!((o.keys.len(), o.path.is_none()), (0, true));
+        assert_eq!((p.view.ghosts, p.view.follow_root), (2, false));
+        // Saved again, it is a version 2 file that reads back the same.
+        let again = p.to_json();
+        assert!(again.contains("\"version\": 2") && again.contains("\"options\""));
+        assert_eq!(Project::from_json(&again, "v2.json").unwrap(), p);
+        let broken = V1.replace("\"pace\": 1.2", "\"pace\": \"fast\"");
+        assert!(format!("{:#}", Project::from_json(&broken, "v1.json").unwrap_err()).contains("version 1"));
     }
 
     #[test]
@@ -296,12 +375,12 @@ mod tests {
         let mut h = History::default();
         let mut cur = sample();
         let before = cur.clone();
-        cur.timeline.segments.pop();
+        cur.options.timeline.segments.pop();
         h.record(before.clone());
         assert!(h.undo(&mut cur));
         assert_eq!(cur, before);
         assert!(h.redo(&mut cur));
-        assert_eq!(cur.timeline.segments.len(), 1);
+        assert_eq!(cur.options.timeline.segments.len(), 1);
         assert!(!h.redo(&mut cur));
     }
 }

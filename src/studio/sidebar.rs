@@ -4,12 +4,13 @@ use std::path::PathBuf;
 
 use egui::{RichText, Slider};
 
+use super::advice::seated_too_short;
 use super::app::{ExportRange, Guarded, InitTab, StudioApp, MAX_INIT_FRAME};
 use super::dialogs::Purpose;
 use super::timeline::color32;
 use crate::synth::export::Units;
 use crate::synth::render::class_color;
-use crate::synth::timeline::{MAX_PACE, MIN_PACE};
+use crate::synth::timeline::{MAX_PACE, MAX_TRANSITION_SECONDS, MIN_PACE};
 use crate::synth::{InitPose, Transition};
 
 fn section(ui: &mut egui::Ui, title: &str, add: impl FnOnce(&mut egui::Ui)) {
@@ -30,8 +31,26 @@ impl StudioApp {
         section(ui, "Project", |ui| self.project_section(ui));
         section(ui, "Model", |ui| self.model_section(ui));
         section(ui, "Initial pose", |ui| self.init_section(ui));
+        self.advice_ui(ui);
         section(ui, "Generation", |ui| self.generation_section(ui));
+        section(ui, "Keys and path", |ui| self.keys_section(ui));
         section(ui, "Export take", |ui| self.export_section(ui));
+    }
+
+    /// Timelines the model will not follow as written (see [`super::advice`]), with fixes.
+    fn advice_ui(&mut self, ui: &mut egui::Ui) {
+        let found = seated_too_short(&self.doc.options.timeline, self.classes());
+        for short in found {
+            ui.label(RichText::new(format!("{} (now {:.1} s)", short.message(), short.seconds)).color(ui.visuals().warn_fg_color));
+            ui.horizontal_wrapped(|ui| {
+                for fix in &short.fixes {
+                    if ui.button(fix.label()).clicked() {
+                        self.edit(|d| fix.apply(&mut d.options.timeline));
+                    }
+                }
+            });
+            ui.add_space(4.0);
+        }
     }
 
     fn model_section(&mut self, ui: &mut egui::Ui) {
@@ -99,7 +118,7 @@ impl StudioApp {
         });
         match self.init_tab {
             InitTab::Class => {
-                let (class, rank) = match &self.doc.init {
+                let (class, rank) = match &self.doc.options.init {
                     InitPose::SeedClass { class, variant } => {
                         let k = model.spec.class_index(class).unwrap_or(0);
                         (k, model.typical_rank(k, *variant))
@@ -118,12 +137,12 @@ impl StudioApp {
                 let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
                 ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
                     .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
-                if (new_class, new_rank) != (class, rank) || !matches!(self.doc.init, InitPose::SeedClass { .. }) {
+                if (new_class, new_rank) != (class, rank) || !matches!(self.doc.options.init, InitPose::SeedClass { .. }) {
                     self.set_init_class(new_class, new_rank);
                 }
             }
             InitTab::Seed => {
-                let mut index = match &self.doc.init {
+                let mut index = match &self.doc.options.init {
                     InitPose::SeedIndex(i) => *i,
                     _ => self.fields.seed_index,
                 };
@@ -135,14 +154,14 @@ impl StudioApp {
                     });
                 }
                 let max = model.seeds.len().saturating_sub(1);
-                if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.doc.init, InitPose::SeedIndex(_)) {
+                if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.doc.options.init, InitPose::SeedIndex(_)) {
                     self.fields.seed_index = index;
-                    self.doc.init = InitPose::SeedIndex(index);
+                    self.doc.options.init = InitPose::SeedIndex(index);
                 }
                 ui.label(RichText::new("Or click a point in the seed map").weak());
             }
             InitTab::File => {
-                match &self.doc.init {
+                match &self.doc.options.init {
                     InitPose::File { path, frame } => ui.label(format!("In use: {} @ {frame}", path.display())),
                     _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
                 };
@@ -151,7 +170,7 @@ impl StudioApp {
                 ui.horizontal(|ui| {
                     if ui.button("Use file").clicked() {
                         let p = PathBuf::from(self.fields.init_path.trim());
-                        self.use_init_file(p, self.fields.init_frame);
+                        self.retarget_file(super::joint_mapping::PreviewFor::Init, p, self.fields.init_frame);
                     }
                     if ui.button("Browse…").clicked() {
                         self.open_dialog(Purpose::InitFile, ui.ctx());
@@ -164,25 +183,31 @@ impl StudioApp {
     fn generation_section(&mut self, ui: &mut egui::Ui) {
         let has_locgen = self.model.as_ref().is_some_and(|m| m.has_locgen);
         let guidance = self.model.as_ref().is_some_and(|m| m.spec.glogen.class_dropout > 0.0);
-        ui.add(Slider::new(&mut self.doc.pace, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true).text("global pace"))
+        ui.add(Slider::new(&mut self.doc.options.pace, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true).text("global pace"))
             .on_hover_text("How long each pose lasts: 2 plays the motion twice as slowly (over twice the time), 0.5 twice as fast. A segment with its own pace uses that instead.");
         ui.horizontal(|ui| {
             ui.label("Transitions:");
-            ui.selectable_value(&mut self.doc.transition, Transition::Anchor, "Anchor")
+            ui.selectable_value(&mut self.doc.options.transition, Transition::Anchor, "Anchor")
                 .on_hover_text("The new activity takes over within about two seconds, even from a very different motion (recommended)");
-            ui.selectable_value(&mut self.doc.transition, Transition::Blend, "Blend")
+            ui.selectable_value(&mut self.doc.options.transition, Transition::Blend, "Blend")
                 .on_hover_text("The two activities mix over about two seconds around the change; a strong motion may carry on for a while");
-            ui.selectable_value(&mut self.doc.transition, Transition::Cut, "Cut")
+            ui.selectable_value(&mut self.doc.options.transition, Transition::Cut, "Cut")
                 .on_hover_text("The activity switches at the boundary; the previous motion's momentum can carry on (the paper's method)");
         });
-        ui.add_enabled(guidance, Slider::new(&mut self.doc.class_strength, 0.0..=3.0).text("class strength"))
+        ui.add(Slider::new(&mut self.doc.options.transition_seconds, 0.0..=MAX_TRANSITION_SECONDS).text("transition length (s)"))
+            .on_hover_text("Seconds over which each class change happens, centred on its boundary (0: a cut). A segment can have its own: select it on the timeline");
+        ui.add_enabled(guidance, Slider::new(&mut self.doc.options.class_strength, 0.0..=3.0).text("class strength"))
             .on_hover_text("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity")
             .on_disabled_hover_text("This model was trained without class dropout, so the strength cannot be changed");
-        ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.locgen, "LocGen refinement"))
+        ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.options.locgen, "LocGen refinement"))
             .on_hover_text("Adds natural in-between motion (weight shifts, swing) between the model's key poses. Off: straight-line in-betweens, for comparison");
         ui.horizontal(|ui| {
-            ui.add(egui::DragValue::new(&mut self.doc.variation_seed).range(0..=9999))
+            let mut seed = self.doc.options.seed;
+            let r = ui.add(egui::DragValue::new(&mut seed).range(0..=9999))
                 .on_hover_text("Another version of the same timeline: 0 is the model's standard take, every other number a slightly different one");
+            if r.changed() {
+                self.doc.set_variation_seed(seed);
+            }
             ui.label("variation seed");
         });
         ui.checkbox(&mut self.auto_regen, "Regenerate after every edit");

@@ -4,10 +4,14 @@
 //!
 //! Mouse: click or drag on the ruler scrubs, shift-drag on it selects a range; click a
 //! block to select it, double-click to select its frames, drag its right edge to resize,
-//! drag its body to reorder; right-click for class, duplicate and delete.
+//! drag its body to reorder; right-click for class, duplicate and delete. Under the
+//! segments, a track of keys (diamonds) and one of root-path waypoints (dots; hollow when
+//! the waypoint has no time of its own and sits where arc length spreads it): click to
+//! select, drag to move in time, right-click to delete.
 
 use egui::{pos2, vec2, Align2, Color32, CursorIcon, FontId, Rect, Sense, Stroke, StrokeKind};
 
+use crate::synth::constraints::{Key, RootPath};
 use crate::synth::render::class_color;
 use crate::synth::{SegmentSpan, Timeline};
 
@@ -26,6 +30,20 @@ pub enum Action {
     Delete(usize),
     Seek(usize),
     SetSelection(Option<(usize, usize)>),
+    /// A key or waypoint clicked (None: cleared).
+    SelectMark(Option<Mark>),
+    /// A key or waypoint dragged to a time (seconds from the take's start).
+    MoveMark { mark: Mark, seconds: f32 },
+    DeleteMark(Mark),
+    /// A waypoint goes back to being spread by arc length.
+    ClearWaypointTime(usize),
+}
+
+/// A key or a root-path waypoint on its track.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mark {
+    Key(usize),
+    Waypoint(usize),
 }
 
 pub struct Input<'a> {
@@ -38,6 +56,11 @@ pub struct Input<'a> {
     pub frame: usize,
     pub selection: Option<(usize, usize)>,
     pub selected: Option<usize>,
+    pub keys: &'a [Key],
+    pub path: Option<&'a RootPath>,
+    /// Each waypoint's time as the take will pass it ([`waypoint_times`]).
+    pub waypoint_times: &'a [f32],
+    pub selected_mark: Option<Mark>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -46,6 +69,7 @@ enum Drag {
     Move { index: usize },
     Scrub,
     Range { anchor: usize },
+    Mark(Mark),
 }
 
 /// What the widget remembers between frames.
@@ -81,10 +105,12 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
     let mut actions = Vec::new();
     state.hint = None;
     let width = ui.available_width().max(100.0);
-    let (ruler_h, lane_h) = (20.0, 44.0);
-    let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 6.0), Sense::hover());
+    let (ruler_h, lane_h, track_h) = (20.0, 44.0, 16.0);
+    let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 2.0 * (track_h + 2.0) + 6.0), Sense::hover());
     let ruler = Rect::from_min_size(outer.min, vec2(width, ruler_h));
     let lane = Rect::from_min_size(pos2(outer.left(), ruler.bottom() + 2.0), vec2(width, lane_h));
+    let key_track = Rect::from_min_size(pos2(outer.left(), lane.bottom() + 2.0), vec2(width, track_h));
+    let path_track = Rect::from_min_size(pos2(outer.left(), key_track.bottom() + 2.0), vec2(width, track_h));
     let total = input.timeline.seconds().max(1.0);
     let scale = state.frozen_scale.unwrap_or((width - 8.0) / total);
     let x_of = |t: f32| outer.left() + t * scale;
@@ -145,10 +171,13 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
         let known = class_index(input.classes, &seg.class);
         let fill = known.map_or(UNKNOWN_FILL, |c| color32(class_color(c)));
         let name = if known.is_some() { seg.class.clone() } else { format!("{}?", seg.class) };
-        let label = match seg.pace {
+        let mut label = match seg.pace {
             Some(p) => format!("{name} · {:.1}s · pace {p:.2}", seg.seconds),
             None => format!("{name} · {:.1}s", seg.seconds),
         };
+        if let Some(t) = seg.transition.filter(|_| k > 0) {
+            label.push_str(&format!(" · in {t:.1}s"));
+        }
         let id = ui.scope_id().with(("segment", k));
         let resp = ui.interact(rect, id, Sense::click_and_drag());
         resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, format!("Segment {}: {}", k + 1, seg.class)));
@@ -214,6 +243,8 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
         }
     }
 
+    marks_ui(ui, state, input, &painter, [key_track, path_track], scale, &mut actions);
+
     // Drags under way.
     let released = ui.input(|i| !i.pointer.any_down());
     match state.drag {
@@ -253,6 +284,12 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
                 }
             }
         }
+        Some(Drag::Mark(mark)) => {
+            if let Some(p) = pointer {
+                let seconds = (((p.x - outer.left()) / scale).max(0.0) * fps).round() / fps;
+                actions.push(Action::MoveMark { mark, seconds });
+            }
+        }
         _ => {}
     }
     if released {
@@ -271,15 +308,123 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
 
     // Selected range and cursor over everything.
     if let Some((a, b)) = input.selection {
-        let r = Rect::from_min_max(pos2(x_of(a as f32 / fps), ruler.top()), pos2(x_of(b as f32 / fps), lane.bottom()));
+        let r = Rect::from_min_max(pos2(x_of(a as f32 / fps), ruler.top()), pos2(x_of(b as f32 / fps), path_track.bottom()));
         painter.rect_filled(r, 0.0, Color32::from_rgba_unmultiplied(120, 180, 255, 40));
         painter.rect_stroke(r, 0.0, Stroke::new(1.0, Color32::from_rgb(120, 180, 255)), StrokeKind::Inside);
     }
     if input.frames > 0 {
         let x = x_of(input.frame as f32 / fps);
         let c = Color32::from_rgb(255, 90, 60);
-        painter.line_segment([pos2(x, ruler.top()), pos2(x, lane.bottom())], Stroke::new(2.0, c));
+        painter.line_segment([pos2(x, ruler.top()), pos2(x, path_track.bottom())], Stroke::new(2.0, c));
         painter.add(egui::Shape::convex_polygon(vec![pos2(x - 5.0, ruler.top()), pos2(x + 5.0, ruler.top()), pos2(x, ruler.top() + 7.0)], c, Stroke::NONE));
     }
     actions
+}
+
+/// Colour of keys on their track (and in the viewport's key list).
+pub const KEY_COLOR: Color32 = Color32::from_rgb(255, 210, 80);
+/// Colour of the root path and its waypoints.
+pub const PATH_COLOR: Color32 = Color32::from_rgb(80, 220, 200);
+
+/// The key and path tracks: a diamond per key, a dot per waypoint.
+fn marks_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input, painter: &egui::Painter, tracks: [Rect; 2], scale: f32, actions: &mut Vec<Action>) {
+    let visuals = ui.visuals().clone();
+    let x_of = |t: f32| tracks[0].left() + t * scale;
+    for (track, name) in tracks.iter().zip(["keys", "path"]) {
+        painter.rect_filled(*track, 2.0, visuals.faint_bg_color);
+        painter.text(track.right_center() - vec2(4.0, 0.0), Align2::RIGHT_CENTER, name, FontId::proportional(10.0), visuals.weak_text_color());
+    }
+    let keys = input.keys.iter().enumerate().map(|(k, key)| (Mark::Key(k), key.seconds, true));
+    let waypoints = input.path.map_or(&[][..], |p| p.waypoints.as_slice());
+    let points = waypoints.iter().zip(input.waypoint_times).enumerate().map(|(k, (w, &t))| (Mark::Waypoint(k), t, w.seconds.is_some()));
+    for (mark, seconds, timed) in keys.chain(points) {
+        let (track, color, label) = match mark {
+            Mark::Key(k) => (tracks[0], KEY_COLOR, format!("Key {}", k + 1)),
+            Mark::Waypoint(k) => (tracks[1], PATH_COLOR, format!("Waypoint {}", k + 1)),
+        };
+        let centre = pos2(x_of(seconds), track.center().y);
+        let rect = Rect::from_center_size(centre, vec2(12.0, track.height()));
+        let resp = ui.interact(rect, ui.scope_id().with(("mark", format!("{mark:?}"))), Sense::click_and_drag());
+        resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, &label));
+        let selected = input.selected_mark == Some(mark);
+        let stroke = Stroke::new(if selected { 2.0 } else { 1.0 }, if selected { Color32::WHITE } else { color });
+        let r = 5.0;
+        let fill = if timed { color } else { Color32::TRANSPARENT };
+        match mark {
+            Mark::Key(_) => {
+                let diamond = vec![centre + vec2(0.0, -r - 1.0), centre + vec2(r + 1.0, 0.0), centre + vec2(0.0, r + 1.0), centre + vec2(-r - 1.0, 0.0)];
+                painter.add(egui::Shape::convex_polygon(diamond, fill, stroke));
+            }
+            Mark::Waypoint(_) => {
+                painter.circle(centre, r, fill, stroke);
+            }
+        }
+        if resp.hovered() {
+            let when = if timed { format!("{seconds:.2} s") } else { format!("about {seconds:.2} s (spread by arc length)") };
+            state.hint = Some(format!("{label} at {when} · drag to move in time, right-click to delete"));
+        }
+        if resp.clicked() {
+            actions.push(Action::SelectMark(Some(mark)));
+        }
+        if resp.drag_started() {
+            state.drag = Some(Drag::Mark(mark));
+            state.frozen_scale = Some(scale);
+            actions.push(Action::BeginEdit);
+            actions.push(Action::SelectMark(Some(mark)));
+        }
+        resp.context_menu(|ui| {
+            if let Mark::Waypoint(k) = mark {
+                if ui.add_enabled(timed, egui::Button::new("Spread by arc length")).clicked() {
+                    actions.push(Action::ClearWaypointTime(k));
+                    ui.close();
+                }
+            }
+            if ui.button("Delete").clicked() {
+                actions.push(Action::DeleteMark(mark));
+                ui.close();
+            }
+        });
+    }
+}
+
+/// When the take passes each waypoint: its own time where it has one; between two timed
+/// waypoints (or the take's start and end) the others are spread by arc length.
+pub fn waypoint_times(path: &RootPath, take_seconds: f32) -> Vec<f32> {
+    let w = &path.waypoints;
+    let mut times: Vec<Option<f32>> = w.iter().map(|p| p.seconds).collect();
+    if let Some(first) = times.first_mut() {
+        first.get_or_insert(0.0);
+    }
+    if let Some(last) = times.last_mut() {
+        last.get_or_insert(take_seconds.max(0.0));
+    }
+    let mut along = vec![0.0f32; w.len()];
+    for k in 1..w.len() {
+        along[k] = along[k - 1] + ((w[k].x - w[k - 1].x).powi(2) + (w[k].z - w[k - 1].z).powi(2)).sqrt();
+    }
+    let timed: Vec<usize> = (0..w.len()).filter(|&k| times[k].is_some()).collect();
+    let mut out: Vec<f32> = times.iter().map(|t| t.unwrap_or(0.0)).collect();
+    for pair in timed.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let (ta, tb, span) = (out[a], out[b], along[b] - along[a]);
+        for k in a + 1..b {
+            let f = if span > 1e-6 { (along[k] - along[a]) / span } else { (k - a) as f32 / (b - a) as f32 };
+            out[k] = ta + (tb - ta) * f;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::constraints::Waypoint;
+
+    #[test]
+    fn untimed_waypoints_are_spread_by_arc_length() {
+        let wp = |x: f32, z: f32, seconds: Option<f32>| Waypoint { x, z, seconds };
+        let path = RootPath { waypoints: vec![wp(0.0, 0.0, None), wp(1.0, 0.0, None), wp(1.0, 3.0, Some(8.0)), wp(1.0, 4.0, None)] };
+        let t = waypoint_times(&path, 10.0);
+        assert_eq!(t, vec![0.0, 2.0, 8.0, 10.0]);
+    }
 }

@@ -3,7 +3,9 @@
 //! Bones are instanced 12-sided cylinders and joints instanced icospheres (one subdivision),
 //! lit with lambert + hemisphere ambient, over a ground grid with the root's trajectory,
 //! onion-skin ghosts, and several layers (side by side or overlaid). Everything is drawn in
-//! metres: each take is scaled by its skeleton's `meters_per_unit`.
+//! metres: each take is scaled by its skeleton's `meters_per_unit`. A root path is drawn on
+//! the floor with its waypoints; in path-edit mode a click on the ground adds a waypoint
+//! (the pointer's ray met with the ground plane) and a drag moves one ([`PathEdit`]).
 //!
 //! Rendering (see `viewport/render.rs`): egui's render pass has no depth buffer by default, so
 //! the scene is drawn during the callback's `prepare` into an offscreen colour + depth image
@@ -59,7 +61,33 @@ pub struct Scene<'a> {
     /// The frame shown; clamped to each layer's last frame.
     pub frame: usize,
     pub settings: &'a ViewSettings,
+    pub path: Option<PathOverlay<'a>>,
 }
+
+/// A root path on the ground: waypoints (x, z) in metres, in the viewport's world.
+#[derive(Clone, Copy, Debug)]
+pub struct PathOverlay<'a> {
+    pub waypoints: &'a [[f32; 2]],
+    pub selected: Option<usize>,
+    /// Clicks on the ground add waypoints and drags move them (instead of orbiting).
+    pub editing: bool,
+}
+
+/// What the user did to the path in path-edit mode (collect with [`Viewport::take_path_edits`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PathEdit {
+    /// A drag that moves a waypoint starts (for undo: one step per drag).
+    BeginDrag,
+    Add([f32; 2]),
+    Move { index: usize, to: [f32; 2] },
+}
+
+/// Path colour (sRGB) on the floor and its waypoints.
+const PATH_RGB: [u8; 3] = [80, 220, 200];
+/// Waypoint discs: radius and thickness, metres.
+const WAYPOINT_RADIUS: f32 = 0.08;
+/// A press within this many points of a waypoint grabs it.
+const GRAB_POINTS: f32 = 14.0;
 
 /// Vertical field of view.
 const FOV_Y: f32 = 40.0 * std::f32::consts::PI / 180.0;
@@ -88,6 +116,9 @@ pub struct Viewport {
     was_following: Option<bool>,
     layers: Vec<LayerInfo>,
     trail: Option<TrailCache>,
+    /// The waypoint being dragged in path-edit mode.
+    path_drag: Option<usize>,
+    path_edits: Vec<PathEdit>,
 }
 
 impl Default for Viewport {
@@ -282,7 +313,14 @@ impl Viewport {
             was_following: None,
             layers: Vec::new(),
             trail: None,
+            path_drag: None,
+            path_edits: Vec::new(),
         }
+    }
+
+    /// The path edits made since the last call.
+    pub fn take_path_edits(&mut self) -> Vec<PathEdit> {
+        std::mem::take(&mut self.path_edits)
     }
 
     /// Installs the pipelines for an egui render pass with eframe's default setup (no MSAA,
@@ -325,8 +363,18 @@ impl Viewport {
         }
         self.was_following = Some(settings.follow_root);
 
-        self.handle_input(ui, &response, rect);
-        if response.double_clicked() {
+        let target = if settings.follow_root { follow_point + self.camera.pan } else { self.camera.target };
+        let path_took_pointer = match scene.path.filter(|p| p.editing) {
+            Some(path) => self.edit_path(ui, &response, rect, path, target),
+            None => {
+                self.path_drag = None;
+                false
+            }
+        };
+        if !path_took_pointer {
+            self.handle_input(ui, &response, rect);
+        }
+        if response.double_clicked() && !scene.path.is_some_and(|p| p.editing) {
             self.reframe = true;
         }
         if self.reframe && !self.layers.is_empty() {
@@ -418,6 +466,91 @@ impl Viewport {
         }
     }
 
+    /// The camera's view-projection and eye for an orbit centre and aspect ratio.
+    fn view_proj(&self, target: Vec3, aspect: f32) -> (Mat4, Vec3) {
+        let cam = self.camera;
+        let eye = target + cam.back() * cam.distance;
+        let view = Mat4::look_at_rh(eye, target, Vec3::Y);
+        let near = (cam.distance * 0.01).clamp(0.005, 1.0);
+        let far = cam.distance * 4.0 + 200.0;
+        (Mat4::perspective_rh(FOV_Y, aspect.max(1e-3), near, far) * view, eye)
+    }
+
+    /// Where the ray through a screen point meets the ground plane (x, z), if it does.
+    fn ground_point(&self, pos: egui::Pos2, rect: egui::Rect, target: Vec3) -> Option<[f32; 2]> {
+        let (view_proj, _) = self.view_proj(target, rect.aspect_ratio());
+        let ndc = |z: f32| Vec3::new((pos.x - rect.left()) / rect.width() * 2.0 - 1.0, 1.0 - (pos.y - rect.top()) / rect.height() * 2.0, z);
+        let inverse = view_proj.inverse();
+        let (near, far) = (inverse.project_point3(ndc(0.0)), inverse.project_point3(ndc(1.0)));
+        let dir = far - near;
+        let t = (self.ground() - near.y) / dir.y;
+        (dir.y.abs() > 1e-6 && t > 0.0 && t.is_finite()).then(|| {
+            let p = near + dir * t;
+            [p.x, p.z]
+        })
+    }
+
+    /// Where a ground point shows on screen (None: behind the camera).
+    fn screen_point(&self, point: [f32; 2], rect: egui::Rect, target: Vec3) -> Option<egui::Pos2> {
+        let (view_proj, _) = self.view_proj(target, rect.aspect_ratio());
+        let clip = view_proj * Vec3::new(point[0], self.ground(), point[1]).extend(1.0);
+        (clip.w > 1e-6).then(|| {
+            let ndc = clip.truncate() / clip.w;
+            egui::pos2(rect.left() + (ndc.x + 1.0) / 2.0 * rect.width(), rect.top() + (1.0 - ndc.y) / 2.0 * rect.height())
+        })
+    }
+
+    /// Path-edit mode: a press on a waypoint drags it, a click elsewhere on the ground adds
+    /// one. Returns whether the pointer was used (the camera then does not move).
+    fn edit_path(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect, path: PathOverlay, target: Vec3) -> bool {
+        let pointer = response.interact_pointer_pos();
+        if response.drag_started_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.shift) {
+            let origin = ui.input(|i| i.pointer.press_origin()).or(pointer);
+            self.path_drag = origin.and_then(|o| {
+                let near = |k: &usize| self.screen_point(path.waypoints[*k], rect, target).is_some_and(|p| p.distance(o) <= GRAB_POINTS);
+                (0..path.waypoints.len()).rev().find(near)
+            });
+            if self.path_drag.is_some() {
+                self.path_edits.push(PathEdit::BeginDrag);
+            }
+        }
+        if let Some(index) = self.path_drag {
+            if let Some(to) = pointer.and_then(|p| self.ground_point(p, rect, target)) {
+                self.path_edits.push(PathEdit::Move { index, to });
+            }
+            if !response.dragged() {
+                self.path_drag = None;
+            }
+            return true;
+        }
+        if response.clicked_by(egui::PointerButton::Primary) {
+            if let Some(point) = pointer.and_then(|p| self.ground_point(p, rect, target)) {
+                self.path_edits.push(PathEdit::Add(point));
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The path on the floor: three parallel lines per stretch (a line list is one pixel
+    /// wide), just above the grid.
+    fn path_vertices(&self, path: &PathOverlay) -> Vec<TrailVertex> {
+        let y = self.ground() + 0.006;
+        let [r, g, b] = PATH_RGB;
+        let vertex = |x: f32, z: f32| TrailVertex { position: [x, y, z], frame: 0.0, last_frame: -1.0, color: [r, g, b, 255] };
+        let mut out = Vec::new();
+        for w in path.waypoints.windows(2) {
+            let (a, b) = (glam::Vec2::from(w[0]), glam::Vec2::from(w[1]));
+            let side = (b - a).perp().normalize_or_zero() * 0.012;
+            for k in [-1.0, 0.0, 1.0] {
+                let (p, q) = (a + side * k, b + side * k);
+                out.push(vertex(p.x, p.y));
+                out.push(vertex(q.x, q.y));
+            }
+        }
+        out
+    }
+
     /// Fits the view: with follow-root, around the current poses; else the whole take.
     fn frame_scene(&mut self, scene: &Scene, follow_point: Vec3) {
         let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
@@ -486,11 +619,7 @@ impl Viewport {
         let settings = scene.settings;
         let cam = self.camera;
         let back = cam.back();
-        let eye = target + back * cam.distance;
-        let view = Mat4::look_at_rh(eye, target, Vec3::Y);
-        let near = (cam.distance * 0.01).clamp(0.005, 1.0);
-        let far = cam.distance * 4.0 + 200.0;
-        let proj = Mat4::perspective_rh(FOV_Y, aspect.max(1e-3), near, far);
+        let (view_proj, eye) = self.view_proj(target, aspect);
         let right = Vec3::Y.cross(back).normalize_or_zero();
         let light = (back * 0.55 + Vec3::Y * 0.75 - right * 0.35).normalize();
 
@@ -506,7 +635,7 @@ impl Viewport {
         // and only as long (the shader draws `drawn_lines` each side, each that long).
         let drawn_lines = (half_lines * 0.9).ceil().min(half_lines);
         let globals = Globals {
-            view_proj: (proj * view).to_cols_array_2d(),
+            view_proj: view_proj.to_cols_array_2d(),
             eye: eye.extend(1.0).to_array(),
             light_dir: light.extend(0.0).to_array(),
             grid: [(target.x / snap).round() * snap, ground, (target.z / snap).round() * snap, spacing],
@@ -564,6 +693,15 @@ impl Viewport {
                 }
             }
         }
+        if let Some(path) = &scene.path {
+            for (k, w) in path.waypoints.iter().enumerate() {
+                let lighten = if path.selected == Some(k) { 0.7 } else { 0.0 };
+                let centre = Vec3::new(w[0], ground + 0.01, w[1]);
+                let disc = Mat4::from_scale_rotation_translation(Vec3::new(WAYPOINT_RADIUS, 0.015, WAYPOINT_RADIUS), Quat::IDENTITY, centre);
+                solids.push(false, false, eye, centre, Instance { model: disc.to_cols_array_2d(), color: linear_rgba(PATH_RGB, lighten, 1.0) });
+            }
+        }
+        let overlay = scene.path.as_ref().map_or_else(Vec::new, |p| self.path_vertices(p));
         let (instances, counts) = solids.finish();
         let trail = settings.trail.then(|| self.trail_vertices(scene));
         // The offscreen image holds sRGB-encoded values.
@@ -577,6 +715,7 @@ impl Viewport {
             counts,
             grid_vertices: if settings.grid { (2 * drawn_lines as u32 + 1) * 2 * 2 } else { 0 },
             trail,
+            overlay,
         }
     }
 }

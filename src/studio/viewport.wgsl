@@ -151,13 +151,18 @@ fn vs_trail(v: TrailIn) -> LineOut {
     let d = v.frame - current;
     var rgb = srgb_to_linear(v.color.rgb);
     var alpha = 0.22;
-    if d <= 0.5 {
-        alpha = 0.5;
-    }
-    if d <= 0.5 && d >= -globals.trail.y {
-        // The recent part, lightened towards white.
-        rgb = mix(rgb, vec3<f32>(1.0), 0.35);
+    if v.last_frame < 0.0 {
+        // An overlay line (the root path): its own colour, opaque.
         alpha = 1.0;
+    } else {
+        if d <= 0.5 {
+            alpha = 0.5;
+        }
+        if d <= 0.5 && d >= -globals.trail.y {
+            // The recent part, lightened towards white.
+            rgb = mix(rgb, vec3<f32>(1.0), 0.35);
+            alpha = 1.0;
+        }
     }
     var out: LineOut;
     let p = v.position + vec3<f32>(0.0, globals.trail.z, 0.0);

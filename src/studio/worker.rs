@@ -16,7 +16,9 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 
+use super::joint_mapping::{self, PreviewFor, RetargetFailure, RetargetPreview};
 use super::tsne;
+use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
 use crate::model::spec::ModelSpec;
 use crate::motion::{Motion, Skeleton};
@@ -75,13 +77,18 @@ pub struct Take {
     /// Each block's place in the seed map (empty until the map exists).
     pub path: Vec<[f32; 2]>,
     pub options: GenerateOptions,
+    /// What the take could not do as asked (see [`crate::synth::Generated::warnings`]).
+    pub warnings: Vec<String>,
     pub millis: f64,
 }
 
 #[derive(Clone)]
 pub enum Request {
     LoadModel(PathBuf),
-    Generate { id: u64, options: GenerateOptions },
+    /// `joint_map` names the joints of foreign BVH files among the start and key files.
+    Generate { id: u64, options: GenerateOptions, joint_map: Option<UserJointMap> },
+    /// Retargets a frame of a BVH file onto the model for a preview (see [`joint_mapping`]).
+    Retarget { purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap> },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
     Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
@@ -94,6 +101,7 @@ impl Request {
             Request::LoadModel(dir) => Reply::ModelFailed { dir: dir.clone(), error },
             Request::Generate { id, .. } => Reply::GenerateFailed { id: *id, error, cancelled: false },
             Request::CheckInit(init) => Reply::InitFailed { init: init.clone(), error },
+            Request::Retarget { purpose, path, frame, .. } => Reply::RetargetFailed(Arc::new(RetargetFailure { purpose: *purpose, path: path.clone(), frame: *frame, error, joints: Default::default() })),
             Request::Export { path, .. } => Reply::ExportFailed { path: path.clone(), error },
         }
     }
@@ -111,6 +119,10 @@ pub enum Reply {
     Path { id: u64, path: Vec<[f32; 2]> },
     InitOk(InitPose),
     InitFailed { init: InitPose, error: String },
+    Retargeted(Arc<RetargetPreview>),
+    RetargetFailed(Arc<RetargetFailure>),
+    /// The file asked to be retargeted is on the model's own skeleton (or not a BVH).
+    NotForeign { purpose: PreviewFor, path: PathBuf, frame: usize },
     Exported(PathBuf),
     ExportFailed { path: PathBuf, error: String },
 }
@@ -164,10 +176,10 @@ impl Worker {
     }
 
     /// Starts a generation (cancelling any older one); returns its id.
-    pub fn generate(&mut self, options: GenerateOptions) -> u64 {
+    pub fn generate(&mut self, options: GenerateOptions, joint_map: Option<UserJointMap>) -> u64 {
         let id = self.fresh_id();
         self.wanted.store(id, Ordering::SeqCst);
-        self.send(Request::Generate { id, options });
+        self.send(Request::Generate { id, options, joint_map });
         id
     }
 
@@ -179,6 +191,10 @@ impl Worker {
 
     pub fn check_init(&mut self, init: InitPose) {
         self.send(Request::CheckInit(init));
+    }
+
+    pub fn retarget(&mut self, purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap>) {
+        self.send(Request::Retarget { purpose, path, frame, joint_map });
     }
 
     pub fn export(&mut self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf, options: ExportOptions, source: Arc<Skeleton>) {
@@ -253,10 +269,16 @@ impl WorkerState {
     fn serve(&mut self, request: Request) -> Option<Reply> {
         match request {
             Request::LoadModel(dir) => self.load(dir),
-            Request::Generate { id, options } => {
+            Request::Generate { id, options, joint_map } => {
                 if self.wanted.load(Ordering::SeqCst) == id {
-                    self.generate(id, &options);
+                    self.generate(id, &options, joint_map.as_ref());
                 }
+            }
+            Request::Retarget { purpose, path, frame, joint_map } => {
+                let Some(model) = self.model.as_ref() else {
+                    return Some(Request::Retarget { purpose, path: path.clone(), frame, joint_map }.failure("no model is loaded".into()));
+                };
+                return Some(joint_mapping::preview(&model.spec, purpose, path, frame, joint_map.as_ref()));
             }
             Request::CheckInit(init) => {
                 return Some(match self.model.as_ref().context("no model is loaded").and_then(|m| initial_features(m, &init)) {
@@ -297,15 +319,23 @@ impl WorkerState {
         }
     }
 
-    fn generate(&mut self, id: u64, options: &GenerateOptions) {
+    fn generate(&mut self, id: u64, options: &GenerateOptions, joint_map: Option<&UserJointMap>) {
         let Some(model) = self.model.as_mut() else {
             self.send(Reply::GenerateFailed { id, error: "no model is loaded".into(), cancelled: false });
             return;
         };
+        // Kept until generation is over: foreign BVH files retargeted with the joint map.
+        let (engine_options, _retargeted) = match joint_mapping::with_retargeted_files(&model.spec, options, joint_map) {
+            Ok(o) => o,
+            Err(e) => {
+                self.send(Reply::GenerateFailed { id, error: format!("{e:#}"), cancelled: false });
+                return;
+            }
+        };
         let start = Instant::now();
         let (wanted, replies, ctx) = (self.wanted.clone(), self.replies.clone(), self.ctx.clone());
         let mut last_sent = 0.0f32;
-        let result = generate(model, options, &mut |fraction| {
+        let result = generate(model, &engine_options, &mut |fraction| {
             if fraction - last_sent >= 0.05 || fraction >= 1.0 {
                 last_sent = fraction;
                 let _ = replies.send(Reply::Progress { id, fraction });
@@ -335,12 +365,13 @@ impl WorkerState {
                     block_classes: g.block_classes,
                     path,
                     options: options.clone(),
+                    warnings: g.warnings,
                     millis: start.elapsed().as_secs_f64() * 1e3,
                 };
                 self.send(Reply::Generated(Arc::new(take)));
             }
             Err(e) => {
-                let cancelled = self.wanted.load(Ordering::SeqCst) != id;
+                let cancelled = e.downcast_ref() == Some(&crate::synth::Error::Cancelled) || self.wanted.load(Ordering::SeqCst) != id;
                 self.send(Reply::GenerateFailed { id, error: format!("{e:#}"), cancelled });
             }
         }

@@ -160,7 +160,7 @@ pub fn parse_json_take(bytes: &[u8], name: &str) -> Result<(Motion, Vec<SegmentS
 }
 
 /// Length unit of an export.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Units {
     /// Metres: what game engines (and Blender's scene unit) expect.
     Metres,

@@ -2,12 +2,15 @@
 //! segment's class, LocGen refines the interpolated frames between them, pace stretches
 //! time, and a final projection restores the skeleton's bone lengths.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use super::constraints::{check_keys, Key, RootPath};
+use super::keys::{fix_roots, key_pose, rewarp, warp_dense, warp_sparse, PlacedKey};
+use super::path_follow::{follow_path, GroundPath};
 use super::foot_lock::{foot_lock, FootLocked};
 use super::init::{initial_features, InitPose};
 use super::timeline::Timeline;
@@ -28,6 +31,21 @@ pub enum Transition {
     /// activity wins over the momentum of the previous one.
     #[default]
     Anchor,
+}
+
+/// How a key is reached (all but the default are for the ablation in docs/RESULTS.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum KeyMethod {
+    /// Only the dense frames are warped onto the key, over half a second either side.
+    DenseWarp,
+    /// GloGen's sparse poses are warped onto the key too, over the 2 s before it (and what
+    /// its block holds after it), so later blocks are conditioned on the keyed pose. The
+    /// shipped method: of the three, the smoothest around keys on both models.
+    #[default]
+    SparseWarp,
+    /// And the rest of the key's block is rolled out again from the keyed context: in the
+    /// ablation it jerks more at its extra seam than the warp's fade does.
+    RollOn,
 }
 
 /// The default classifier-free guidance weight. Measured on both shipped models (docs/RESULTS.md):
@@ -92,6 +110,11 @@ pub struct GenerateOptions {
     /// Lock planted feet in place with leg IK (see [`super::foot_lock`]), on models whose
     /// takes it suits ([`crate::model::spec::ModelSpec::foot_lock`]).
     pub foot_lock: bool,
+    /// Full-body poses the take passes through (see [`super::constraints`]).
+    pub keys: Vec<Key>,
+    /// A path on the ground the take's locomotion follows.
+    pub path: Option<RootPath>,
+    pub key_method: KeyMethod,
 }
 
 impl Default for GenerateOptions {
@@ -110,6 +133,9 @@ impl Default for GenerateOptions {
             keep_alive: true,
             join_seams: true,
             foot_lock: true,
+            keys: Vec::new(),
+            path: None,
+            key_method: KeyMethod::default(),
         }
     }
 }
@@ -156,6 +182,9 @@ pub struct Generated {
     pub block_classes: Vec<usize>,
     /// Per foot and frame, whether the foot stands on the floor.
     pub contacts: FootContacts,
+    /// What the take could not do as asked (a path faster than its class walks), for the
+    /// user to see.
+    pub warnings: Vec<String>,
 }
 
 /// What one GloGen block is asked for, decided from the timeline before the rollout.
@@ -168,19 +197,24 @@ struct BlockPlan {
     target: usize,
     /// Blocks over which a change into `target` eases the context (0: no anchoring).
     ease_blocks: usize,
+    /// The keys whose sparse pose this block produces (indices into the placed keys).
+    keys: Vec<usize>,
 }
 
 /// The sparse poses of each segment and where its boundaries fall.
 struct SparseTimeline {
     /// Segment index of each sparse pose (the seed block belongs to the first segment).
     segment_of: Vec<usize>,
-    /// Per segment: sparse poses, pace and class.
+    /// Per segment: sparse poses and class.
     counts: Vec<usize>,
-    paces: Vec<f32>,
     classes: Vec<usize>,
     /// Per segment: the length of the transition into it in sparse steps (for the first
     /// segment, from the initial poses' class).
     transition_steps: Vec<f32>,
+    /// Frame of each sparse pose in the paced take.
+    frames: Vec<f64>,
+    /// Seconds per sparse step at each segment's pace.
+    step_seconds: Vec<f32>,
 }
 
 impl SparseTimeline {
@@ -188,18 +222,49 @@ impl SparseTimeline {
         let spec = &model.spec;
         let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
         crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
-        let step_seconds = |pace: f32| spec.stride as f32 * pace / spec.fps;
+        let step_of = |pace: f32| spec.stride as f32 * pace / spec.fps;
         let segments = &opts.timeline.segments;
         let paces: Vec<f32> = segments.iter().map(|s| s.pace.unwrap_or(opts.pace)).collect();
         // Sparse poses per segment: its duration over the time one sparse step takes at its pace.
-        let counts: Vec<usize> = segments.iter().zip(&paces).map(|(s, &p)| ((s.seconds / step_seconds(p)).round() as usize).max(1)).collect();
-        let segment_of = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
+        let counts: Vec<usize> = segments.iter().zip(&paces).map(|(s, &p)| ((s.seconds / step_of(p)).round() as usize).max(1)).collect();
+        let segment_of: Vec<usize> = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
         let transition_steps = segments
             .iter()
             .zip(&paces)
-            .map(|(s, &p)| if opts.transition == Transition::Cut { 0.0 } else { s.transition.unwrap_or(opts.transition_seconds) / step_seconds(p) })
+            .map(|(s, &p)| if opts.transition == Transition::Cut { 0.0 } else { s.transition.unwrap_or(opts.transition_seconds) / step_of(p) })
             .collect();
-        Ok(Self { segment_of, counts, paces, classes, transition_steps })
+        let step_seconds = paces.iter().map(|&p| step_of(p)).collect();
+        let mut frames = vec![0.0f64];
+        for (i, &k) in segment_of.iter().enumerate() {
+            frames.push(frames[i] + spec.stride as f64 * paces[k] as f64);
+        }
+        Ok(Self { segment_of, counts, classes, transition_steps, frames, step_seconds })
+    }
+
+    /// Each key on the sparse pose nearest its time after the seed block, with its pose.
+    fn place_keys(&self, model: &GlocalModel, keys: &[Key]) -> Result<Vec<PlacedKey>> {
+        let spec = &model.spec;
+        let t = spec.block_len;
+        let total = self.total();
+        if keys.is_empty() {
+            return Ok(Vec::new());
+        }
+        // A take no longer than its starting poses has no room for a key.
+        let seed_end = self.frames[(t - 1).min(total - 1)] as f32 / spec.fps;
+        check_keys(keys, self.frames[total - 1] as f32 / spec.fps, seed_end)?;
+        if total <= t {
+            bail!("keys need a take longer than its starting poses ({seed_end:.2} s)");
+        }
+        keys.iter()
+            .map(|key| {
+                let pose = key_pose(model, key)?;
+                let frame = (key.seconds * spec.fps).round() as usize;
+                let sparse = (t..total).min_by(|&a, &b| (self.frames[a] - frame as f64).abs().total_cmp(&(self.frames[b] - frame as f64).abs())).unwrap_or(t);
+                let mut features = spec.layout.encode(&[&pose], None);
+                spec.sparse_norm.normalize(&mut features);
+                Ok(PlacedKey { sparse, frame, pose, features, fix_root: key.fix_root })
+            })
+            .collect()
     }
 
     /// Sparse poses of the take, the seed's last pose included.
@@ -228,7 +293,7 @@ impl SparseTimeline {
 
     /// The per-block plan: each block's class vector is the mean of its poses' class mixes,
     /// a pose inside a transition mixing the two classes by a smoothstep over it.
-    fn plan(&self, model: &GlocalModel, anchored: bool) -> Vec<BlockPlan> {
+    fn plan(&self, model: &GlocalModel, anchored: bool, keys: &[PlacedKey]) -> Vec<BlockPlan> {
         let t = model.spec.block_len;
         let blocks = self.total().saturating_sub(t).div_ceil(t);
         let ease_of = |k: usize| if anchored && self.transition_steps[k] > 0.0 { 1 + (self.transition_steps[k] / t as f32).ceil() as usize } else { 0 };
@@ -252,7 +317,9 @@ impl SparseTimeline {
                 let segment = self.segment_at(t + b * t + t / 2);
                 let target = self.classes[segment];
                 let ease_blocks = ease_of(segment);
-                BlockPlan { class, target, ease_blocks }
+                let produced = t + b * t..t + (b + 1) * t;
+                let keys = (0..keys.len()).filter(|&k| produced.contains(&keys[k].sparse)).collect();
+                BlockPlan { class, target, ease_blocks, keys }
             })
             .collect()
     }
@@ -279,7 +346,13 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     let dim = spec.layout.dim();
     let t = spec.block_len;
     let total = timeline.total();
-    let plans = timeline.plan(model, opts.transition == Transition::Anchor);
+    let keys = timeline.place_keys(model, &opts.keys)?;
+    if let Some(path) = &opts.path {
+        path.check().context("root path")?;
+    }
+    // GloGen's own poses are warped onto keys unless the ablation warps the dense frames alone.
+    let sparse_keys = if opts.key_method == KeyMethod::DenseWarp { &[][..] } else { &keys[..] };
+    let plans = timeline.plan(model, opts.transition == Transition::Anchor, sparse_keys);
 
     let (seed_raw, start) = initial_features(model, &opts.init)?;
     let mut context_class = match &opts.init {
@@ -339,8 +412,22 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             bail!("GloGen produced non-finite poses at block {b}");
         }
         sparse.extend_from_slice(&out);
+        for &k in &plan.keys {
+            let key = &keys[k];
+            warp_sparse(&mut sparse, dim, key, timeline.step_seconds[timeline.segment_at(key.sparse)]);
+            // What the block held after the key was GloGen's way on without it: the rest of
+            // the block is rolled out again from the context that ends on the key.
+            let after = (key.sparse + 1) * dim;
+            if after < sparse.len() && opts.key_method == KeyMethod::RollOn {
+                let context = &sparse[after - t * dim..after];
+                let previous = context[context.len() - 2 * dim..].to_vec();
+                model.rollout_block(context, &previous, &plan.class, strength, opts.join_seams, &mut out);
+                let rest = sparse.len() - after;
+                sparse[after..].copy_from_slice(&out[..rest]);
+            }
+        }
         if !progress(0.8 * (b + 1) as f32 / plans.len() as f32) {
-            bail!("cancelled");
+            return Err(super::Error::Cancelled.into());
         }
     }
     sparse.truncate(total * dim);
@@ -348,10 +435,18 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     let (sparse_positions, _) = spec.layout.decode(&sparse, start);
     let dense = model.densify(&sparse_positions, opts.locgen);
     if !progress(0.9) {
-        bail!("cancelled");
+        return Err(super::Error::Cancelled.into());
     }
-    let interval_paces: Vec<f32> = (0..total - 1).map(|i| timeline.paces[timeline.segment_at(i)]).collect();
-    let (positions, interval_starts) = apply_pace(&dense, spec.layout.joints(), spec.stride, &interval_paces);
+    let (mut positions, interval_starts) = apply_pace(&dense, spec.layout.joints(), spec.stride, &timeline.frames);
+    let units_per_metre = 1.0 / spec.layout.skeleton.meters_per_unit();
+    let mut warnings = match &opts.path {
+        Some(path) => follow_path(&mut positions, &spec.layout, spec.fps, &GroundPath::new(path, units_per_metre), units_per_metre),
+        None => Vec::new(),
+    };
+    warnings.extend(fix_roots(&mut positions, &spec.layout, spec.fps, &keys));
+    for key in &keys {
+        warp_dense(&mut positions, &spec.layout, spec.fps, key);
+    }
     let skeleton = spec.layout.skeleton.clone();
     let motion = if opts.project_bones {
         let poses = solve_local_poses(&skeleton, &positions);
@@ -361,8 +456,9 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     };
     let segments = segment_spans(&timeline, &spec.classes, &interval_starts, motion.frames());
     let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock && spec.foot_lock)?;
+    let motion = rewarp(motion, &spec.layout, &keys);
     progress(1.0);
-    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts })
+    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts, warnings })
 }
 
 /// Where each segment falls in the paced take.
@@ -425,25 +521,22 @@ fn pose_motion(window: &[f32], dim: usize) -> f32 {
     steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
 }
 
-/// Stretches each sparse interval (native `stride` frames) to `stride * pace` frames at the
-/// same frame rate, by linear interpolation in time. Returns the frames and the output frame
-/// at which each sparse pose falls.
-fn apply_pace(dense: &[Vec3], joints: usize, stride: usize, paces: &[f32]) -> (Vec<Vec3>, Vec<usize>) {
+/// Stretches each sparse interval (native `stride` frames) to span the output frames `times`
+/// puts its poses at (`stride * pace` apart, [`SparseTimeline::frames`]), by linear
+/// interpolation in time. Returns the frames and the output frame at which each sparse pose
+/// falls.
+fn apply_pace(dense: &[Vec3], joints: usize, stride: usize, times: &[f64]) -> (Vec<Vec3>, Vec<usize>) {
     let native_frames = dense.len() / joints;
-    let mut times = vec![0.0f64];
-    for p in paces {
-        let last = *times.last().expect("non-empty");
-        times.push(last + stride as f64 * *p as f64);
-    }
+    let intervals = times.len().saturating_sub(1);
     let total = times.last().copied().unwrap_or(0.0).floor() as usize + 1;
     let mut out = Vec::with_capacity(total * joints);
     let mut interval = 0;
     for f in 0..total {
         let tf = f as f64;
-        while interval + 1 < paces.len() && times[interval + 1] <= tf {
+        while interval + 1 < intervals && times[interval + 1] <= tf {
             interval += 1;
         }
-        let local = if paces.is_empty() { 0.0 } else { (tf - times[interval]) / (times[interval + 1] - times[interval]) };
+        let local = if intervals == 0 { 0.0 } else { (tf - times[interval]) / (times[interval + 1] - times[interval]) };
         let src = ((interval as f64 + local.clamp(0.0, 1.0)) * stride as f64).min((native_frames - 1) as f64);
         let a = src.floor() as usize;
         let b = (a + 1).min(native_frames - 1);
@@ -462,13 +555,13 @@ mod tests {
     #[test]
     fn pace_stretches_time() {
         let dense: Vec<Vec3> = (0..11).map(|f| Vec3::splat(f as f32)).collect();
-        let (out, starts) = apply_pace(&dense, 1, 5, &[2.0, 2.0]);
+        let (out, starts) = apply_pace(&dense, 1, 5, &[0.0, 10.0, 20.0]);
         assert_eq!(out.len(), 21);
         assert_eq!(starts, vec![0, 10, 20]);
         assert_eq!(out[10], Vec3::splat(5.0));
         assert_eq!(out[5], Vec3::splat(2.5));
         // Fractional: the first interval takes 7.5 frames, the second 2.5.
-        let (frac, starts) = apply_pace(&dense, 1, 5, &[1.5, 0.5]);
+        let (frac, starts) = apply_pace(&dense, 1, 5, &[0.0, 7.5, 10.0]);
         assert_eq!(frac.len(), 11);
         assert_eq!(starts, vec![0, 8, 10]);
         assert!((frac[5].x - 5.0 / 1.5).abs() < 1e-4);

@@ -1,15 +1,28 @@
 //! Synthesis: timelines of activities, pace, long-term generation and export.
 
 pub mod class_map;
+pub mod constraints;
 pub mod export;
 pub mod foot_lock;
 pub mod generate;
 pub mod gltf;
 pub mod init;
+pub mod keys;
+pub mod path_follow;
 pub mod render;
 pub mod rig;
 pub mod timeline;
 
-pub use generate::{generate, GenerateOptions, Generated, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+/// How a generation ends other than with a take, where the caller acts on the kind (other
+/// failures are messages naming what is wrong).
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum Error {
+    /// The progress callback asked to stop (a newer edit or the Cancel button in the studio).
+    #[error("cancelled")]
+    Cancelled,
+}
+
+pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+pub use constraints::{Key, KeySource, RootPath, Waypoint};
 pub use init::InitPose;
 pub use timeline::{Segment, Timeline};

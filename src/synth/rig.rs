@@ -7,7 +7,9 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
-use crate::data::bvh::read_bvh;
+use std::io::Write;
+
+use crate::data::bvh::{read_bvh, write_bvh};
 use crate::data::joint_map::{key_joints, UserJointMap};
 use crate::model::spec::ModelSpec;
 use crate::motion::{Key, KeyJoints, Motion, Retarget, Skeleton};
@@ -25,6 +27,15 @@ pub fn onto_model(spec: &ModelSpec, motion: &Motion, file: &str, user: Option<&U
     let target_keys = key_joints(&target, None, &format!("the {} model's skeleton", spec.dataset))?;
     let retarget = Retarget::new(&motion.skeleton, &source_keys, target, &target_keys).with_context(|| format!("{file}: cannot retarget"))?;
     Ok(retarget.apply(motion).resample(spec.fps))
+}
+
+/// [`onto_model`] written to a temporary BVH file, which the model reads as a take of its own
+/// (for an initial pose or a key from a foreign file, mapped with the user's joint map).
+pub fn onto_model_file(spec: &ModelSpec, motion: &Motion, file: &str, user: &UserJointMap) -> Result<tempfile::NamedTempFile> {
+    let on_model = onto_model(spec, motion, file, Some(user))?;
+    let mut temp = tempfile::Builder::new().suffix(".bvh").tempfile()?;
+    temp.write_all(write_bvh(&on_model, None).as_bytes())?;
+    Ok(temp)
 }
 
 /// `take` on the skeleton of the BVH file `skeleton_path` (its hierarchy and rest pose), same

@@ -2,18 +2,17 @@
 take exported as JSON: skeleton (bone names and parents), length, frame rate, and every
 joint's position in every frame.
 
-Needs Blender as a Python module (not part of `cargo test`; about 400 MB):
-    python3.11 -m venv /tmp/bpy && /tmp/bpy/bin/pip install bpy
+Needs Blender as a Python module (see import_checks.SETUP), then:
     glocal generate --model models/h36m --timeline "walking:4,sitting:4" --out take.bvh
     glocal generate --model models/h36m --timeline "walking:4,sitting:4" --out take.json
     /tmp/bpy/bin/python tests/blender/check_bvh_import.py take.bvh take.json [more pairs...]
-Exits non-zero when any check fails.
 """
 import json
-import sys
 
 import bpy
 from mathutils import Vector
+
+from import_checks import imported_frames, main, passed, skeleton_failures
 
 
 def check(bvh_path, json_path):
@@ -25,21 +24,10 @@ def check(bvh_path, json_path):
                             update_scene_fps=True, update_scene_duration=True)
     arm = next(o for o in bpy.context.scene.objects if o.type == "ARMATURE")
     scene = bpy.context.scene
-    names, parents = take["joints"], take["parents"]
+    names = take["joints"]
     bones = arm.data.bones
-    failures = []
-    if sorted(b.name for b in bones) != sorted(names):
-        failures.append(f"bones {sorted(b.name for b in bones)} != joints {sorted(names)}")
-    for name, parent in zip(names, parents):
-        bone = bones.get(name)
-        want = None if parent is None or parent < 0 else names[parent]
-        got = bone.parent.name if bone and bone.parent else None
-        if bone and got != want:
-            failures.append(f"{name}: parent {got}, expected {want}")
-    first, last = arm.animation_data.action.frame_range
-    frames = int(round(last - first)) + 1
-    if frames != len(take["frames"]):
-        failures.append(f"{frames} frames in Blender, {len(take['frames'])} exported")
+    failures = skeleton_failures(bones, take)
+    first, frames = imported_frames(arm, take, failures)
     fps = scene.render.fps / scene.render.fps_base
     if abs(fps - take["fps"]) > 1e-3:
         failures.append(f"scene fps {fps}, take {take['fps']}")
@@ -59,14 +47,8 @@ def check(bvh_path, json_path):
         failures.append(f"joint positions differ by up to {worst}")
     if abs(lowest) > 1e-3 * scale:
         failures.append(f"the lowest joint is at height {lowest}, not on the floor")
-    for f in failures:
-        print("  FAIL:", f)
-    return not failures
+    return passed(failures)
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    if len(args) < 2 or len(args) % 2:
-        sys.exit(__doc__)
-    ok = all([check(args[i], args[i + 1]) for i in range(0, len(args), 2)])
-    sys.exit(0 if ok else 1)
+    main(check, __doc__)

@@ -2,18 +2,17 @@
 take exported as JSON: the skeleton (bone names and parents), a skinned mesh, the frame count,
 and every joint's position in every frame, within 1% of the body's height.
 
-Needs Blender as a Python module (not part of `cargo test`; about 400 MB):
-    python3.11 -m venv /tmp/bpy && /tmp/bpy/bin/pip install bpy
+Needs Blender as a Python module (see import_checks.SETUP), then:
     glocal generate --model models/h36m --timeline "walking:4,sitting:4" --out take.glb
     glocal generate --model models/h36m --timeline "walking:4,sitting:4" --out take.json
     /tmp/bpy/bin/python tests/blender/check_gltf_import.py take.glb take.json [more pairs...]
-Exits non-zero when any check fails.
 """
 import json
-import sys
 
 import bpy
 from mathutils import Vector
+
+from import_checks import imported_frames, main, passed, skeleton_failures
 
 
 def gltf_point(v):
@@ -32,25 +31,13 @@ def check(glb_path, json_path):
     bpy.ops.import_scene.gltf(filepath=glb_path)
     arm = next(o for o in scene.objects if o.type == "ARMATURE")
     meshes = [o for o in scene.objects if o.type == "MESH"]
-    names, parents = take["joints"], take["parents"]
+    names = take["joints"]
     bones = arm.data.bones
-    failures = []
-    if sorted(b.name for b in bones) != sorted(names):
-        failures.append(f"bones {sorted(b.name for b in bones)} != joints {sorted(names)}")
-    for name, parent in zip(names, parents):
-        bone = bones.get(name)
-        want = None if parent is None or parent < 0 else names[parent]
-        got = bone.parent.name if bone and bone.parent else None
-        if bone and got != want:
-            failures.append(f"{name}: parent {got}, expected {want}")
+    failures = skeleton_failures(bones, take)
     skinned = [m for m in meshes if any(mod.type == "ARMATURE" for mod in m.modifiers)]
     if not skinned:
         failures.append("no mesh skinned to the armature")
-    action = arm.animation_data.action
-    first, last = action.frame_range
-    frames = int(round(last - first)) + 1
-    if frames != len(take["frames"]):
-        failures.append(f"{frames} frames in Blender, {len(take['frames'])} exported")
+    first, frames = imported_frames(arm, take, failures)
     heights = [max(p[1] for p in f) - min(p[1] for p in f) for f in take["frames"]]
     height = max(heights) * unit
     worst, lowest = 0.0, float("inf")
@@ -67,14 +54,8 @@ def check(glb_path, json_path):
         failures.append(f"joint positions differ by up to {worst} m, over 1% of the body's height")
     if abs(lowest) > 0.01 * height:
         failures.append(f"the lowest joint is at height {lowest} m, not on the floor")
-    for f in failures:
-        print("  FAIL:", f)
-    return not failures
+    return passed(failures)
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    if len(args) < 2 or len(args) % 2:
-        sys.exit(__doc__)
-    ok = all([check(args[i], args[i + 1]) for i in range(0, len(args), 2)])
-    sys.exit(0 if ok else 1)
+    main(check, __doc__)

@@ -91,6 +91,9 @@ pub(super) struct SceneCallback {
     pub grid_vertices: u32,
     /// The trail's version and vertices; uploaded when the version changes.
     pub trail: Option<(u64, Arc<Vec<TrailVertex>>)>,
+    /// Lines in a fixed colour (the root path), `last_frame` negative; uploaded every frame
+    /// (a path is a few vertices).
+    pub overlay: Vec<TrailVertex>,
 }
 
 struct Target {
@@ -112,6 +115,8 @@ struct ViewGpu {
     trail_capacity: u64,
     trail_vertices: u32,
     trail_version: u64,
+    overlay: wgpu::Buffer,
+    overlay_capacity: u64,
     target: Option<Target>,
     /// Whether the last prepare produced an image to blit.
     ready: bool,
@@ -370,6 +375,8 @@ impl Resources {
                 trail_capacity,
                 trail_vertices: 0,
                 trail_version: u64::MAX,
+                overlay: buffer(device, "glocal_viewport_overlay", 64 * std::mem::size_of::<TrailVertex>() as u64, wgpu::BufferUsages::VERTEX),
+                overlay_capacity: 64,
                 target: None,
                 ready: false,
             }
@@ -460,6 +467,11 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
             }
             _ => {}
         }
+        if !self.overlay.is_empty() {
+            let vertex_size = std::mem::size_of::<TrailVertex>() as u64;
+            ensure_capacity(device, &mut view.overlay, &mut view.overlay_capacity, self.overlay.len() as u64, vertex_size, "glocal_viewport_overlay");
+            queue.write_buffer(&view.overlay, 0, bytemuck::cast_slice(self.overlay.as_slice()));
+        }
 
         // From here on only shared borrows of the resources are needed.
         let res: &Resources = res;
@@ -514,6 +526,12 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
                 pass.set_pipeline(&res.trail);
                 pass.set_vertex_buffer(0, view.trail.slice(..));
                 pass.draw(0..view.trail_vertices, 0..1);
+                pass.set_vertex_buffer(0, res_mesh(&res.mesh_vertices));
+            }
+            if !self.overlay.is_empty() {
+                pass.set_pipeline(&res.trail);
+                pass.set_vertex_buffer(0, view.overlay.slice(..));
+                pass.draw(0..self.overlay.len() as u32, 0..1);
                 pass.set_vertex_buffer(0, res_mesh(&res.mesh_vertices));
             }
             pass.set_pipeline(&res.solid_blend);

@@ -1,0 +1,242 @@
+//! Keyframes in the take: each key's pose is reached twice over. GloGen's sparse poses are
+//! warped onto the key where the block that holds it comes out, with a raised-cosine share
+//! over the 2 s before (and what the block still holds after), so every later block is
+//! conditioned on the keyed pose and continues from it; then the dense frames get the small
+//! residual LocGen and the foot lock leave, over half a second either side. The ablation in
+//! docs/RESULTS.md (`glocal eval --suite constraints`) compares the ways of doing it.
+
+use std::f32::consts::PI;
+
+use anyhow::{bail, Context, Result};
+use glam::{Quat, Vec3};
+
+use super::constraints::{Key, KeySource};
+use super::init::{read_on_model_skeleton, InitPose};
+use crate::data::features::{wrap, FeatureLayout, Placement, ROOT_FEATURES};
+use crate::model::glocal::GlocalModel;
+use crate::motion::{solve_local_poses, Motion};
+
+/// Seconds before a key over which GloGen's sparse poses are warped towards it.
+const SPARSE_REACH_SECONDS: f32 = 2.0;
+
+/// Extra travel speed (m/s) a root-fixing key may add before the user is told: about a
+/// third of a walk, where planted feet start to visibly slide.
+const MAX_PULL_M_S: f32 = 0.4;
+
+/// Half-width (seconds) of the dense residual warp around a key.
+const DENSE_REACH_SECONDS: f32 = 0.5;
+
+/// A key placed in the take.
+#[derive(Clone, Debug)]
+pub struct PlacedKey {
+    /// The sparse pose the key lands on.
+    pub sparse: usize,
+    /// Its frame in the paced take.
+    pub frame: usize,
+    /// The pose, world positions on the model's skeleton with its bone lengths.
+    pub pose: Vec<Vec3>,
+    /// The pose as one normalised sparse feature vector.
+    pub features: Vec<f32>,
+    pub fix_root: bool,
+}
+
+/// The key's pose as world positions on the model's skeleton, its bones set to the model's
+/// lengths (a pose from another subject or file is reachable exactly).
+pub fn key_pose(model: &GlocalModel, key: &Key) -> Result<Vec<Vec3>> {
+    let spec = &model.spec;
+    let joints = spec.layout.joints();
+    let pose = match &key.source {
+        KeySource::Pose(p) => {
+            if p.len() != joints || p.iter().flatten().any(|v| !v.is_finite()) {
+                bail!("key at {} s: the pose has {} joints; the model's skeleton has {joints} (all finite)", key.seconds, p.len());
+            }
+            p.iter().map(|&v| Vec3::from(v)).collect()
+        }
+        KeySource::Init(InitPose::SeedIndex(i)) => {
+            let seed = model.seeds.get(*i).with_context(|| format!("key at {} s: seed {i} does not exist; the seed bank has {} seeds", key.seconds, model.seeds.len()))?;
+            last_pose(&spec.layout, &seed.features)
+        }
+        KeySource::Init(InitPose::SeedClass { class, variant }) => {
+            let k = spec.class_index(class)?;
+            let seed = model.seed_of_class(k, *variant).with_context(|| format!("key at {} s: the seed bank has no seed of class '{class}'", key.seconds))?;
+            last_pose(&spec.layout, &seed.features)
+        }
+        KeySource::Init(InitPose::File { path, frame }) => {
+            let motion = read_on_model_skeleton(model, path)?;
+            if *frame >= motion.frames() {
+                bail!("{}: key frame {frame} is past the file's {} frames", path.display(), motion.frames());
+            }
+            // On the model's floor, as a starting clip is.
+            let lift = model.floor_height() - motion.floor_height();
+            motion.frame(*frame).iter().map(|p| *p + Vec3::Y * lift).collect()
+        }
+    };
+    let skeleton = spec.layout.skeleton.clone();
+    Ok(Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, &pose)).frame(0).to_vec())
+}
+
+fn last_pose(layout: &FeatureLayout, window: &[f32]) -> Vec<Vec3> {
+    let (positions, _) = layout.decode(window, Placement::default());
+    positions[positions.len() - layout.joints()..].to_vec()
+}
+
+/// The features a key's pose sets: the root's height and the joints relative to the root.
+fn keyed(d: usize) -> bool {
+    d == 0 || d >= ROOT_FEATURES
+}
+
+/// Warps the normalised sparse poses generated so far (`sparse`, `dim` per pose) onto `key`:
+/// exactly at its pose, by a raised-cosine share over [`SPARSE_REACH_SECONDS`] before it and
+/// as far after it as poses exist.
+pub fn warp_sparse(sparse: &mut [f32], dim: usize, key: &PlacedKey, step_seconds: f32) {
+    let reach = (SPARSE_REACH_SECONDS / step_seconds).ceil().max(1.0) as usize;
+    let at = &sparse[key.sparse * dim..(key.sparse + 1) * dim];
+    let delta: Vec<f32> = at.iter().zip(&key.features).enumerate().map(|(d, (v, k))| if keyed(d) { k - v } else { 0.0 }).collect();
+    let poses = sparse.len() / dim;
+    for i in key.sparse.saturating_sub(reach - 1)..poses.min(key.sparse + reach) {
+        let w = raised_cosine(i.abs_diff(key.sparse) as f32 / reach as f32);
+        sparse[i * dim..(i + 1) * dim].iter_mut().zip(&delta).for_each(|(v, d)| *v += w * d);
+    }
+}
+
+/// 1 at 0, falling smoothly (zero slope at both ends) to 0 at 1.
+fn raised_cosine(x: f32) -> f32 {
+    if x >= 1.0 {
+        0.0
+    } else {
+        0.5 * (1.0 + (PI * x).cos())
+    }
+}
+
+/// Warps dense frames (`joints` per frame) so the body at the key's frame is the key's pose
+/// relative to the root (and its root at the key's height), the residual fading over
+/// [`DENSE_REACH_SECONDS`] either side. Returns the frames it touched.
+pub fn warp_dense(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, key: &PlacedKey) -> std::ops::Range<usize> {
+    let j = layout.joints();
+    let frames = positions.len() / j;
+    if key.frame >= frames {
+        return 0..0;
+    }
+    let frame = &positions[key.frame * j..(key.frame + 1) * j];
+    let (root, heading) = (frame[0], layout.heading(frame));
+    let key_heading = layout.heading(&key.pose);
+    let lift = key.pose[0].y - root.y;
+    // Per joint, the residual in the body's own heading frame.
+    let residual: Vec<Vec3> = (0..j)
+        .map(|k| {
+            let want = Quat::from_rotation_y(-key_heading) * (key.pose[k] - key.pose[0]);
+            let have = Quat::from_rotation_y(-heading) * (frame[k] - root);
+            want - have
+        })
+        .collect();
+    let reach = (DENSE_REACH_SECONDS * fps).round().max(1.0) as usize;
+    let touched = key.frame.saturating_sub(reach - 1)..frames.min(key.frame + reach);
+    for f in touched.clone() {
+        let w = raised_cosine(f.abs_diff(key.frame) as f32 / reach as f32);
+        let pose = &mut positions[f * j..(f + 1) * j];
+        let turn = Quat::from_rotation_y(layout.heading(pose));
+        for (p, r) in pose.iter_mut().zip(&residual) {
+            *p += w * (Vec3::Y * lift + turn * *r);
+        }
+    }
+    touched
+}
+
+/// The take's frames with each key's dense residual warped away again after the foot lock
+/// (which may have moved a keyed foot), rotations solved again where frames moved.
+pub fn rewarp(motion: Motion, layout: &FeatureLayout, keys: &[PlacedKey]) -> Motion {
+    if keys.is_empty() {
+        return motion;
+    }
+    let mut positions = motion.positions().to_vec();
+    let touched: Vec<std::ops::Range<usize>> = keys.iter().map(|k| warp_dense(&mut positions, layout, motion.fps, k)).collect();
+    let skeleton = motion.skeleton.clone();
+    let Some(mut poses) = motion.local_poses else {
+        return Motion::from_positions(skeleton, motion.fps, positions);
+    };
+    let j = skeleton.len();
+    for range in touched {
+        let solved = solve_local_poses(&skeleton, &positions[range.start * j..range.end * j]);
+        poses.splice(range, solved);
+    }
+    Motion::from_local_poses(skeleton, motion.fps, poses)
+}
+
+/// Moves where the body stands and faces so each root-fixing key's root is where its pose
+/// stood: the offset (position and heading, about the body's own root) grows by a smoothstep
+/// from the start (or the previous such key) to each key, and after the last one the rest of
+/// the take is carried rigidly about that key's root, so it walks on in the keyed direction.
+/// Returns a sentence per key that pulls the body faster than [`MAX_PULL_M_S`].
+pub fn fix_roots(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, keys: &[PlacedKey]) -> Vec<String> {
+    let j = layout.joints();
+    let frames = positions.len() / j;
+    // Per root-fixing key in time order: its frame, and the shift and turn that put the body
+    // where the key's pose stands; the take's start is fixed where it is.
+    let mut targets: Vec<(usize, Vec3, f32)> = keys
+        .iter()
+        .filter(|k| k.fix_root && k.frame < frames)
+        .map(|k| {
+            let frame = &positions[k.frame * j..(k.frame + 1) * j];
+            let d = k.pose[0] - frame[0];
+            (k.frame, Vec3::new(d.x, 0.0, d.z), wrap(layout.heading(&k.pose) - layout.heading(frame)))
+        })
+        .collect();
+    targets.sort_by_key(|t| t.0);
+    let Some(&(last_frame, last_shift, last_turn)) = targets.last() else { return Vec::new() };
+    let start = (0usize, Vec3::ZERO, 0.0f32);
+    let metres = layout.skeleton.meters_per_unit();
+    let mut warnings = Vec::new();
+    for (&(pf, pd, _), &(kf, d, _)) in std::iter::once(&start).chain(&targets).zip(&targets) {
+        let gap = (d - pd).length() * metres;
+        let pull = gap * fps / (kf - pf).max(1) as f32;
+        if pull > MAX_PULL_M_S {
+            warnings.push(format!("the key at {:.1} s stands {gap:.1} m from where the take would be; reaching it adds {pull:.2} m/s to the body's travel, so its feet will slide (key a frame of this take, or give the key more time)", kf as f32 / fps));
+        }
+    }
+    let pivot = positions[last_frame * j];
+    for f in 0..frames {
+        let (shift, turn, about_own_root) = match targets.iter().position(|t| t.0 >= f) {
+            Some(i) => {
+                let ((pf, pd, ph), (kf, d, h)) = (if i == 0 { start } else { targets[i - 1] }, targets[i]);
+                let s = smoothstep((f - pf) as f32 / (kf - pf).max(1) as f32);
+                (pd.lerp(d, s), ph + s * (h - ph), true)
+            }
+            None => (last_shift, last_turn, false),
+        };
+        let pose = &mut positions[f * j..(f + 1) * j];
+        let centre = if about_own_root { pose[0] } else { pivot };
+        let rot = Quat::from_rotation_y(turn);
+        pose.iter_mut().for_each(|p| *p = centre + rot * (*p - centre) + shift);
+    }
+    warnings
+}
+
+fn smoothstep(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn raised_cosine_is_one_at_the_key_and_zero_at_its_reach() {
+        assert_eq!(raised_cosine(0.0), 1.0);
+        assert!((raised_cosine(0.5) - 0.5).abs() < 1e-6);
+        assert_eq!(raised_cosine(1.0), 0.0);
+        assert_eq!(raised_cosine(3.0), 0.0);
+    }
+
+    #[test]
+    fn the_sparse_warp_lands_on_the_key_and_leaves_the_root_velocity() {
+        let dim = ROOT_FEATURES + 3;
+        let mut sparse = vec![0.0; 20 * dim];
+        let key = PlacedKey { sparse: 10, frame: 0, pose: vec![], features: vec![1.0; dim], fix_root: false };
+        warp_sparse(&mut sparse, dim, &key, 0.4);
+        assert_eq!(&sparse[10 * dim..11 * dim], &[1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        // Five poses of reach before and after at 0.4 s a step: the fifth away is untouched.
+        assert!(sparse[6 * dim] > 0.0 && sparse[5 * dim] == 0.0 && sparse[15 * dim] == 0.0);
+        assert!(sparse[8 * dim] > sparse[7 * dim]);
+    }
+}
