@@ -730,8 +730,8 @@ fn a_sit_too_short_after_a_walk_is_explained_and_fixed_in_one_click() {
     h.state_mut().edit(|d| d.options.timeline = "walking:4,sitting:3".parse().unwrap());
     h.run_ok();
     assert!(has_message(h.state(), "The seated activity in segment 2 follows a standing one"), "{:?}", h.state().messages().log());
-    assert!(shows(&h, "Insert sittingdown (1 s) before it") && shows(&h, "Lengthen segment 2 to 4.0 s"));
-    h.get_by_label("Insert sittingdown (1 s) before it").click_accesskit();
+    assert!(shows(&h, "Insert sittingdown (2 s) before it") && shows(&h, "Lengthen segment 2 to 4.0 s"));
+    h.get_by_label("Insert sittingdown (2 s) before it").click_accesskit();
     h.run_ok();
     let classes: Vec<String> = h.state().project().options.timeline.segments.iter().map(|s| s.class.clone()).collect();
     assert_eq!(classes, ["walking", "sittingdown", "sitting"]);

@@ -195,6 +195,10 @@ pub enum Interpolation {
     Linear,
     /// A Catmull-Rom spline through the sparse poses: velocity is continuous at each of them.
     CatmullRom,
+    /// The natural cubic spline through the sparse poses: acceleration is continuous too, so
+    /// a velocity change at a sparse pose (a block seam among them) is spread over the
+    /// intervals around it rather than taken at the pose.
+    NaturalCubic,
 }
 
 /// Dense frames between sparse poses, interpolating world positions: `stride` frames per
@@ -202,30 +206,82 @@ pub enum Interpolation {
 pub fn interpolate(sparse: &[Vec3], joints: usize, stride: usize, kind: Interpolation) -> Vec<Vec3> {
     let n = sparse.len() / joints;
     let pose = |k: usize| &sparse[k * joints..(k + 1) * joints];
+    let tangents = match kind {
+        Interpolation::Linear => Vec::new(),
+        Interpolation::CatmullRom => catmull_rom_tangents(sparse, joints),
+        Interpolation::NaturalCubic => natural_tangents(sparse, joints),
+    };
     let mut out = Vec::with_capacity(((n.max(1) - 1) * stride + 1) * joints);
     for k in 0..n.saturating_sub(1) {
         let (a, b) = (pose(k), pose(k + 1));
-        // Catmull-Rom tangents (one-sided at the ends), per interval.
-        let (before, after) = (pose(k.saturating_sub(1)), pose((k + 2).min(n - 1)));
         for s in 0..stride {
             let w = s as f32 / stride as f32;
-            match kind {
-                Interpolation::Linear => out.extend(a.iter().zip(b).map(|(p, q)| p.lerp(*q, w))),
-                Interpolation::CatmullRom => {
-                    let (h00, h10, h01, h11) = hermite(w);
-                    out.extend((0..joints).map(|j| {
-                        let m0 = if k == 0 { b[j] - a[j] } else { (b[j] - before[j]) * 0.5 };
-                        let m1 = if k + 2 >= n { b[j] - a[j] } else { (after[j] - a[j]) * 0.5 };
-                        a[j] * h00 + m0 * h10 + b[j] * h01 + m1 * h11
-                    }));
-                }
+            if kind == Interpolation::Linear {
+                out.extend(a.iter().zip(b).map(|(p, q)| p.lerp(*q, w)));
+                continue;
             }
+            let (h00, h10, h01, h11) = hermite(w);
+            let (m0, m1) = (&tangents[k * joints..(k + 1) * joints], &tangents[(k + 1) * joints..(k + 2) * joints]);
+            out.extend((0..joints).map(|j| a[j] * h00 + m0[j] * h10 + b[j] * h01 + m1[j] * h11));
         }
     }
     if n > 0 {
         out.extend_from_slice(pose(n - 1));
     }
     out
+}
+
+/// Catmull-Rom tangents per sparse pose and joint: half the step from the pose before to the
+/// pose after, one-sided at the ends.
+fn catmull_rom_tangents(sparse: &[Vec3], joints: usize) -> Vec<Vec3> {
+    let n = sparse.len() / joints;
+    let at = |k: usize, j: usize| sparse[k * joints + j];
+    (0..n)
+        .flat_map(|k| {
+            (0..joints).map(move |j| match (k, n) {
+                (_, 1) => Vec3::ZERO,
+                (0, _) => at(1, j) - at(0, j),
+                _ if k + 1 == n => at(k, j) - at(k - 1, j),
+                _ => (at(k + 1, j) - at(k - 1, j)) * 0.5,
+            })
+        })
+        .collect()
+}
+
+/// Tangents of the natural cubic spline through each joint's sparse positions (unit knot
+/// spacing): the tridiagonal system `m[k-1] + 4 m[k] + m[k+1] = 3 (p[k+1] - p[k-1])`, with
+/// `2 m[0] + m[1] = 3 (p[1] - p[0])` and its mirror at the end (zero curvature there),
+/// solved by forward elimination and back substitution. The elimination coefficients are
+/// the same for every joint.
+fn natural_tangents(sparse: &[Vec3], joints: usize) -> Vec<Vec3> {
+    let n = sparse.len() / joints;
+    if n < 2 {
+        return vec![Vec3::ZERO; sparse.len()];
+    }
+    let at = |k: usize, j: usize| sparse[k * joints + j];
+    let diagonal = |k: usize| if k == 0 || k + 1 == n { 2.0 } else { 4.0 };
+    let rhs = |k: usize, j: usize| 3.0 * (at((k + 1).min(n - 1), j) - at(k.saturating_sub(1), j));
+    // Forward elimination: c[k] is the eliminated super-diagonal.
+    let mut c = vec![0.0f32; n];
+    let mut m = vec![Vec3::ZERO; sparse.len()];
+    c[0] = 1.0 / diagonal(0);
+    for j in 0..joints {
+        m[j] = rhs(0, j) / diagonal(0);
+    }
+    for k in 1..n {
+        let pivot = diagonal(k) - c[k - 1];
+        c[k] = 1.0 / pivot;
+        for j in 0..joints {
+            m[k * joints + j] = (rhs(k, j) - m[(k - 1) * joints + j]) / pivot;
+        }
+    }
+    for k in (0..n - 1).rev() {
+        for j in 0..joints {
+            let next = m[(k + 1) * joints + j];
+            m[k * joints + j] -= next * c[k];
+        }
+    }
+    m
 }
 
 /// The cubic Hermite basis at `w` in [0, 1].
@@ -306,6 +362,38 @@ mod tests {
         assert_eq!(smooth.len(), 16);
         for (f, p) in smooth.iter().enumerate() {
             assert!((p.x - f as f32).abs() < 1e-5, "frame {f}: {p}");
+        }
+        for kind in [Interpolation::CatmullRom, Interpolation::NaturalCubic] {
+            let natural = interpolate(&steady, 1, 5, kind);
+            assert!(natural.iter().enumerate().all(|(f, p)| (p.x - f as f32).abs() < 1e-4), "{kind:?} bends a steady motion");
+        }
+    }
+
+    /// The natural spline's acceleration is continuous at the sparse poses; Catmull-Rom's
+    /// jumps there (the kink the block-seam measures see).
+    #[test]
+    fn natural_spline_has_no_acceleration_jump_at_keys() {
+        let keys: Vec<Vec3> = [0.0, 1.0, 0.0, 2.0, 1.0, 3.0, 0.0].iter().map(|&y| Vec3::new(0.0, y, 0.0)).collect();
+        // Second differences just before and just after each inner key on a fine grid: a
+        // jump in acceleration stays as the grid refines, a continuous one (with a jump in
+        // its derivative) shrinks with the grid step.
+        let stride = 64;
+        let jump = |kind: Interpolation| -> f32 {
+            let d = interpolate(&keys, 1, stride, kind);
+            (2..keys.len() - 2)
+                .map(|k| {
+                    let f = k * stride;
+                    let before = d[f - 2].y - 2.0 * d[f - 1].y + d[f].y;
+                    let after = d[f].y - 2.0 * d[f + 1].y + d[f + 2].y;
+                    (after - before).abs()
+                })
+                .fold(0.0, f32::max)
+        };
+        let (natural, catmull_rom) = (jump(Interpolation::NaturalCubic), jump(Interpolation::CatmullRom));
+        assert!(natural < 0.2 * catmull_rom, "acceleration jump: natural {natural}, Catmull-Rom {catmull_rom}");
+        let d = interpolate(&keys, 1, stride, Interpolation::NaturalCubic);
+        for (k, key) in keys.iter().enumerate() {
+            assert!((d[k * stride] - *key).length() < 1e-5, "key {k} missed");
         }
     }
 }

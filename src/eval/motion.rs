@@ -12,7 +12,7 @@ use serde_json::{json, Value};
 use super::suites::{model_dir, SuiteOptions};
 use super::table::{fixed_or, Markdown, Table};
 use crate::data::registry::Dataset;
-use crate::model::corpus::Corpus;
+use crate::model::corpus::{Corpus, Track};
 use crate::model::glocal::GlocalModel;
 use crate::motion::{JointRoles, Motion, Side};
 use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
@@ -135,10 +135,9 @@ impl Pool {
         self.add_feet(&p, n, &feet, &lowest, floor);
         let frame_jerk = self.add_jerk(&p, n);
         self.window_peaks.extend(window_peaks(&frame_jerk, 0, frame_jerk.len(), &[]));
-        for t in 1..frames {
-            self.speed_sum += (0..n).map(|j| p[t * n + j].distance(p[(t - 1) * n + j]) as f64).sum::<f64>() * COMMON_FPS as f64;
-            self.speed_count += n;
-        }
+        let (sum, count) = joint_speed_sum(&p, n);
+        self.speed_sum += sum;
+        self.speed_count += count;
         if let Some(grid) = grid {
             self.add_seams(&p, n, roles.body_root, grid);
         }
@@ -291,6 +290,14 @@ impl SeamProfile {
         let sparse: Vec<f64> = accel.iter().step_by(self.grid.interval).copied().collect();
         [seam, accel[0] / mean_accel, sparse.iter().sum::<f64>() / sparse.len() as f64 / mean_accel]
     }
+}
+
+/// The sum of every joint's speed over every frame step (m/s, positions `p` in metres at
+/// [`COMMON_FPS`], `n` joints a frame) and how many speeds it sums.
+fn joint_speed_sum(p: &[Vec3], n: usize) -> (f64, usize) {
+    let frames = p.len() / n.max(1);
+    let sum = (1..frames).map(|t| (0..n).map(|j| p[t * n + j].distance(p[(t - 1) * n + j]) as f64).sum::<f64>()).sum::<f64>();
+    (sum * COMMON_FPS as f64, n * frames.saturating_sub(1))
 }
 
 fn metres(m: &Motion) -> Vec<Vec3> {
@@ -480,6 +487,21 @@ struct ModelResult {
     dir: String,
     classes: Vec<String>,
     sources: [(&'static str, Vec<BTreeMap<&'static str, f64>>, Vec<Vec<f64>>); 3],
+    /// Mean joint speed per class on the training split, which the model learnt from: where a
+    /// class moves differently in the test split's styles, the two bounds differ.
+    train_speed: Vec<f64>,
+}
+
+/// Mean speed of all joints (m/s, at [`COMMON_FPS`]) per class over `tracks`.
+fn joint_speed_per_class(tracks: &[Track], classes: usize) -> Vec<f64> {
+    let mut sums = vec![(0.0f64, 0usize); classes];
+    for track in tracks {
+        let m = track.motion.resample(COMMON_FPS);
+        let (sum, count) = joint_speed_sum(&metres(&m), m.joints());
+        sums[track.class].0 += sum;
+        sums[track.class].1 += count;
+    }
+    sums.iter().map(|&(s, c)| s / c.max(1) as f64).collect()
 }
 
 /// Rows of the main table: (key, label, digits).
@@ -563,6 +585,7 @@ fn model_result(dataset: Dataset, opts: &SuiteOptions, cfg: &MotionSuiteConfig, 
         dir: dir.display().to_string(),
         classes: spec.classes.clone(),
         sources: [("real", r.0, r.1), ("no lock", u.0, u.1), ("generated", s.0, s.1)],
+        train_speed: joint_speed_per_class(&corpus.train, spec.classes.len()),
     })
 }
 
@@ -593,6 +616,8 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
         "joint speed real (m/s)",
         "generated / real",
         "no lock / real",
+        "joint speed train (m/s)",
+        "generated / train",
         "support speed real / no lock / generated (cm/s)",
         "skating real / no lock / generated",
         "contact real / no lock / generated",
@@ -607,6 +632,8 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
             cell(v(real, "joint_speed"), 3),
             cell(v(shipped, "joint_speed") / v(real, "joint_speed"), 2),
             cell(v(unlocked, "joint_speed") / v(real, "joint_speed"), 2),
+            cell(r.train_speed[c], 3),
+            cell(v(shipped, "joint_speed") / r.train_speed[c], 2),
             three("support_speed_median_cm_s", 1),
             three("skating_ratio", 3),
             three("contact_fraction", 2),
@@ -622,5 +649,5 @@ fn model_json(r: &ModelResult) -> Value {
         let balanced: BTreeMap<&str, f64> = ROWS.iter().map(|(k, _, _)| (*k, balanced(per_class, k))).collect();
         json!({"source": name, "balanced": balanced, "per_class": per_class, "interval_profile": profile})
     };
-    json!({"dataset": r.dataset.name(), "model": r.dir, "classes": r.classes, "sources": r.sources.iter().map(source).collect::<Vec<_>>()})
+    json!({"dataset": r.dataset.name(), "model": r.dir, "classes": r.classes, "sources": r.sources.iter().map(source).collect::<Vec<_>>(), "train_joint_speed": r.train_speed})
 }

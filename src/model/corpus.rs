@@ -159,7 +159,7 @@ pub fn sample_window<'a>(tracks: &'a [Track], classes: usize, span: usize, rng: 
 /// inside a generated take.
 pub fn interpolated_window(m: &Motion, start: usize, window: usize, stride: usize, kind: Interpolation) -> Vec<Vec3> {
     let j = m.joints();
-    let spline = kind == Interpolation::CatmullRom;
+    let spline = kind != Interpolation::Linear;
     let before = spline && start >= stride;
     let last_key = window / stride + usize::from(spline && start + (window / stride + 1) * stride < m.frames());
     let first = if before { start - stride } else { start };

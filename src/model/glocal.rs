@@ -103,15 +103,15 @@ impl GlocalModel {
     }
 
     /// One step of GloGen's rollout: a block from `input` (the context as GloGen should see
-    /// it, eased towards an anchor or noised), joined onto `previous`, the last two poses
-    /// actually before it (normalised), when `join` is set. Returns the block's embedding.
+    /// it, eased towards an anchor or noised), joined onto `previous`, the pose actually
+    /// before it (normalised), when `join` is set. Returns the block's embedding.
     ///
     /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
     /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
-    /// inside a block). Joining shifts the block so that its first pose continues the last
-    /// step of the context (positions at the last velocity, velocities as they were) and
-    /// fades the shift out over the block with a raised cosine, which keeps the block's own
-    /// motion and its end where GloGen put it.
+    /// inside a block). Joining shifts the block so that its first pose is one of its own
+    /// steps on from the context's last pose, and fades the shift out over the first half of
+    /// the block with a raised cosine, which keeps the block's own motion and its end where
+    /// GloGen put it.
     pub fn rollout_block(&mut self, input: &[f32], previous: &[f32], class: &[f32], strength: f32, join: bool, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.glogen_block(input, class, strength, out);
         if join {
@@ -164,7 +164,7 @@ impl GlocalModel {
         let mut out = vec![0.0; t * dim];
         for _ in 0..blocks {
             let input = sparse[sparse.len() - t * dim..].to_vec();
-            self.rollout_block(&input, &input[(t - 2) * dim..], &class_vec, 1.0, join_seams, &mut out);
+            self.rollout_block(&input, &input[(t - 1) * dim..], &class_vec, 1.0, join_seams, &mut out);
             sparse.extend_from_slice(&out);
         }
         let mut predicted = sparse.split_off(t * dim);
@@ -229,24 +229,33 @@ impl GlocalModel {
 }
 
 /// See [`GlocalModel::rollout_block`]. Features 1-3 (the root's ground displacement and
-/// heading change) are velocities already; the rest are positions. The block's first two
-/// poses are moved to where the context's last step carries on to (continuous position and
-/// velocity); the second pose's shift then fades out over the rest of the block with a
-/// raised cosine, so the block ends where GloGen put it.
-fn join_seam(previous: &[f32], block: &mut [f32], dim: usize) {
-    let (before, last) = previous.split_at(dim);
+/// heading change) are velocities already (the block's first moves halfway to the
+/// context's last); the rest are positions, and the block's first pose moves to one of the
+/// block's own first steps on from the context's last pose. The shift fades out over the
+/// first half of the block with a raised cosine, so the block keeps its own motion and ends
+/// where GloGen put it; faded over the whole block, an offset in the root's height lifted
+/// a running body off its feet for 1.5 s (Bandai floating 21% of frames against 13%). The
+/// join used to continue the context's last step instead (positions at their last
+/// velocity): a sparse step is 0.17-0.2 s, and extrapolating it carried a landing foot
+/// through the floor at every seam of a walk (Bandai's walks then floated 86% of the time
+/// over the floor those dips set); the mean of the two steps left a hitch (the seam
+/// interval 0.77x the others' speed). Measured in docs/RESULTS.md.
+fn join_seam(last: &[f32], block: &mut [f32], dim: usize) {
     let poses = block.len() / dim;
     if poses < 2 {
         return;
     }
-    let fade: Vec<f32> = (1..poses).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * (k - 1) as f32 / (poses - 1) as f32).cos())).collect();
+    let span = poses / 2;
+    let fade: Vec<f32> = (0..poses).map(|k| if k >= span { 0.0 } else { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) }).collect();
     for f in 0..dim {
-        let step = if (1..ROOT_FEATURES).contains(&f) { 0.0 } else { last[f] - before[f] };
-        let first_shift = last[f] + step - block[f];
-        let second_shift = last[f] + 2.0 * step - block[dim + f];
-        block[f] += first_shift;
-        for (k, w) in (1..poses).zip(&fade) {
-            block[k * dim + f] += second_shift * w;
+        let target = if (1..ROOT_FEATURES).contains(&f) {
+            0.5 * (last[f] + block[dim + f])
+        } else {
+            last[f] + block[dim + f] - block[f]
+        };
+        let shift = target - block[f];
+        for (k, w) in fade.iter().enumerate() {
+            block[k * dim + f] += shift * w;
         }
     }
 }

@@ -6,16 +6,18 @@ use crate::synth::{Segment, Timeline};
 /// How long a seated activity needs, right after a standing one, for the take to end
 /// seated. Measured on the shipped h36m model with the default anchored 2 s transition
 /// (`glocal generate --timeline "walking:4,sitting:S" --json`, hips above the lowest joint
-/// at the last frame): S = 3 s ends at 0.90 m, still standing as in the walk; 3.5 s at
-/// 0.72 m, on the way down; 4 s at 0.58 m and 5-6 s at 0.64-0.68 m, seated. After
-/// greeting the 3 s sitting also ends standing (0.85 m). The body needs about 3.5 s to
-/// leave the standing motion and sit, so the rule is: the seated run (consecutive seated
-/// segments) after a standing segment lasts at least 4 s. Putting `sittingdown` first
-/// counts: walking:4, sittingdown:1, sitting:3 ends at 0.58 m.
+/// at the last frame), before this round's seam join: S = 3 s ended at 0.90 m, still
+/// standing as in the walk; 3.5 s at 0.72 m, on the way down; 4 s at 0.58 m and 5-6 s at
+/// 0.64-0.68 m, seated. With the join that takes the block's own first step (2026-12-01),
+/// S = 3 s ends at 0.55 m from the canonical start and 4.5-6 s at 0.59-0.67 m, so the rule
+/// is now on the safe side: the seated run (consecutive seated segments) after a standing
+/// segment lasts at least 4 s.
 pub const SEATED_AFTER_STANDING_SECONDS: f32 = 4.0;
 
-/// How long a `sittingdown` segment the fix inserts lasts.
-pub const SITTING_DOWN_SECONDS: f32 = 1.0;
+/// How long a `sittingdown` segment the fix inserts lasts: about as long as a real sit-down.
+/// walking:4, sittingdown:1, sitting:3 ends at 0.67 m (0.76 of standing, still on the way
+/// down); with 2 s of sittingdown it ends at 0.60 m (noise seeds 0-2: 0.43-0.60 m).
+pub const SITTING_DOWN_SECONDS: f32 = 2.0;
 
 /// A class whose poses are seated (h36m's `sitting` and `sittingdown`; Bandai has none).
 pub fn is_seated(class: &str) -> bool {

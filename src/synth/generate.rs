@@ -66,6 +66,10 @@ pub const DEFAULT_TRANSITION_SECONDS: f32 = 2.0;
 /// over minutes, so keep-alive re-anchors it.
 const STALL_BELOW: f32 = 0.9;
 
+/// A block whose poses move less than this fraction of its class's typical motion has
+/// nearly frozen: keep-alive leans on its window harder.
+const FROZEN_BELOW: f32 = 0.5;
+
 /// A block whose poses move more than this multiple of its class's typical motion is
 /// rushing (a gesture repeated ever faster): keep-alive re-anchors it too.
 const RUSH_ABOVE: f32 = 1.5;
@@ -78,8 +82,15 @@ const KEEP_ALIVE_GAP: usize = 1;
 const KEEP_ALIVE_EASE: usize = 2;
 
 /// A keep-alive pulls the context this far (at random in this range) towards its anchor, so
-/// no two re-anchorings are alike and a long take never falls into a loop.
+/// no two re-anchorings are alike.
 const KEEP_ALIVE_STRENGTH: std::ops::Range<f32> = 0.6..1.0;
+
+/// The rollout is deterministic, so a take that moves at its class's pace can still settle
+/// into a loop: a steady walk became one gait cycle repeated exactly for six minutes. When
+/// the last half block of poses comes back to an earlier stretch within this fraction of
+/// the class's typical step (per pose, over the joint features), keep-alive leans the
+/// context towards a seed window as it does for a stalled take.
+const LOOP_TOLERANCE: f32 = 0.25;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -333,6 +344,8 @@ struct Easing {
     anchor: Vec<f32>,
     step: usize,
     blocks: usize,
+    /// The block by which the easing reaches its full `strength`.
+    reach: usize,
     strength: f32,
 }
 
@@ -360,6 +373,13 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         InitPose::SeedClass { class, .. } => spec.class_index(class).ok(),
         InitPose::File { .. } => None,
     };
+    // The seed window the take starts from, as (class, its index among the class's windows):
+    // leaning on it again from a similar pose replays the start of the take.
+    let start_window = match &opts.init {
+        InitPose::SeedIndex(i) => model.seeds.get(*i).map(|s| (s.class, model.seeds[..*i].iter().filter(|o| o.class == s.class).count())),
+        InitPose::SeedClass { class, variant } => spec.class_index(class).ok().map(|c| (c, variant % model.seeds.iter().filter(|s| s.class == c).count().max(1))),
+        InitPose::File { .. } => None,
+    };
     let mut easing: Option<Easing> = None;
     let bank = AnchorBank::new(model);
     let mut since_anchor = 0;
@@ -373,17 +393,31 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     for (b, plan) in plans.iter().enumerate() {
         let context = &sparse[sparse.len() - t * dim..];
         let mut input = context.to_vec();
-        let previous = context[context.len() - 2 * dim..].to_vec();
+        let previous = context[context.len() - dim..].to_vec();
         let motion = pose_motion(&input, dim) / bank.typical[plan.target].max(f32::EPSILON);
-        let stalled = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP && !(STALL_BELOW..=RUSH_ABOVE).contains(&motion);
+        let may_keep_alive = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP;
+        let stalled = may_keep_alive && !(STALL_BELOW..=RUSH_ABOVE).contains(&motion);
+        let looping = may_keep_alive && repeats_earlier(&sparse, dim, t / 2, t, LOOP_TOLERANCE * bank.typical[plan.target]);
         let switching = plan.ease_blocks > 0 && context_class != Some(plan.target);
         let changing = switching || easing.as_ref().is_some_and(|e| e.change);
-        if easing.is_none() && (switching || stalled) {
+        // A loop is broken even while a keep-alive eases: leaning on a window the take leant
+        // on before, from a similar pose, replays that stretch.
+        let leaning = easing.as_ref().is_some_and(|e| !e.change);
+        if (easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
             let (blocks, strength) = if switching { (plan.ease_blocks, 1.0) } else { (KEEP_ALIVE_EASE, anchors.random_range(KEEP_ALIVE_STRENGTH)) };
             let lively = if switching { 0.0 } else { bank.typical[plan.target] };
-            easing = bank.pick(plan.target, lively, &mut anchors, last_anchor).map(|(k, anchor)| {
+            let start = start_window.and_then(|(class, k)| (class == plan.target).then_some(k));
+            let avoid: Vec<usize> = last_anchor.into_iter().chain(start).collect();
+            easing = bank.pick(plan.target, lively, &mut anchors, &avoid).map(|(k, anchor)| {
                 last_anchor = Some(k);
-                Easing { change: switching, anchor, step: 0, blocks, strength }
+                // A class change ends on the new class's window. A keep-alive leans towards its
+                // window by its random strength (0.6-1.0): a take far below its class's motion
+                // by its last block (a third less had kept a stalled h36m phoning take at
+                // 0.2-0.5x its typical motion however often it leant), any other a block later
+                // (leaning every slow take that hard raised Bandai's mean jerk from 1.21x to
+                // 1.34x real). A loop the lean makes is caught by [`repeats_earlier`].
+                let reach = if switching { (blocks - 1).max(1) } else if motion < FROZEN_BELOW { blocks } else { blocks + 1 };
+                Easing { change: switching, anchor, step: 0, blocks, reach, strength }
             });
             context_class = Some(plan.target);
             since_anchor = 0;
@@ -391,10 +425,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         since_anchor += 1;
         if let Some(e) = easing.as_mut() {
             e.step += 1;
-            // A class change ends on the new class's window; a keep-alive only leans towards
-            // its window, so the take never becomes a copy of the seed bank.
-            let reach = if e.change { (e.blocks - 1).max(1) } else { e.blocks + 1 };
-            let alpha = (e.strength * e.step as f32 / reach as f32).min(1.0);
+            let alpha = (e.strength * e.step as f32 / e.reach as f32).min(1.0);
             input.iter_mut().zip(&e.anchor).for_each(|(v, a)| *v += alpha * (a - *v));
             if e.step == e.blocks {
                 easing = None;
@@ -420,7 +451,7 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             let after = (key.sparse + 1) * dim;
             if after < sparse.len() && opts.key_method == KeyMethod::RollOn {
                 let context = &sparse[after - t * dim..after];
-                let previous = context[context.len() - 2 * dim..].to_vec();
+                let previous = context[context.len() - dim..].to_vec();
                 model.rollout_block(context, &previous, &plan.class, strength, opts.join_seams, &mut out);
                 let rest = sparse.len() - after;
                 sparse[after..].copy_from_slice(&out[..rest]);
@@ -502,12 +533,12 @@ impl AnchorBank {
 
     /// A random window of `class` whose motion is at least `min_motion` (a keep-alive wants
     /// a window that moves: re-anchoring a stalled take on a still window of the class keeps
-    /// it still), another than `avoid` where there is a choice, with its index.
-    fn pick(&self, class: usize, min_motion: f32, rng: &mut StdRng, avoid: Option<usize>) -> Option<(usize, Vec<f32>)> {
+    /// it still), none of `avoid` where there is a choice, with its index.
+    fn pick(&self, class: usize, min_motion: f32, rng: &mut StdRng, avoid: &[usize]) -> Option<(usize, Vec<f32>)> {
         let windows: Vec<(usize, &(Vec<f32>, f32))> = self.windows.get(class)?.iter().enumerate().collect();
         let lively: Vec<&(usize, &(Vec<f32>, f32))> = windows.iter().filter(|(_, (_, m))| *m >= min_motion).collect();
         let pool = if lively.is_empty() { windows.iter().collect() } else { lively };
-        let fresh: Vec<_> = pool.iter().filter(|(k, _)| Some(*k) != avoid).collect();
+        let fresh: Vec<_> = pool.iter().filter(|(k, _)| !avoid.contains(k)).collect();
         let &(k, (window, _)) = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
         Some((k, window.clone()))
     }
@@ -517,8 +548,35 @@ impl AnchorBank {
 /// features (the root's velocities stay constant in steady walking, so they are left out).
 fn pose_motion(window: &[f32], dim: usize) -> f32 {
     let poses: Vec<&[f32]> = window.chunks_exact(dim).collect();
-    let steps = poses.windows(2).map(|p| p[0][ROOT_FEATURES..].iter().zip(&p[1][ROOT_FEATURES..]).map(|(a, b)| (a - b) * (a - b)).sum::<f32>().sqrt());
+    let steps = poses.windows(2).map(|p| distance2(&p[0][ROOT_FEATURES..], &p[1][ROOT_FEATURES..]).sqrt());
     steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
+}
+
+/// The squared distance between two feature vectors.
+fn distance2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum()
+}
+
+/// Whether the last `span` poses of `sparse` (normalised) repeat a stretch of the take at
+/// least `min_lag` poses earlier: the root-mean-square distance between the joint features
+/// of corresponding poses is within `tolerance`. (Without the lag a still take matches the
+/// poses just before it, and every near-still gesture counted as a loop.) Each candidate stops at the first pose that puts it out of reach,
+/// so the search over the whole take costs about one pose comparison per earlier pose.
+fn repeats_earlier(sparse: &[f32], dim: usize, span: usize, min_lag: usize, tolerance: f32) -> bool {
+    let poses = sparse.len() / dim;
+    if span == 0 || poses < span + min_lag.max(span) {
+        return false;
+    }
+    let joints = |k: usize| &sparse[k * dim + ROOT_FEATURES..(k + 1) * dim];
+    let recent = poses - span;
+    let budget = tolerance * tolerance * span as f32;
+    (0..=recent - min_lag.max(span)).any(|start| {
+        let mut total = 0.0;
+        (0..span).all(|i| {
+            total += distance2(joints(start + i), joints(recent + i));
+            total <= budget
+        })
+    })
 }
 
 /// Stretches each sparse interval (native `stride` frames) to span the output frames `times`
