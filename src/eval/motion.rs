@@ -445,9 +445,9 @@ pub fn real_pools(corpus: &Corpus, roles: &JointRoles, grid: Option<BlockGrid>, 
     pools
 }
 
-/// Generated takes of every class under `opts` (with `foot_lock` as given), pooled per
+/// Generated takes of every class under `base`'s options (with `foot_lock` as given), pooled per
 /// class; the seed block is cut off every take.
-pub fn generated_pools(model: &mut GlocalModel, cfg: &MotionSuiteConfig, foot_lock: bool) -> Result<Vec<Pool>> {
+pub fn generated_pools(model: &mut GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, foot_lock: bool) -> Result<Vec<Pool>> {
     let spec = model.spec.clone();
     let roles = JointRoles::new(&spec.layout.skeleton)?;
     let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
@@ -456,7 +456,7 @@ pub fn generated_pools(model: &mut GlocalModel, cfg: &MotionSuiteConfig, foot_lo
     let mut pools: Vec<Pool> = (0..k).map(|_| Pool::default()).collect();
     let take = |model: &mut GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
         let segments = segments.into_iter().map(|(c, s)| Segment { class: spec.classes[c].clone(), seconds: s, pace: None, transition: None }).collect();
-        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..Default::default() }.varied(seed);
+        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..base.clone() }.varied(seed);
         let g = generate(model, &opts, &mut |_| true)?;
         let seed_frames = spec.block_len * spec.stride;
         let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
@@ -575,9 +575,10 @@ fn model_result(dataset: Dataset, opts: &SuiteOptions, cfg: &MotionSuiteConfig, 
     let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
     let real = real_pools(&corpus, &roles, grid, cfg.take_seconds);
     log(&format!("motion: {dataset} generated, no foot lock"));
-    let unlocked = generated_pools(&mut model, cfg, false)?;
+    let base = opts.generate_options();
+    let unlocked = generated_pools(&mut model, cfg, &base, false)?;
     log(&format!("motion: {dataset} generated, shipped"));
-    let shipped = generated_pools(&mut model, cfg, true)?;
+    let shipped = generated_pools(&mut model, cfg, &base, true)?;
     let summarise = |pools: &[Pool]| (pools.iter().map(Pool::summary).collect(), pools.iter().map(Pool::interval_profile).collect());
     let (r, u, s) = (summarise(&real), summarise(&unlocked), summarise(&shipped));
     Ok(ModelResult {

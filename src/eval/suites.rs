@@ -90,6 +90,13 @@ pub struct SuiteOptions {
     pub quick: bool,
 }
 
+impl SuiteOptions {
+    /// The generation options these suite options ask for, the rest as shipped.
+    pub fn generate_options(&self) -> GenerateOptions {
+        GenerateOptions { transition: self.transition, class_strength: self.class_strength, keep_alive: self.keep_alive, join_seams: self.join_seams, ..Default::default() }
+    }
+}
+
 impl Default for SuiteOptions {
     fn default() -> Self {
         Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true, quick: false }
@@ -505,11 +512,7 @@ fn scored_take(model: &mut GlocalModel, suite: &SuiteOptions, class: usize, star
     let opts = GenerateOptions {
         timeline: Timeline { segments },
         init: InitPose::SeedClass { class: spec.classes[init_class].clone(), variant },
-        transition: suite.transition,
-        class_strength: suite.class_strength,
-        keep_alive: suite.keep_alive,
-        join_seams: suite.join_seams,
-        ..Default::default()
+        ..suite.generate_options()
     }
     .varied(seed);
     let g = generate(model, &opts, &mut |_| true)?;
@@ -732,8 +735,7 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown
                     init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: 0 },
                     project_bones: project,
                     keep_alive,
-                    join_seams: opts.join_seams,
-                    ..Default::default()
+                    ..opts.generate_options()
                 }
                 .varied(1);
                 match generate(&mut model, &o, &mut |_| true) {
