@@ -559,9 +559,10 @@ fn distance2(a: &[f32], b: &[f32]) -> f32 {
 
 /// Whether the last `span` poses of `sparse` (normalised) repeat a stretch of the take at
 /// least `min_lag` poses earlier: the root-mean-square distance between the joint features
-/// of corresponding poses is within `tolerance`. (Without the lag a still take matches the
-/// poses just before it, and every near-still gesture counted as a loop.) Each candidate stops at the first pose that puts it out of reach,
-/// so the search over the whole take costs about one pose comparison per earlier pose.
+/// of corresponding poses is within `tolerance`. Without the lag a still take would match
+/// the poses just before it and count as a loop. Each candidate stops at the first pose that
+/// puts it out of reach, so the search over the whole take costs about one pose comparison
+/// per earlier pose.
 fn repeats_earlier(sparse: &[f32], dim: usize, span: usize, min_lag: usize, tolerance: f32) -> bool {
     let poses = sparse.len() / dim;
     if span == 0 || poses < span + min_lag.max(span) {
