@@ -54,6 +54,24 @@ fn tanh_f(x: f32) -> f32 {
     2.0 / (1.0 + fast_exp(-2.0 * x)) - 1.0
 }
 
+/// The four gate blocks `[i, f, g, o]`, `h` each, of a `4H` gate vector.
+#[inline(always)]
+fn gates(v: &[f32], h: usize) -> [&[f32]; 4] {
+    let (i, r) = v[..4 * h].split_at(h);
+    let (f, r) = r.split_at(h);
+    let (g, o) = r.split_at(h);
+    [i, f, g, o]
+}
+
+/// [`gates`], writable.
+#[inline(always)]
+fn gates_mut(v: &mut [f32], h: usize) -> [&mut [f32]; 4] {
+    let (i, r) = v[..4 * h].split_at_mut(h);
+    let (f, r) = r.split_at_mut(h);
+    let (g, o) = r.split_at_mut(h);
+    [i, f, g, o]
+}
+
 /// Forward LSTM cell for one batch row. `z` = recurrent pre-activations `h·W_hhᵀ`, `g` = projected
 /// input, `bias` = `b_ih + b_hh` (all `4H`). Writes the gate activations, the new cell and `h`.
 #[inline(always)]
@@ -68,18 +86,10 @@ fn cell_fwd_impl(
     c: &mut [f32],
     hout: &mut [f32],
 ) {
-    let (zi, r) = z[..4 * h].split_at(h);
-    let (zf, r) = r.split_at(h);
-    let (zg, zo) = r.split_at(h);
-    let (gi, r) = g[..4 * h].split_at(h);
-    let (gf, r) = r.split_at(h);
-    let (gg, go) = r.split_at(h);
-    let (bi, r) = bias[..4 * h].split_at(h);
-    let (bf, r) = r.split_at(h);
-    let (bg, bo) = r.split_at(h);
-    let (ai, r) = acts[..4 * h].split_at_mut(h);
-    let (af, r) = r.split_at_mut(h);
-    let (ag, ao) = r.split_at_mut(h);
+    let [zi, zf, zg, zo] = gates(z, h);
+    let [gi, gf, gg, go] = gates(g, h);
+    let [bi, bf, bg, bo] = gates(bias, h);
+    let [ai, af, ag, ao] = gates_mut(acts, h);
     let c_prev = &c_prev[..h];
     let c = &mut c[..h];
     let hout = &mut hout[..h];
@@ -112,12 +122,8 @@ fn cell_bwd_impl(
     c_prev: &[f32],
     dz: &mut [f32],
 ) {
-    let (ai, r) = acts[..4 * h].split_at(h);
-    let (af, r) = r.split_at(h);
-    let (ag, ao) = r.split_at(h);
-    let (di, r) = dz[..4 * h].split_at_mut(h);
-    let (df, r) = r.split_at_mut(h);
-    let (dg, dout_gate) = r.split_at_mut(h);
+    let [ai, af, ag, ao] = gates(acts, h);
+    let [di, df, dg, dout_gate] = gates_mut(dz, h);
     let dout = &dout[..h];
     let dh_rec = &dh_rec[..h];
     let dc = &mut dc[..h];
