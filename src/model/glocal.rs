@@ -63,8 +63,14 @@ impl GlocalModel {
 
     /// The `variant`-th seed-bank window of `class` (wrapping around), if the class has any.
     pub fn seed_of_class(&self, class: usize, variant: usize) -> Option<&Seed> {
+        self.seeds.iter().filter(|s| s.class == class).nth(self.class_seed_index(class, variant)?)
+    }
+
+    /// Which of `class`'s seed-bank windows (counted in seed-bank order) its `variant`-th is,
+    /// wrapping around, if the class has any.
+    pub fn class_seed_index(&self, class: usize, variant: usize) -> Option<usize> {
         let count = self.seeds.iter().filter(|s| s.class == class).count();
-        self.seeds.iter().filter(|s| s.class == class).nth(variant % count.max(1))
+        (count > 0).then(|| variant % count)
     }
 
     /// One-hot class vector (all zeros when the model was trained without classes).
@@ -233,20 +239,21 @@ impl GlocalModel {
 /// context's last); the rest are positions, and the block's first pose moves to one of the
 /// block's own first steps on from the context's last pose. The shift fades out over the
 /// first half of the block with a raised cosine, so the block keeps its own motion and ends
-/// where GloGen put it; faded over the whole block, an offset in the root's height lifted
-/// a running body off its feet for 1.5 s (Bandai floating 21% of frames against 13%). The
-/// join used to continue the context's last step instead (positions at their last
-/// velocity): a sparse step is 0.17-0.2 s, and extrapolating it carried a landing foot
-/// through the floor at every seam of a walk (Bandai's walks then floated 86% of the time
-/// over the floor those dips set); the mean of the two steps left a hitch (the seam
-/// interval 0.77x the others' speed). Measured in docs/RESULTS.md.
+/// where GloGen put it. Faded over the whole block, the shifted root height and joints kept
+/// a running body off its feet for 1.5 s (Bandai floating 21% of frames against 13%; on the
+/// final tree 23% with only the root's fade that long and 25% with only the joints',
+/// against 16%). The join used to continue the context's last step instead (positions at
+/// their last velocity): a sparse step is 0.17-0.2 s, and extrapolating it carried a
+/// landing foot through the floor at every seam of a walk (Bandai's walks then floated 86%
+/// of the time over the floor those dips set); the mean of the two steps left a hitch (the
+/// seam interval 0.77x the others' speed). Measured in docs/DESIGN.md ("Seams").
 fn join_seam(last: &[f32], block: &mut [f32], dim: usize) {
     let poses = block.len() / dim;
     if poses < 2 {
         return;
     }
     let span = poses / 2;
-    let fade: Vec<f32> = (0..poses).map(|k| if k >= span { 0.0 } else { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) }).collect();
+    let fade: Vec<f32> = (0..span).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos())).collect();
     for f in 0..dim {
         let target = if (1..ROOT_FEATURES).contains(&f) {
             0.5 * (last[f] + block[dim + f])

@@ -368,18 +368,14 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     let plans = timeline.plan(model, opts.transition == Transition::Anchor, sparse_keys);
 
     let (seed_raw, start) = initial_features(model, &opts.init)?;
-    let mut context_class = match &opts.init {
-        InitPose::SeedIndex(i) => model.seeds.get(*i).map(|s| s.class),
-        InitPose::SeedClass { class, .. } => spec.class_index(class).ok(),
-        InitPose::File { .. } => None,
-    };
     // The seed window the take starts from, as (class, its index among the class's windows):
     // leaning on it again from a similar pose replays the start of the take.
     let start_window = match &opts.init {
         InitPose::SeedIndex(i) => model.seeds.get(*i).map(|s| (s.class, model.seeds[..*i].iter().filter(|o| o.class == s.class).count())),
-        InitPose::SeedClass { class, variant } => spec.class_index(class).ok().map(|c| (c, variant % model.seeds.iter().filter(|s| s.class == c).count().max(1))),
+        InitPose::SeedClass { class, variant } => spec.class_index(class).ok().and_then(|c| Some((c, model.class_seed_index(c, *variant)?))),
         InitPose::File { .. } => None,
     };
+    let mut context_class = start_window.map(|(class, _)| class);
     let mut easing: Option<Easing> = None;
     let bank = AnchorBank::new(model);
     let mut since_anchor = 0;
@@ -397,12 +393,13 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         let motion = pose_motion(&input, dim) / bank.typical[plan.target].max(f32::EPSILON);
         let may_keep_alive = opts.keep_alive && since_anchor >= KEEP_ALIVE_GAP;
         let stalled = may_keep_alive && !(STALL_BELOW..=RUSH_ABOVE).contains(&motion);
-        let looping = may_keep_alive && repeats_earlier(&sparse, dim, t / 2, t, LOOP_TOLERANCE * bank.typical[plan.target]);
         let switching = plan.ease_blocks > 0 && context_class != Some(plan.target);
         let changing = switching || easing.as_ref().is_some_and(|e| e.change);
         // A loop is broken even while a keep-alive eases: leaning on a window the take leant
-        // on before, from a similar pose, replays that stretch.
+        // on before, from a similar pose, replays that stretch. (While a class change eases,
+        // the search would decide nothing.)
         let leaning = easing.as_ref().is_some_and(|e| !e.change);
+        let looping = may_keep_alive && (easing.is_none() || leaning) && repeats_earlier(&sparse, dim, t / 2, t, LOOP_TOLERANCE * bank.typical[plan.target]);
         if (easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
             let (blocks, strength) = if switching { (plan.ease_blocks, 1.0) } else { (KEEP_ALIVE_EASE, anchors.random_range(KEEP_ALIVE_STRENGTH)) };
             let lively = if switching { 0.0 } else { bank.typical[plan.target] };
