@@ -90,6 +90,13 @@ fn count_centre(img: &RgbaImage, fraction: f32, pred: impl Fn([u8; 3]) -> bool) 
     n
 }
 
+/// Pixels that `pred` accepts in the left half and in the right half of the image.
+fn halves(img: &RgbaImage, pred: fn([u8; 3]) -> bool) -> (usize, usize) {
+    let (w, h) = img.dimensions();
+    let count = |x0: u32, x1: u32| (0..h).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| pred(img.get_pixel(x, y).0[..3].try_into().unwrap())).count();
+    (count(0, w / 2), count(w / 2, w))
+}
+
 /// Shaded orange: clearly more red than green, more green than blue.
 fn orange(p: [u8; 3]) -> bool {
     let [r, g, b] = p.map(i32::from);
@@ -226,12 +233,7 @@ fn viewport_layers_side_by_side_and_overlaid() {
     let img = render(&mut h);
     h.snapshot_options("viewport_layers", &snapshot_options());
     // Side by side: one figure each side of the centre line.
-    let (w, hgt) = img.dimensions();
-    let side = |x0: u32, x1: u32, pred: fn([u8; 3]) -> bool| {
-        (0..hgt).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| pred(img.get_pixel(x, y).0[..3].try_into().unwrap())).count()
-    };
-    let (orange_left, orange_right) = (side(0, w / 2, orange), side(w / 2, w, orange));
-    let (blue_left, blue_right) = (side(0, w / 2, blue), side(w / 2, w, blue));
+    let [(orange_left, orange_right), (blue_left, blue_right)] = [orange, blue].map(|colour| halves(&img, colour));
     assert!(orange_left > 800 && blue_right > 800, "figures missing: orange left {orange_left}, blue right {blue_right}");
     assert!(orange_left > 3 * orange_right && blue_right > 3 * blue_left, "layers not side by side");
 
@@ -258,12 +260,7 @@ fn viewport_retarget_preview_side_by_side() {
     let mut h = harness(egui::vec2(640.0, 400.0), p.layers(), ViewSettings::default());
     let img = render(&mut h);
     h.snapshot_options("viewport_retarget_preview", &snapshot_options());
-    let (w, hgt) = img.dimensions();
-    let side = |x0: u32, x1: u32, pred: fn([u8; 3]) -> bool| {
-        (0..hgt).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| pred(img.get_pixel(x, y).0[..3].try_into().unwrap())).count()
-    };
-    let (orange_left, orange_right) = (side(0, w / 2, orange), side(w / 2, w, orange));
-    let (blue_left, blue_right) = (side(0, w / 2, blue), side(w / 2, w, blue));
+    let [(orange_left, orange_right), (blue_left, blue_right)] = [orange, blue].map(|colour| halves(&img, colour));
     assert!(orange_left > 500 && blue_right > 500, "poses missing: source (orange) left {orange_left}, retargeted (blue) right {blue_right}");
     assert!(orange_left > 3 * orange_right && blue_right > 3 * blue_left, "the poses are not side by side");
 }
