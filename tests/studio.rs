@@ -40,8 +40,11 @@ fn render_state() -> RenderState {
     rs
 }
 
+/// A fresh folder for one test's files, under cargo's scratch space for integration tests
+/// (`target/tmp`), emptied at the start of each run rather than left behind in `/tmp`.
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("glocal-studio-test-{name}-{}", std::process::id()));
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("studio-test-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
 }
@@ -52,7 +55,7 @@ fn options(name: &str) -> StudioOptions {
     StudioOptions {
         model_dir: PathBuf::from(MODEL),
         model_roots: vec![PathBuf::from("models")],
-        autosave: Some(temp_dir(name).join("autosave.json")),
+        autosave: Some(temp_dir(&format!("{name}-autosave")).join("autosave.json")),
         restore_autosave: false,
         system_dialogs: false,
     }

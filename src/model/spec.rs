@@ -89,8 +89,8 @@ pub struct ModelSpec {
     /// Mean joint speed of each class in the training data, units per second.
     pub class_speed: Vec<f32>,
     /// Whether the foot lock suits this model's takes (measured with `glocal eval --suite
-    /// motion`): on Bandai, whose generated feet slide faster than a contact is detected, the
-    /// few locks that engage doubled the peak jerk, so its takes are left unlocked.
+    /// motion`); a model whose locked takes jerk more than they gain can opt out. Both shipped
+    /// models lock (Bandai since its lock splits the contacts its network's feet slide through).
     #[serde(default = "locks_feet")]
     pub foot_lock: bool,
     pub glogen: GloGenSpec,

@@ -5,6 +5,8 @@
 //! is clearly high or fast (hysteresis); runs and gaps shorter than a few frames are removed,
 //! so contacts do not flicker.
 
+use glam::Vec3;
+
 use super::{JointRoles, Leg, Motion, Side};
 
 /// Thresholds in metres and metres per second (scaled by the skeleton's unit).
@@ -16,6 +18,10 @@ pub struct ContactConfig {
     /// ...which lasts until it is higher or faster than these.
     pub height_off: f32,
     pub speed_off: f32,
+    /// A stance foot moves far slower than the body: both speed thresholds are at least this
+    /// fraction of the body's own horizontal speed (over [`BODY_SPEED_SECONDS`]), so a
+    /// runner's planted foot, which a network makes slide at walking speed, still stands.
+    pub body_speed_fraction: f32,
     /// Contacts and gaps shorter than this many seconds are dropped (filled).
     pub min_seconds: f32,
     /// Half-width of the window whose lowest foot height is the local floor, seconds: wider
@@ -25,9 +31,13 @@ pub struct ContactConfig {
 
 impl Default for ContactConfig {
     fn default() -> Self {
-        Self { height_on: 0.05, speed_on: 0.35, height_off: 0.08, speed_off: 0.6, min_seconds: 0.1, floor_window: 1.0 }
+        Self { height_on: 0.05, speed_on: 0.35, height_off: 0.08, speed_off: 0.6, body_speed_fraction: 0.25, min_seconds: 0.1, floor_window: 1.0 }
     }
 }
+
+/// Half-width (seconds) of the moving average of the body's speed that scales the speed
+/// thresholds: a stride or so, so the thresholds follow the gait, not each step.
+pub const BODY_SPEED_SECONDS: f32 = 0.5;
 
 /// Per-foot contact flags over a take's frames.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -63,11 +73,31 @@ pub fn local_floor(lowest: &[f32], half_window: usize) -> Vec<f32> {
 pub fn foot_contacts(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> FootContacts {
     let half = (cfg.floor_window * motion.fps).round() as usize;
     let floor = local_floor(&lowest_foot_heights(motion, roles), half);
-    FootContacts { left: leg_contacts(motion, &roles.left, &floor, cfg), right: leg_contacts(motion, &roles.right, &floor, cfg) }
+    let body = body_speeds(motion, roles.body_root);
+    let contacts = |leg: &Leg| leg_contacts(motion, leg, &floor, &body, cfg);
+    FootContacts { left: contacts(&roles.left), right: contacts(&roles.right) }
 }
 
-/// One foot's contacts over `floor` (one height per frame).
-pub fn leg_contacts(motion: &Motion, leg: &Leg, floor: &[f32], cfg: &ContactConfig) -> Vec<bool> {
+/// The horizontal speed of joint `root` per frame (units/s), averaged over
+/// [`BODY_SPEED_SECONDS`] either side.
+fn body_speeds(motion: &Motion, root: usize) -> Vec<f32> {
+    let flat = |t: usize| {
+        let mut v = joint_velocity(motion, root, t);
+        v.y = 0.0;
+        v.length()
+    };
+    let speeds: Vec<f32> = (0..motion.frames()).map(flat).collect();
+    let half = (BODY_SPEED_SECONDS * motion.fps).round() as usize;
+    (0..speeds.len())
+        .map(|t| {
+            let window = &speeds[t.saturating_sub(half)..(t + half + 1).min(speeds.len())];
+            window.iter().sum::<f32>() / window.len() as f32
+        })
+        .collect()
+}
+
+/// One foot's contacts over `floor`, with the body moving at `body` (one each per frame).
+fn leg_contacts(motion: &Motion, leg: &Leg, floor: &[f32], body: &[f32], cfg: &ContactConfig) -> Vec<bool> {
     let unit = motion.skeleton.meters_per_unit();
     let joints = leg.foot_joints();
     let frames = motion.frames();
@@ -75,9 +105,11 @@ pub fn leg_contacts(motion: &Motion, leg: &Leg, floor: &[f32], cfg: &ContactConf
     let mut on = false;
     for t in 0..frames {
         let height = joints.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - floor[t];
-        let speed = joints.iter().map(|&j| joint_speed(motion, j, t)).fold(f32::INFINITY, f32::min);
+        let speed = joints.iter().map(|&j| joint_velocity(motion, j, t).length()).fold(f32::INFINITY, f32::min);
         let (h, v) = (height * unit, speed * unit);
-        on = if on { h <= cfg.height_off && v <= cfg.speed_off } else { h <= cfg.height_on && v <= cfg.speed_on };
+        let relative = cfg.body_speed_fraction * body[t] * unit;
+        let (speed_on, speed_off) = (cfg.speed_on.max(relative), cfg.speed_off.max(relative * cfg.speed_off / cfg.speed_on));
+        on = if on { h <= cfg.height_off && v <= speed_off } else { h <= cfg.height_on && v <= speed_on };
         out.push(on);
     }
     let min_frames = (cfg.min_seconds * motion.fps).round().max(1.0) as usize;
@@ -86,14 +118,14 @@ pub fn leg_contacts(motion: &Motion, leg: &Leg, floor: &[f32], cfg: &ContactConf
     out
 }
 
-/// Speed of joint `j` at frame `t` (central difference, one-sided at the ends), units/s.
-fn joint_speed(motion: &Motion, j: usize, t: usize) -> f32 {
+/// Velocity of joint `j` at frame `t` (central difference, one-sided at the ends), units/s.
+fn joint_velocity(motion: &Motion, j: usize, t: usize) -> Vec3 {
     let frames = motion.frames();
     if frames < 2 {
-        return 0.0;
+        return Vec3::ZERO;
     }
     let (a, b) = (t.saturating_sub(1), (t + 1).min(frames - 1));
-    motion.frame(b)[j].distance(motion.frame(a)[j]) * motion.fps / (b - a) as f32
+    (motion.frame(b)[j] - motion.frame(a)[j]) * motion.fps / (b - a) as f32
 }
 
 /// Runs of `value` shorter than `min` frames between two runs of the other value take the

@@ -143,17 +143,27 @@ pub fn warp_dense(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, key:
 }
 
 /// The take's frames with each key's dense residual warped away again after the foot lock
-/// (which may have moved a keyed foot), rotations solved again where frames moved.
+/// (which may have moved a keyed foot, and takes a standing body's drift out, moving the
+/// root), and root-fixing keys' roots put back; rotations solved again where frames moved.
 pub fn rewarp(motion: Motion, layout: &FeatureLayout, keys: &[PlacedKey]) -> Motion {
     if keys.is_empty() {
         return motion;
     }
     let mut positions = motion.positions().to_vec();
+    // What is left to fix is the lock's few centimetres, under any pull worth a warning.
+    let moves_roots = keys.iter().any(|k| k.fix_root);
+    if moves_roots {
+        fix_roots(&mut positions, layout, motion.fps, keys);
+    }
     let touched: Vec<std::ops::Range<usize>> = keys.iter().map(|k| warp_dense(&mut positions, layout, motion.fps, k)).collect();
     let skeleton = motion.skeleton.clone();
     let Some(mut poses) = motion.local_poses else {
         return Motion::from_positions(skeleton, motion.fps, positions);
     };
+    if moves_roots {
+        let poses = solve_local_poses(&skeleton, &positions);
+        return Motion::from_local_poses(skeleton, motion.fps, poses);
+    }
     let j = skeleton.len();
     for range in touched {
         let solved = solve_local_poses(&skeleton, &positions[range.start * j..range.end * j]);
