@@ -17,9 +17,18 @@ use crate::motion::{solve_local_poses, JointRoles, Motion, Side, Skeleton};
 
 /// Seconds over which a lock fades in before a contact and out after it, at least and at
 /// most: within that, long enough that the foot travels to or from its lock at no more than
-/// [`BLEND_SPEED`] (a foot that slid far in the network's take is not snapped back).
-const BLEND_SECONDS: (f32, f32) = (0.2, 0.8);
+/// [`BLEND_SPEED`] (a foot that slid far in the network's take is not snapped back). At least
+/// 0.3 s: with 0.2, Bandai's mean jerk was 1.32x real, with 0.3 1.30x (and 1.28x with 0.4,
+/// but its skating ratio rose from 1.41x to 1.60x real).
+const BLEND_SECONDS: (f32, f32) = (0.3, 0.8);
 const BLEND_SPEED: f32 = 0.4;
+
+/// How much of a lock's fade pulls towards the lock itself rather than fading the boundary
+/// offset (see [`Plant`]). Measured on Bandai with 0.2 s shortest fades (`glocal eval
+/// --suite motion`, support-point speed median / jerk p95 over real): 0 gives 2.93 / 1.48x,
+/// 0.5 gives 2.30 / 1.48x, 0.75 1.68 / 1.59x, 1 0.99 / 1.78x. (A hold on the foot's own
+/// motion near the boundary, as before, did much as 1 with a burst after it: 1.39 / 1.74x.)
+const TOWARDS_LOCK: f32 = 0.5;
 
 /// The farthest (metres, horizontally) a lock holds a foot from where the network put it: a
 /// stance phase over which the network's foot slides farther is split into plants each
@@ -93,11 +102,19 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
         }
     }
     let ankles = [roles.left.ankle, roles.right.ankle];
+    // The feet's own frame-to-frame jitter is not drift: subtracted from the whole body, it
+    // would shake the hips (a standing h36m take's hip jerk 1.75x the network's).
+    let steps: Vec<Vec3> = (0..frames)
+        .map(|t| {
+            let step = ankles.iter().map(|&a| motion.frame(t)[a] - motion.frame(t.saturating_sub(1))[a]).sum::<Vec3>() / 2.0;
+            Vec3::new(step.x, 0.0, step.z)
+        })
+        .collect();
+    let steps = smoothed(&steps, (STAND_EASE_SECONDS * motion.fps / 2.0).round() as usize);
     let mut drift = Vec3::ZERO;
     let mut positions = motion.positions().to_vec();
     for t in 1..frames {
-        let step = ankles.iter().map(|&a| motion.frame(t)[a] - motion.frame(t - 1)[a]).sum::<Vec3>() / 2.0;
-        drift += Vec3::new(step.x, 0.0, step.z) * weight[t];
+        drift += steps[t] * weight[t];
         positions[t * motion.joints()..(t + 1) * motion.joints()].iter_mut().for_each(|p| *p -= drift);
     }
     Motion::from_positions(motion.skeleton.clone(), motion.fps, positions)
@@ -129,11 +146,10 @@ fn foot_set(skeleton: &Skeleton, ankle: usize) -> Vec<usize> {
 
 /// One stance phase of one foot: its frames, the foot's locked joint positions, and how the
 /// lock fades in before the phase and out after it: over how many frames, and from what
-/// offset (lock minus the foot's own pose at the phase's first / last frame). Fading an
-/// offset fixed at the boundary keeps the swing's own shape; fading towards the lock itself
-/// would drag the swinging foot back. (Holding the foot's own motion back near the boundary
-/// as well, so it left the lock at no speed, made it catch up in a burst: Bandai's jerk p95
-/// 1.74x real with the hold, 1.47x without.)
+/// offset (lock minus the foot's own pose at the phase's first / last frame) and towards the
+/// lock itself, half each ([`TOWARDS_LOCK`]). Fading the offset fixed at the boundary keeps
+/// the swing's own shape, but the foot leaves the lock at the network's speed; fading
+/// towards the lock leaves it at rest, but drags the swinging foot back.
 struct Plant {
     start: usize,
     end: usize,
@@ -391,13 +407,15 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
     let (mut foot, weight) = match leg.plants.iter().find(|p| (p.start..p.end).contains(&t)) {
         Some(plant) => (plant.foot.clone(), 1.0),
         None => {
-            let fades: Vec<(f32, &Fade)> = leg.plants.iter().filter_map(|p| p.fade(t)).collect();
-            let shifted: Vec<Vec3> = own.iter().enumerate().map(|(i, p)| *p + fades.iter().map(|(w, f)| f.offset[i] * *w).sum::<Vec3>()).collect();
-            let weight = fades.iter().map(|(w, _)| *w).fold(0.0, f32::max);
+            let fades: Vec<(f32, &Fade, &[Vec3])> = leg.plants.iter().filter_map(|p| p.fade(t).map(|(w, f)| (w, f, p.foot.as_slice()))).collect();
+            let pull = |i: usize, p: Vec3, fade: &Fade, lock: &[Vec3]| fade.offset[i] * (1.0 - TOWARDS_LOCK) + (lock[i] - p) * TOWARDS_LOCK;
+            let shifted: Vec<Vec3> = own.iter().enumerate().map(|(i, &p)| p + fades.iter().map(|&(w, f, lock)| pull(i, p, f, lock) * w).sum::<Vec3>()).collect();
+            let weight = fades.iter().map(|(w, _, _)| *w).fold(0.0, f32::max);
             let mut foot = if fades.is_empty() { own } else { rigid(skeleton, &leg.foot, &own, &shifted) };
             let lift = leg.plants.iter().find_map(|p| p.step_after.filter(|&gap| (p.end..p.end + gap).contains(&t)).map(|gap| (t + 1 - p.end) as f32 / (gap + 1) as f32));
             if let Some(x) = lift {
-                let up = REPLANT_LIFT / skeleton.meters_per_unit() * (std::f32::consts::PI * x).sin();
+                // sin^2: the lift starts and ends at rest.
+                let up = REPLANT_LIFT / skeleton.meters_per_unit() * (std::f32::consts::PI * x).sin().powi(2);
                 foot.iter_mut().for_each(|p| p.y += up);
             }
             (foot, weight)
