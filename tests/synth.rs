@@ -239,17 +239,14 @@ fn transitions_act_on_a_boundary_at_a_block_seam() {
 }
 
 /// Ten minutes of one class, for every class of both models: no stretch of poses repeats
-/// exactly (heading-invariant poses within 5 mm for over 1 s at a lag of 1 s or more), and no 10 s window freezes or
-/// explodes against the real class's mean joint speed (once the seed's block is over). The
-/// goal is 0.5-2x; measured 0.27-2.3x on h36m and 0.69-2.1x on Bandai's locomotion
-/// (docs/RESULTS.md), so this guards the measured range.
+/// exactly (heading-invariant poses within 5 mm for over 1 s at a lag of 1 s or more), and
+/// no 10 s window freezes or explodes against the class's mean joint speed in the training
+/// data (once the seed's block is over).
 #[test]
 fn ten_minute_takes_stay_at_their_class_speed() {
-    // Bandai's standing gestures hold still poses (a raised hand) long enough to match a
-    // held pose minutes later within 5 mm (1.2-1.5 s), and bowing over and over runs at up
-    // to 3.8x the real class's speed (its clips are one bow and a long stand): measured,
-    // not yet fixed.
-    const KNOWN_SHORTFALLS: [&str; 3] = ["bandai bow", "bandai bye", "bandai guide"];
+    // Measured on the shipped models: no class repeats itself, and every 10 s window runs at
+    // 0.31-2.73x its class's training speed (h36m's posing and greeting the slowest, Bandai's
+    // bowing over and over the fastest). The goal is 0.5-2x; the bounds here keep what holds.
     let mut failures = Vec::new();
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
@@ -261,21 +258,14 @@ fn ten_minute_takes_stay_at_their_class_speed() {
             let ratios: Vec<f32> = (start..motion.frames() - window).step_by(window).map(|f| mean_joint_speed(&motion.slice(f, f + window)) / m.spec.class_speed[class]).collect();
             let (lo, hi) = (ratios.iter().cloned().fold(f32::MAX, f32::min), ratios.iter().cloned().fold(0.0, f32::max));
             let (repeat, lag) = glocal::eval::motion::longest_repeat(&motion);
-            if KNOWN_SHORTFALLS.contains(&format!("{name} {class_name}").as_str()) {
-                eprintln!("{name} {class_name} (known shortfall): {lo:.2}-{hi:.2}x, {repeat:.1} s repeat, lag {lag:.1} s");
-                if repeat > 3.0 || hi > 5.0 || lo < 0.25 {
-                    failures.push(format!("{name} {class_name}: worse than measured ({lo:.2}-{hi:.2}x, {repeat:.1} s repeat)"));
-                }
-                continue;
-            }
-            eprintln!("{name} {class_name}: 10 s windows at {lo:.2}-{hi:.2}x the real speed; longest exact repeat {repeat:.1} s (lag {lag:.1} s)");
+            eprintln!("{name} {class_name}: 10 s windows at {lo:.2}-{hi:.2}x the training speed; longest exact repeat {repeat:.1} s (lag {lag:.1} s)");
             if repeat > 0.0 {
                 failures.push(format!("{name} {class_name}: repeats itself for {repeat:.1} s at a lag of {lag:.1} s"));
             }
-            if !(lo >= 0.15 && hi <= 4.0) {
+            if !(lo >= 0.25 && hi <= 3.5) {
                 failures.push(format!("{name} {class_name}: {lo:.2}-{hi:.2}x"));
             }
         }
     }
-    assert!(failures.is_empty(), "outside 0.15-4x or repeating: {failures:?}");
+    assert!(failures.is_empty(), "outside 0.25-3.5x or repeating: {failures:?}");
 }
