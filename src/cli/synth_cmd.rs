@@ -67,7 +67,7 @@ pub struct GenerateArgs {
     /// Skip the bone-length projection.
     #[arg(long)]
     pub no_projection: bool,
-    /// Let a long segment's motion stall instead of re-anchoring it on the class's seed windows.
+    /// Let a long segment's motion stall instead of re-anchoring it on the class's seed windows and urging it on with stronger guidance.
     #[arg(long)]
     pub no_keep_alive: bool,
     /// Leave planted feet as the network made them (no contact locking with leg IK).

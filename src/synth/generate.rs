@@ -70,6 +70,14 @@ const STALL_BELOW: f32 = 0.9;
 /// nearly frozen: keep-alive leans on its window harder.
 const FROZEN_BELOW: f32 = 0.5;
 
+/// The most a stalled block's guidance is raised (times the class strength, in proportion to
+/// how far its motion fell below [`STALL_BELOW`]): leaning on seed windows alone left h36m's
+/// greeting and discussion at 0.59 and 0.57 of the real class's joint speed (the network
+/// regresses to slow motion from a lively context), guidance urges the class's own motion
+/// on (0.74 and 0.66 with 2, 0.76 and 0.68 with 3, where Bandai's bowing rushed to 3.1x its
+/// training speed over ten minutes).
+const STALLED_GUIDANCE_GAIN: f32 = 2.0;
+
 /// A block whose poses move more than this multiple of its class's typical motion is
 /// rushing (a gesture repeated ever faster): keep-alive re-anchors it too.
 const RUSH_ABOVE: f32 = 1.5;
@@ -113,7 +121,8 @@ pub struct GenerateOptions {
     pub variation: f32,
     pub project_bones: bool,
     /// Re-anchor the context on a fresh seed window of the segment's class when GloGen's
-    /// motion stalls (see [`STALL_BELOW`]), so long segments do not freeze.
+    /// motion stalls (see [`STALL_BELOW`]) or loops, and raise a stalled block's guidance
+    /// ([`STALLED_GUIDANCE_GAIN`]), so long segments neither freeze nor repeat.
     pub keep_alive: bool,
     /// Join each GloGen block onto the poses before it (see [`GlocalModel::rollout_block`]);
     /// off, the blocks pop at every seam as in the paper.
@@ -435,6 +444,8 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         // A class change is where the prior must beat the context's momentum most: its blocks
         // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`].
         let strength = if changing { opts.class_strength.max(CHANGE_CLASS_STRENGTH) } else { opts.class_strength };
+        // A stalled block's class is urged on too: guidance scaled by how far it fell short.
+        let strength = if opts.keep_alive && !changing && motion < STALL_BELOW { strength * (STALL_BELOW / motion.max(f32::EPSILON)).min(STALLED_GUIDANCE_GAIN) } else { strength };
         embeddings.push(model.rollout_block(&input, &previous, &plan.class, strength, opts.join_seams, &mut out));
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
