@@ -329,6 +329,41 @@ fn hip_height(motion: &glocal::motion::Motion, t: usize) -> f32 {
     f[0].y - f.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
 }
 
+/// The foot lock as a user meets it: on by default, its contacts exported with the take
+/// (per foot, per frame), and its toggle regenerates the take with the feet as the network
+/// made them, which slide.
+#[test]
+fn the_foot_lock_toggle_and_its_contacts() {
+    let _g = serial();
+    let dir = temp_dir("feet");
+    let mut h = harness("feet");
+    wait_take(&mut h);
+    let take = h.state().take().unwrap();
+    let locked = (take.motion.clone(), take.contacts.clone());
+    assert!(h.state().take().unwrap().options.foot_lock, "the lock is on by default");
+    assert!(locked.1.left.iter().any(|&c| c) && locked.1.right.iter().any(|&c| c), "both feet stand somewhere in the take");
+    let out = dir.join("feet.json");
+    h.state_mut().export_to(out.clone());
+    wait(&mut h, "the export", |_| out.exists());
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    for foot in ["left_foot", "right_foot"] {
+        let flags = json["contacts"][foot].as_array().unwrap_or_else(|| panic!("the export has {foot} contacts"));
+        assert_eq!(flags.len(), locked.0.frames(), "{foot}: one flag per frame");
+    }
+
+    h.get_by_label("Foot lock").click_accesskit();
+    wait(&mut h, "the unlocked take", |a| a.take().is_some_and(|t| !t.options.foot_lock) && !a.is_busy());
+    let unlocked = h.state().take().unwrap().motion.clone();
+    let roles = glocal::motion::JointRoles::new(&locked.0.skeleton).unwrap();
+    let slide = |m: &glocal::motion::Motion| {
+        let mut pool = glocal::eval::motion::Pool::default();
+        pool.add_take(&m.resample(glocal::eval::motion::COMMON_FPS), &roles, None);
+        pool.summary()["support_speed_median_cm_s"]
+    };
+    let (with, without) = (slide(&locked.0), slide(&unlocked));
+    assert!(with < 0.5 * without, "support point {with:.1} cm/s with the lock, {without:.1} without");
+}
+
 #[test]
 fn a_stale_take_is_flagged_and_not_exported() {
     let _g = serial();

@@ -41,7 +41,7 @@ fn walk() -> Arc<Motion> {
 fn layer(motion: Arc<Motion>, colors: [[u8; 3]; 2], offset: glam::Vec3, opacity: f32) -> Layer {
     let n = motion.frames();
     let frame_colors = (0..n).map(|t| if t < n / 2 { colors[0] } else { colors[1] }).collect();
-    Layer { motion, frame_colors: Arc::new(frame_colors), offset, opacity }
+    Layer { motion, frame_colors: Arc::new(frame_colors), offset, opacity, contacts: None }
 }
 
 struct State {

@@ -47,6 +47,12 @@ pub struct FootContacts {
 }
 
 impl FootContacts {
+    /// The flags of frames `range` (none where the range runs past them).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Self {
+        let part = |flags: &[bool]| flags.get(range.clone()).map(<[bool]>::to_vec).unwrap_or_default();
+        Self { left: part(&self.left), right: part(&self.right) }
+    }
+
     pub fn side(&self, side: Side) -> &[bool] {
         match side {
             Side::Left => &self.left,

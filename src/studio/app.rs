@@ -656,11 +656,12 @@ impl StudioApp {
             return;
         }
         let motion = if (a, b) == (0, frames) { take.motion.clone() } else { Arc::new(take.motion.slice(a, b)) };
+        let contacts = take.contacts.slice(a..b);
         let path = std::path::absolute(&path).unwrap_or(path);
         self.fields.export_path = path.display().to_string();
         self.save_state();
         let source = Arc::new(model.spec.source_skeleton.clone());
-        self.worker.export(motion, segments_in_range(&take.segments, a, b), path, self.export_options.clone(), source);
+        self.worker.export(motion, segments_in_range(&take.segments, a, b), contacts, path, self.export_options.clone(), source);
     }
 
     pub fn use_init_file(&mut self, path: PathBuf, frame: usize) {
@@ -1260,6 +1261,7 @@ fn clone_take(t: &Take) -> Take {
         path: t.path.clone(),
         options: t.options.clone(),
         warnings: t.warnings.clone(),
+        contacts: t.contacts.clone(),
         millis: t.millis,
     }
 }

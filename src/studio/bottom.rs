@@ -31,6 +31,7 @@ impl StudioApp {
             path: self.doc.options.path.as_ref(),
             waypoint_times: &waypoint_times,
             selected_mark: self.selected_mark,
+            contacts: self.take.as_ref().map(|t| t.contacts.as_ref()),
         };
         let actions = timeline_ui(ui, &mut self.timeline_state, &input);
         self.apply_timeline(actions);

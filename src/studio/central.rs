@@ -14,10 +14,10 @@ impl StudioApp {
         if let Some(preview) = self.preview_layers() {
             layers = preview;
         } else if let Some(t) = &self.take {
-            layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0 });
+            layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0, contacts: Some(t.contacts.clone()) });
             if self.compare {
                 if let Some((p, white)) = &self.previous {
-                    layers.push(Layer { motion: p.motion.clone(), frame_colors: white.clone(), offset: glam::Vec3::ZERO, opacity: 0.45 });
+                    layers.push(Layer { motion: p.motion.clone(), frame_colors: white.clone(), offset: glam::Vec3::ZERO, opacity: 0.45, contacts: None });
                 }
             }
         }

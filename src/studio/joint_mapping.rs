@@ -337,7 +337,7 @@ impl StudioApp {
 impl RetargetPreview {
     /// The two poses for the viewport: the file's on the left, the model's on the right.
     pub fn layers(&self) -> Vec<Layer> {
-        let layer = |motion: &Arc<Motion>, x: f32, color: [u8; 3]| Layer { motion: motion.clone(), frame_colors: Arc::new(vec![color]), offset: beside(motion, x), opacity: 1.0 };
+        let layer = |motion: &Arc<Motion>, x: f32, color: [u8; 3]| Layer { motion: motion.clone(), frame_colors: Arc::new(vec![color]), offset: beside(motion, x), opacity: 1.0, contacts: None };
         vec![layer(&self.source, -0.6, SOURCE_COLOR), layer(&self.retargeted, 0.6, RETARGETED_COLOR)]
     }
 }

@@ -199,8 +199,14 @@ impl StudioApp {
         ui.add_enabled(guidance, Slider::new(&mut self.doc.options.class_strength, 0.0..=3.0).text("class strength"))
             .on_hover_text("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity")
             .on_disabled_hover_text("This model was trained without class dropout, so the strength cannot be changed");
-        ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.options.locgen, "LocGen refinement"))
-            .on_hover_text("Adds natural in-between motion (weight shifts, swing) between the model's key poses. Off: straight-line in-betweens, for comparison");
+        let locks_feet = self.model.as_ref().is_some_and(|m| m.spec.foot_lock);
+        ui.horizontal_wrapped(|ui| {
+            ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.options.locgen, "LocGen refinement"))
+                .on_hover_text("Adds natural in-between motion (weight shifts, swing) between the model's key poses. Off: straight-line in-betweens, for comparison");
+            ui.add_enabled(locks_feet, egui::Checkbox::new(&mut self.doc.options.foot_lock, "Foot lock"))
+                .on_hover_text("Keeps planted feet still on the floor (leg IK), marked orange on the feet and on the timeline's feet track. Off: the feet as the network made them, for comparison")
+                .on_disabled_hover_text("This model's takes are left as the network made them (its model.json turns the foot lock off)");
+        });
         ui.horizontal(|ui| {
             let mut seed = self.doc.options.seed;
             let r = ui.add(egui::DragValue::new(&mut seed).range(0..=9999))

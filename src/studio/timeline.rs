@@ -11,6 +11,9 @@
 
 use egui::{pos2, vec2, Align2, Color32, CursorIcon, FontId, Rect, Sense, Stroke, StrokeKind};
 
+use super::viewport::CONTACT_RGB;
+use crate::motion::contacts::{runs, FootContacts};
+use crate::motion::Side;
 use crate::synth::constraints::{Key, RootPath};
 use crate::synth::render::class_color;
 use crate::synth::{SegmentSpan, Timeline};
@@ -61,6 +64,8 @@ pub struct Input<'a> {
     /// Each waypoint's time as the take will pass it ([`waypoint_times`]).
     pub waypoint_times: &'a [f32],
     pub selected_mark: Option<Mark>,
+    /// The take's foot contacts (per frame), drawn on the feet track.
+    pub contacts: Option<&'a FootContacts>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -106,11 +111,12 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
     state.hint = None;
     let width = ui.available_width().max(100.0);
     let (ruler_h, lane_h, track_h) = (20.0, 44.0, 16.0);
-    let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 2.0 * (track_h + 2.0) + 6.0), Sense::hover());
+    let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 3.0 * (track_h + 2.0) + 6.0), Sense::hover());
     let ruler = Rect::from_min_size(outer.min, vec2(width, ruler_h));
     let lane = Rect::from_min_size(pos2(outer.left(), ruler.bottom() + 2.0), vec2(width, lane_h));
     let key_track = Rect::from_min_size(pos2(outer.left(), lane.bottom() + 2.0), vec2(width, track_h));
     let path_track = Rect::from_min_size(pos2(outer.left(), key_track.bottom() + 2.0), vec2(width, track_h));
+    let feet_track = Rect::from_min_size(pos2(outer.left(), path_track.bottom() + 2.0), vec2(width, track_h));
     let total = input.timeline.seconds().max(1.0);
     let scale = state.frozen_scale.unwrap_or((width - 8.0) / total);
     let x_of = |t: f32| outer.left() + t * scale;
@@ -244,6 +250,7 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
     }
 
     marks_ui(ui, state, input, &painter, [key_track, path_track], scale, &mut actions);
+    contacts_track(&painter, &visuals, input, feet_track, scale);
 
     // Drags under way.
     let released = ui.input(|i| !i.pointer.any_down());
@@ -308,14 +315,14 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
 
     // Selected range and cursor over everything.
     if let Some((a, b)) = input.selection {
-        let r = Rect::from_min_max(pos2(x_of(a as f32 / fps), ruler.top()), pos2(x_of(b as f32 / fps), path_track.bottom()));
+        let r = Rect::from_min_max(pos2(x_of(a as f32 / fps), ruler.top()), pos2(x_of(b as f32 / fps), feet_track.bottom()));
         painter.rect_filled(r, 0.0, Color32::from_rgba_unmultiplied(120, 180, 255, 40));
         painter.rect_stroke(r, 0.0, Stroke::new(1.0, Color32::from_rgb(120, 180, 255)), StrokeKind::Inside);
     }
     if input.frames > 0 {
         let x = x_of(input.frame as f32 / fps);
         let c = Color32::from_rgb(255, 90, 60);
-        painter.line_segment([pos2(x, ruler.top()), pos2(x, path_track.bottom())], Stroke::new(2.0, c));
+        painter.line_segment([pos2(x, ruler.top()), pos2(x, feet_track.bottom())], Stroke::new(2.0, c));
         painter.add(egui::Shape::convex_polygon(vec![pos2(x - 5.0, ruler.top()), pos2(x + 5.0, ruler.top()), pos2(x, ruler.top() + 7.0)], c, Stroke::NONE));
     }
     actions
@@ -385,6 +392,31 @@ fn marks_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input, painter
             }
         });
     }
+}
+
+/// Colour of the planted feet on the feet track, the viewport's.
+const CONTACT_COLOR: Color32 = {
+    let [r, g, b] = CONTACT_RGB;
+    Color32::from_rgb(r, g, b)
+};
+
+/// The feet track: where each foot is planted, the left foot above the right, one bar per
+/// stance.
+fn contacts_track(painter: &egui::Painter, visuals: &egui::Visuals, input: &Input, track: Rect, scale: f32) {
+    painter.rect_filled(track, 2.0, visuals.faint_bg_color);
+    if let Some(contacts) = input.contacts {
+        let fps = input.fps.max(1.0);
+        let half = track.height() / 2.0;
+        for (row, side) in Side::BOTH.into_iter().enumerate() {
+            let top = track.top() + row as f32 * half;
+            for (start, end) in runs(contacts.side(side)) {
+                let (x0, x1) = (track.left() + start as f32 / fps * scale, track.left() + end as f32 / fps * scale);
+                painter.rect_filled(Rect::from_min_max(pos2(x0, top + 1.5), pos2(x1.max(x0 + 1.0), top + half - 1.5)), 1.0, CONTACT_COLOR);
+            }
+        }
+    }
+    // Over the bars, which reach the take's end.
+    painter.text(track.right_center() - vec2(4.0, 0.0), Align2::RIGHT_CENTER, "feet", FontId::proportional(10.0), visuals.text_color());
 }
 
 /// When the take passes each waypoint: its own time where it has one; between two timed

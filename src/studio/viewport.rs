@@ -20,7 +20,8 @@ use std::sync::Arc;
 use eframe::egui_wgpu::{self, wgpu};
 use glam::{Mat4, Quat, Vec3};
 
-use crate::motion::{JointRoles, Motion};
+use crate::motion::contacts::FootContacts;
+use crate::motion::{JointRoles, Motion, Side};
 use render::{Globals, Instance, Resources, SceneCallback, TrailVertex};
 pub use render::HostPass;
 
@@ -36,6 +37,8 @@ pub struct Layer {
     pub offset: glam::Vec3,
     /// 0..1; a second overlaid take is drawn translucent.
     pub opacity: f32,
+    /// Each foot's contacts, marked under the planted feet of the current pose.
+    pub contacts: Option<Arc<FootContacts>>,
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -86,6 +89,10 @@ pub enum PathEdit {
 const PATH_RGB: [u8; 3] = [80, 220, 200];
 /// Waypoint discs: radius and thickness, metres.
 const WAYPOINT_RADIUS: f32 = 0.08;
+/// Planted feet (sRGB; the timeline's feet track too) and the radius of their mark on the
+/// floor, metres.
+pub const CONTACT_RGB: [u8; 3] = [255, 150, 60];
+const CONTACT_RADIUS: f32 = 0.06;
 /// A press within this many points of a waypoint grabs it.
 const GRAB_POINTS: f32 = 14.0;
 
@@ -166,6 +173,8 @@ struct LayerInfo {
     bones: Vec<(usize, usize)>,
     /// The head joint and, if it has one, its child towards the top of the head.
     head: Option<(usize, usize, Option<usize>)>,
+    /// Each foot's joints (left, right), where the skeleton's legs are known.
+    feet: [Vec<usize>; 2],
 }
 
 impl LayerInfo {
@@ -221,7 +230,8 @@ impl LayerInfo {
         }
         let centre_height = (centre_sum / frames.max(1) as f64) as f32;
         let head = roles.as_ref().and_then(|r| Some((r.head, skeleton.parents()[r.head]?, r.head_end.filter(|&c| long(c)))));
-        Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head }
+        let feet = Side::BOTH.map(|side| roles.as_ref().map_or_else(Vec::new, |r| r.leg(side).foot_joints()));
+        Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head, feet }
     }
 }
 
@@ -679,9 +689,23 @@ impl Viewport {
                         solids.push(true, translucent, eye, (pa + pb) / 2.0, inst);
                     }
                 }
+                // The current pose's planted feet: their joints in the contact colour and a mark
+                // on the floor under each.
+                let planted: Vec<&[usize]> = match &layer.contacts {
+                    Some(c) if t == current => Side::BOTH.iter().zip(&info.feet).filter(|(&side, _)| c.side(side).get(t) == Some(&true)).map(|(_, f)| f.as_slice()).collect(),
+                    _ => Vec::new(),
+                };
+                let contact_color = linear_rgba(CONTACT_RGB, 0.0, alpha);
                 for &j in &info.joints {
                     let c = p(j);
-                    solids.push(false, translucent, eye, c, sphere(c, JOINT_RADIUS, joint_color));
+                    let color = if planted.iter().any(|f| f.contains(&j)) { contact_color } else { joint_color };
+                    solids.push(false, translucent, eye, c, sphere(c, JOINT_RADIUS, color));
+                }
+                for foot in &planted {
+                    let centre = foot.iter().map(|&j| p(j)).sum::<Vec3>() / foot.len() as f32;
+                    let centre = Vec3::new(centre.x, ground + 0.005, centre.z);
+                    let mark = Mat4::from_scale_rotation_translation(Vec3::new(CONTACT_RADIUS, 0.008, CONTACT_RADIUS), Quat::IDENTITY, centre);
+                    solids.push(false, translucent, eye, centre, Instance { model: mark.to_cols_array_2d(), color: contact_color });
                 }
                 if let Some((h, parent, child)) = info.head {
                     let (ph, pp) = (p(h), p(parent));

@@ -22,7 +22,8 @@ use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
 use crate::model::spec::ModelSpec;
 use crate::motion::{Motion, Skeleton};
-use crate::synth::export::{export, prepare, ExportOptions};
+use crate::motion::contacts::FootContacts;
+use crate::synth::export::{export_with_contacts, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
 use crate::synth::{generate, GenerateOptions, InitPose, SegmentSpan};
@@ -79,6 +80,8 @@ pub struct Take {
     pub options: GenerateOptions,
     /// What the take could not do as asked (see [`crate::synth::Generated::warnings`]).
     pub warnings: Vec<String>,
+    /// Each foot's contacts as the foot lock planted them (or as found, with the lock off).
+    pub contacts: Arc<FootContacts>,
     pub millis: f64,
 }
 
@@ -91,7 +94,8 @@ pub enum Request {
     Retarget { purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap> },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
-    Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
+    /// `contacts` (per frame of `motion`) go into a JSON export when it keeps the take's frames.
+    Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
 }
 
 impl Request {
@@ -197,8 +201,8 @@ impl Worker {
         self.send(Request::Retarget { purpose, path, frame, joint_map });
     }
 
-    pub fn export(&mut self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, path: PathBuf, options: ExportOptions, source: Arc<Skeleton>) {
-        self.send(Request::Export { motion, segments, path, options, source });
+    pub fn export(&mut self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton>) {
+        self.send(Request::Export { motion, segments, contacts, path, options, source });
     }
 
     /// Every reply that has arrived.
@@ -286,8 +290,9 @@ impl WorkerState {
                     Err(e) => Reply::InitFailed { init, error: format!("{e:#}") },
                 });
             }
-            Request::Export { motion, segments, path, options, source } => {
-                let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export(&m, &s, &path));
+            Request::Export { motion, segments, contacts, path, options, source } => {
+                // Contacts are per frame of the model's rate: kept unless the take is resampled.
+                let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export_with_contacts(&m, &s, (m.frames() == motion.frames()).then_some(&contacts), &path));
                 return Some(match written {
                     Ok(()) => Reply::Exported(path),
                     Err(e) => Reply::ExportFailed { path, error: format!("{e:#}") },
@@ -366,6 +371,7 @@ impl WorkerState {
                     path,
                     options: options.clone(),
                     warnings: g.warnings,
+                    contacts: Arc::new(g.contacts),
                     millis: start.elapsed().as_secs_f64() * 1e3,
                 };
                 self.send(Reply::Generated(Arc::new(take)));
