@@ -43,9 +43,10 @@ const TOWARDS_LOCK: f32 = 0.25;
 const MAX_SLIDE: f32 = 0.08;
 const REPLANT_SECONDS: f32 = 0.3;
 const REPLANT_LIFT: f32 = 0.06;
-/// Toe clearance (metres) at the middle of an ordinary swing (see [`lift_swings`]). With 3 cm
-/// Bandai's skating ratio was 1.13x real, with 5 cm (weight to the third power) 0.96x but its
-/// mean jerk 1.303x; 4.5 cm gives 1.00x and 1.300x.
+/// Toe clearance (metres) at the middle of an ordinary swing (see [`lift_swings`]). On
+/// Bandai, 3 cm scaled by the other lock's weight left its skating ratio at 1.13x real; 5 cm
+/// by the weight cubed gave 0.96x but a mean jerk of 1.303x; 4.5 cm by the weight squared
+/// gives 1.00x and 1.300x.
 const SWING_LIFT: f32 = 0.045;
 
 /// A stretch of both feet standing at least this long (seconds) is someone standing, whose
@@ -105,9 +106,9 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
     let (shortest, ease) = ((STAND_SECONDS * motion.fps).round() as usize, (STAND_EASE_SECONDS * motion.fps).max(1.0));
     let mut weight = vec![0.0f32; frames];
     for (start, end) in runs(&both).into_iter().filter(|(s, e)| e - s >= shortest) {
-        for t in start..end {
+        for (t, w) in weight.iter_mut().enumerate().take(end).skip(start) {
             let x = ((t - start + 1).min(end - t) as f32 / ease).min(1.0);
-            weight[t] = x * x * (3.0 - 2.0 * x);
+            *w = x * x * (3.0 - 2.0 * x);
         }
     }
     let ankles = [roles.left.ankle, roles.right.ankle];
@@ -155,8 +156,9 @@ fn foot_set(skeleton: &Skeleton, ankle: usize) -> Vec<usize> {
 
 /// One stance phase of one foot: its frames, the foot's locked joint positions, and how the
 /// lock fades in before the phase and out after it: over how many frames, and from what
-/// offset (lock minus the foot's own pose at the phase's first / last frame) and towards the
-/// lock itself, half each ([`TOWARDS_LOCK`]). Fading the offset fixed at the boundary keeps
+/// offset (lock minus the foot's own pose at the phase's first / last frame), three
+/// quarters, and towards the lock itself, a quarter ([`TOWARDS_LOCK`]). Fading the offset
+/// fixed at the boundary keeps
 /// the swing's own shape, but the foot leaves the lock at the network's speed; fading
 /// towards the lock leaves it at rest, but drags the swinging foot back.
 struct Plant {
