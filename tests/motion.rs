@@ -224,3 +224,41 @@ fn json_export_has_contacts() {
     let (back, _) = glocal::synth::export::read_take(&path, None).unwrap();
     assert_eq!(back.frames(), g.motion.frames());
 }
+
+/// The foot lock on a real CMU dance clip, whose BVH skeleton has no toes: the lock still
+/// runs (contacts from ankles alone, no heel lift), keeps bone lengths, and leaves each knee
+/// on the side it bent to in the clip wherever it clearly bent (the knee's forward direction
+/// then comes from the knees themselves, not from toes).
+#[test]
+fn foot_lock_keeps_knees_on_a_skeleton_without_toes() {
+    let clip = read_bvh(&archive_text("cmu-dance", "cmu-dance/indian/04.bvh"), "indian/04").unwrap();
+    let m = clip.slice(0, clip.frames().min(1200));
+    let roles = JointRoles::new(&m.skeleton).unwrap();
+    assert_eq!(roles.left.toe, None);
+    let locked = glocal::synth::foot_lock::foot_lock(m.clone(), true).unwrap().motion;
+    let unit = m.skeleton.meters_per_unit();
+    let rest = m.skeleton.rest_bone_lengths();
+    let (mut bent, mut kept) = (0, 0);
+    for t in 0..m.frames() {
+        for (j, length) in locked.bone_lengths(t).iter().enumerate() {
+            assert!((length - rest[j]).abs() * unit < 1e-4, "bone {j} at frame {t}: {length} against {}", rest[j]);
+        }
+        for side in Side::BOTH {
+            let leg = roles.leg(side);
+            // The knee's offset from its hip-ankle line, in the clip and after the lock.
+            let offset = |f: &[Vec3]| {
+                let axis = (f[leg.ankle] - f[leg.hip]).normalize_or_zero();
+                let k = f[leg.knee] - f[leg.hip];
+                k - axis * k.dot(axis)
+            };
+            let (before, after) = (offset(m.frame(t)), offset(locked.frame(t)));
+            if before.length() * unit > 0.03 {
+                bent += 1;
+                kept += usize::from(before.dot(after) > 0.0);
+            }
+        }
+    }
+    assert!(bent > 500, "only {bent} clearly bent knees to judge");
+    let share = kept as f32 / bent as f32;
+    assert!(share > 0.99, "a knee kept its side in {share:.3} of {bent} clearly bent ones");
+}

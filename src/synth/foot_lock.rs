@@ -319,11 +319,18 @@ fn locked_positions(motion: &Motion, roles: &JointRoles, contacts: &FootContacts
 }
 
 /// Per frame, the horizontal direction the pelvis faces: square to the line between the hips,
-/// on the side the toes point to over the take (a foot alone turns too far at toe-off to say).
+/// on the side the knees and toes point to over the take (a foot alone turns too far at
+/// toe-off to say; a skeleton without toes still has knees).
 fn pelvis_facing(motion: &Motion, legs: &[LegLock]) -> Vec<Vec3> {
     let square: Vec<Vec3> = (0..motion.frames()).map(|t| Vec3::Y.cross(motion.frame(t)[legs[1].hip] - motion.frame(t)[legs[0].hip]).normalize_or_zero()).collect();
-    let toes: f32 = legs.iter().filter_map(|leg| leg.toe.map(|toe| (leg.foot[0], toe))).map(|(ankle, toe)| (0..motion.frames()).map(|t| square[t].dot(motion.frame(t)[toe] - motion.frame(t)[ankle])).sum::<f32>()).sum();
-    let sign = if toes < 0.0 { -1.0 } else { 1.0 };
+    let ahead = |t: usize, leg: &LegLock| {
+        let f = motion.frame(t);
+        let knee = f[leg.knee] - (f[leg.hip] + f[leg.foot[0]]) / 2.0;
+        let toe = leg.toe.map_or(Vec3::ZERO, |toe| f[toe] - f[leg.foot[0]]);
+        square[t].dot(knee + toe)
+    };
+    let forward: f32 = legs.iter().map(|leg| (0..motion.frames()).map(|t| ahead(t, leg)).sum::<f32>()).sum();
+    let sign = if forward < 0.0 { -1.0 } else { 1.0 };
     square.into_iter().map(|f| f * sign).collect()
 }
 
