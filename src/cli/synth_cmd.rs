@@ -158,9 +158,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     };
     let options = ExportOptions { units: args.units.into(), fps: args.fps, source_root: false };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
-    // Foot contacts are per frame of the model's rate: kept unless the take is resampled.
-    let contacts = (m.frames() == motion.frames()).then_some(&take.contacts);
-    export_with_contacts(&m, &segments, contacts, &args.out)?;
+    export_with_contacts(&m, &segments, Some(&take.contacts), &args.out)?;
     note_rounded_durations(&opts, &take.segments, take.motion.fps);
     for warning in &take.warnings {
         eprintln!("warning: {warning}");

@@ -93,11 +93,19 @@ fn body_speeds(motion: &Motion, root: usize) -> Vec<f32> {
         v.length()
     };
     let speeds: Vec<f32> = (0..motion.frames()).map(flat).collect();
-    let half = (BODY_SPEED_SECONDS * motion.fps).round() as usize;
-    (0..speeds.len())
+    box_average(&speeds, (BODY_SPEED_SECONDS * motion.fps).round() as usize)
+}
+
+/// Each value replaced by the mean of those within `half` places either side (fewer at the
+/// ends, where the window is cut off).
+pub fn box_average<T>(values: &[T], half: usize) -> Vec<T>
+where
+    T: Copy + std::iter::Sum<T> + std::ops::Div<f32, Output = T>,
+{
+    (0..values.len())
         .map(|t| {
-            let window = &speeds[t.saturating_sub(half)..(t + half + 1).min(speeds.len())];
-            window.iter().sum::<f32>() / window.len() as f32
+            let window = &values[t.saturating_sub(half)..(t + half + 1).min(values.len())];
+            window.iter().copied().sum::<T>() / window.len() as f32
         })
         .collect()
 }

@@ -302,6 +302,12 @@ fn sphere(centre: Vec3, radius: f32, color: [f32; 4]) -> Instance {
     Instance { model: model.to_cols_array_2d(), color }
 }
 
+/// A sphere squashed to a disc lying on the floor (a waypoint, a planted foot's mark).
+fn floor_disc(centre: Vec3, radius: f32, thickness: f32, color: [f32; 4]) -> Instance {
+    let model = Mat4::from_scale_rotation_translation(Vec3::new(radius, thickness, radius), Quat::IDENTITY, centre);
+    Instance { model: model.to_cols_array_2d(), color }
+}
+
 fn cylinder(a: Vec3, b: Vec3, radius: f32, color: [f32; 4]) -> Option<Instance> {
     let d = b - a;
     let len = d.length();
@@ -704,8 +710,7 @@ impl Viewport {
                 for foot in &planted {
                     let centre = foot.iter().map(|&j| p(j)).sum::<Vec3>() / foot.len() as f32;
                     let centre = Vec3::new(centre.x, ground + 0.005, centre.z);
-                    let mark = Mat4::from_scale_rotation_translation(Vec3::new(CONTACT_RADIUS, 0.008, CONTACT_RADIUS), Quat::IDENTITY, centre);
-                    solids.push(false, translucent, eye, centre, Instance { model: mark.to_cols_array_2d(), color: contact_color });
+                    solids.push(false, translucent, eye, centre, floor_disc(centre, CONTACT_RADIUS, 0.008, contact_color));
                 }
                 if let Some((h, parent, child)) = info.head {
                     let (ph, pp) = (p(h), p(parent));
@@ -721,8 +726,7 @@ impl Viewport {
             for (k, w) in path.waypoints.iter().enumerate() {
                 let lighten = if path.selected == Some(k) { 0.7 } else { 0.0 };
                 let centre = Vec3::new(w[0], ground + 0.01, w[1]);
-                let disc = Mat4::from_scale_rotation_translation(Vec3::new(WAYPOINT_RADIUS, 0.015, WAYPOINT_RADIUS), Quat::IDENTITY, centre);
-                solids.push(false, false, eye, centre, Instance { model: disc.to_cols_array_2d(), color: linear_rgba(PATH_RGB, lighten, 1.0) });
+                solids.push(false, false, eye, centre, floor_disc(centre, WAYPOINT_RADIUS, 0.015, linear_rgba(PATH_RGB, lighten, 1.0)));
             }
         }
         let overlay = scene.path.as_ref().map_or_else(Vec::new, |p| self.path_vertices(p));

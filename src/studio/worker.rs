@@ -94,7 +94,7 @@ pub enum Request {
     Retarget { purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap> },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
-    /// `contacts` (per frame of `motion`) go into a JSON export when it keeps the take's frames.
+    /// `contacts` (per frame of `motion`) go into a JSON export that keeps the take's frames.
     Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
 }
 
@@ -291,8 +291,7 @@ impl WorkerState {
                 });
             }
             Request::Export { motion, segments, contacts, path, options, source } => {
-                // Contacts are per frame of the model's rate: kept unless the take is resampled.
-                let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export_with_contacts(&m, &s, (m.frames() == motion.frames()).then_some(&contacts), &path));
+                let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export_with_contacts(&m, &s, Some(&contacts), &path));
                 return Some(match written {
                     Ok(()) => Reply::Exported(path),
                     Err(e) => Reply::ExportFailed { path, error: format!("{e:#}") },

@@ -69,8 +69,11 @@ pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<
     export_with_contacts(motion, segments, None, path)
 }
 
-/// [`export`], with the per-foot contact arrays (as long as the take) in the JSON format.
+/// [`export`], with the per-foot contact arrays in the JSON format where they hold one flag
+/// per frame of `motion` (contacts are per frame of the model's rate: a resampled take
+/// goes without them).
 pub fn export_with_contacts(motion: &Motion, segments: &[SegmentSpan], contacts: Option<&FootContacts>, path: &Path) -> Result<()> {
+    let contacts = contacts.filter(|c| c.left.len() == motion.frames() && c.right.len() == motion.frames());
     // Whatever went wrong upstream, no NaN, inf or null reaches a file.
     if let Some(bad) = motion.positions().iter().position(|p| !p.is_finite()) {
         bail!("{}: not written: the take has a non-finite position at frame {}", path.display(), bad / motion.joints().max(1) + 1);

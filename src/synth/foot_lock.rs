@@ -12,8 +12,9 @@
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use crate::motion::contacts::{foot_contacts, local_floor, lowest_foot_heights, runs, ContactConfig, FootContacts};
+use crate::motion::contacts::{box_average, foot_contacts, local_floor, lowest_foot_heights, runs, ContactConfig, FootContacts};
 use crate::motion::ik::{hip_offset, two_bone, MAX_STRETCH};
+use super::smoothstep;
 use crate::motion::{solve_local_poses, JointRoles, Motion, Side, Skeleton};
 
 /// Seconds over which a lock fades in before a contact and out after it, at least and at
@@ -107,8 +108,7 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
     let mut weight = vec![0.0f32; frames];
     for (start, end) in runs(&both).into_iter().filter(|(s, e)| e - s >= shortest) {
         for (t, w) in weight.iter_mut().enumerate().take(end).skip(start) {
-            let x = ((t - start + 1).min(end - t) as f32 / ease).min(1.0);
-            *w = x * x * (3.0 - 2.0 * x);
+            *w = smoothstep((t - start + 1).min(end - t) as f32 / ease);
         }
     }
     let ankles = [roles.left.ankle, roles.right.ankle];
@@ -158,20 +158,21 @@ fn foot_set(skeleton: &Skeleton, ankle: usize) -> Vec<usize> {
 /// lock fades in before the phase and out after it: over how many frames, and from what
 /// offset (lock minus the foot's own pose at the phase's first / last frame), three
 /// quarters, and towards the lock itself, a quarter ([`TOWARDS_LOCK`]). Fading the offset
-/// fixed at the boundary keeps
-/// the swing's own shape, but the foot leaves the lock at the network's speed; fading
-/// towards the lock leaves it at rest, but drags the swinging foot back.
+/// fixed at the boundary keeps the swing's own shape, but the foot leaves the lock at the
+/// network's speed; fading towards the lock leaves it at rest, but drags the swinging foot
+/// back.
 struct Plant {
     start: usize,
     end: usize,
     foot: Vec<Vec3>,
     fade_in: Fade,
     fade_out: Fade,
-    /// Frames to the next plant when the foot steps over to it (a contact the network's foot
-    /// slid through, split): the foot lifts [`REPLANT_LIFT`] on the way.
-    step_after: Option<usize>,
-    /// Frames to the next plant after an ordinary swing (lifted by [`lift_swings`]).
-    swing_after: Option<usize>,
+    /// Frames to the next plant, where there is one.
+    gap_after: Option<usize>,
+    /// The next plant continues this one's contact, which the network's foot slid through:
+    /// the foot steps over, lifting [`REPLANT_LIFT`]; after an ordinary swing's gap it is
+    /// lifted by [`lift_swings`].
+    replant: bool,
 }
 
 struct Fade {
@@ -191,9 +192,16 @@ impl Plant {
         } else {
             return None;
         };
-        let x = (1.0 - away as f32 / (fade.frames + 1) as f32).max(0.0);
-        let w = x * x * (3.0 - 2.0 * x);
+        let w = smoothstep(1.0 - away as f32 / (fade.frames + 1) as f32);
         (w > 0.0).then_some((w, fade))
+    }
+
+    /// In the gap after the plant, the fraction of a lift at frame `t`: a sin^2 arc over the
+    /// gap, so the foot leaves and lands at rest.
+    fn lift_at(&self, t: usize) -> Option<f32> {
+        let gap = self.gap_after.filter(|&gap| (self.end..self.end + gap).contains(&t))?;
+        let x = (t + 1 - self.end) as f32 / (gap + 1) as f32;
+        Some((std::f32::consts::PI * x).sin().powi(2))
     }
 }
 
@@ -221,9 +229,8 @@ fn plants(motion: &Motion, foot: &[usize], contacts: &[bool]) -> Vec<Plant> {
             fade_in.frames = fade_in.frames.min(gap_before(k).saturating_sub(1));
             let mut fade_out = fade(&locked, end - 1);
             fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
-            let step_after = replant.then(|| gap_after(k));
-            let swing_after = (!replant && k + 1 < stances.len()).then(|| gap_after(k));
-            Plant { start, end, fade_in, fade_out, foot: locked, step_after, swing_after }
+            let next = (k + 1 < stances.len()).then(|| gap_after(k));
+            Plant { start, end, fade_in, fade_out, foot: locked, gap_after: next, replant }
         })
         .collect()
 }
@@ -341,13 +348,12 @@ fn pelvis_facing(motion: &Motion, legs: &[LegLock]) -> Vec<Vec3> {
 /// make a runner float.
 fn lift_swings(targets: &mut [Vec<(Vec<Vec3>, f32)>], legs: &[LegLock], height: f32) {
     for (i, leg) in legs.iter().enumerate() {
-        for p in &leg.plants {
-            let Some(gap) = p.swing_after else { continue };
-            for t in p.end..(p.end + gap).min(targets.len()) {
-                let x = (t + 1 - p.end) as f32 / (gap + 1) as f32;
-                let carried = targets[t][1 - i].1.powi(2);
-                let up = height * carried * (std::f32::consts::PI * x).sin().powi(2);
-                targets[t][i].0.iter_mut().for_each(|q| q.y += up);
+        for p in leg.plants.iter().filter(|p| !p.replant) {
+            for (t, frame) in targets.iter_mut().enumerate().skip(p.end) {
+                let Some(arc) = p.lift_at(t) else { break };
+                let carried = frame[1 - i].1.powi(2);
+                let up = height * carried * arc;
+                frame[i].0.iter_mut().for_each(|q| q.y += up);
             }
         }
     }
@@ -376,15 +382,7 @@ fn smoothed<T>(values: &[T], half: usize) -> Vec<T>
 where
     T: Copy + std::iter::Sum<T> + std::ops::Div<f32, Output = T>,
 {
-    let pass = |v: &[T]| -> Vec<T> {
-        (0..v.len())
-            .map(|t| {
-                let window = &v[t.saturating_sub(half)..(t + half + 1).min(v.len())];
-                window.iter().copied().sum::<T>() / window.len() as f32
-            })
-            .collect()
-    };
-    pass(&pass(&pass(values)))
+    box_average(&box_average(&box_average(values, half), half), half)
 }
 
 /// One frame: the body shifted with the hips, then two-bone IK per leg towards its foot's
@@ -453,10 +451,8 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
             let shifted: Vec<Vec3> = own.iter().enumerate().map(|(i, &p)| p + fades.iter().map(|&(w, f, lock)| pull(i, p, f, lock) * w).sum::<Vec3>()).collect();
             let weight = fades.iter().map(|(w, _, _)| *w).fold(0.0, f32::max);
             let mut foot = if fades.is_empty() { own } else { rigid(skeleton, &leg.foot, &own, &shifted) };
-            let lift = leg.plants.iter().find_map(|p| p.step_after.filter(|&gap| (p.end..p.end + gap).contains(&t)).map(|gap| (t + 1 - p.end) as f32 / (gap + 1) as f32));
-            if let Some(x) = lift {
-                // sin^2: the lift starts and ends at rest.
-                let up = REPLANT_LIFT / skeleton.meters_per_unit() * (std::f32::consts::PI * x).sin().powi(2);
+            if let Some(arc) = leg.plants.iter().filter(|p| p.replant).find_map(|p| p.lift_at(t)) {
+                let up = REPLANT_LIFT / skeleton.meters_per_unit() * arc;
                 foot.iter_mut().for_each(|p| p.y += up);
             }
             (foot, weight)

@@ -13,6 +13,7 @@ use super::keys::{fix_roots, key_pose, rewarp, warp_dense, warp_sparse, PlacedKe
 use super::path_follow::{follow_path, GroundPath};
 use super::foot_lock::{foot_lock, FootLocked};
 use super::init::{initial_features, InitPose};
+use super::smoothstep;
 use super::timeline::Timeline;
 use crate::data::features::ROOT_FEATURES;
 use crate::model::glocal::GlocalModel;
@@ -323,7 +324,7 @@ impl SparseTimeline {
                 for i in t + b * t..t + (b + 1) * t {
                     let mix = match self.transition_at(i) {
                         Some((k, through)) => {
-                            let s = through * through * (3.0 - 2.0 * through);
+                            let s = smoothstep(through);
                             vec![(self.classes[k - 1], 1.0 - s), (self.classes[k], s)]
                         }
                         None => vec![(self.classes[self.segment_at(i)], 1.0)],

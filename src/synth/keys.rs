@@ -12,6 +12,7 @@ use glam::{Quat, Vec3};
 
 use super::constraints::{Key, KeySource};
 use super::init::{read_on_model_skeleton, InitPose};
+use super::smoothstep;
 use crate::data::features::{wrap, FeatureLayout, Placement, ROOT_FEATURES};
 use crate::model::glocal::GlocalModel;
 use crate::motion::{solve_local_poses, Motion};
@@ -219,11 +220,6 @@ pub fn fix_roots(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, keys:
         pose.iter_mut().for_each(|p| *p = centre + rot * (*p - centre) + shift);
     }
     warnings
-}
-
-fn smoothstep(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    x * x * (3.0 - 2.0 * x)
 }
 
 #[cfg(test)]

@@ -22,6 +22,13 @@ pub enum Error {
     Cancelled,
 }
 
+/// 0 below 0, 1 above 1, and the cubic between with zero slope at both ends: the ease of
+/// class mixes, key offsets, foot-lock fades and a stand's drift removal.
+pub(crate) fn smoothstep(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
 pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
 pub use constraints::{Key, KeySource, RootPath, Waypoint};
 pub use init::InitPose;
