@@ -244,9 +244,9 @@ fn transitions_act_on_a_boundary_at_a_block_seam() {
 /// data (once the seed's block is over).
 #[test]
 fn ten_minute_takes_stay_at_their_class_speed() {
-    // Measured on the shipped models: no class repeats itself, and every 10 s window runs at
-    // 0.31-2.73x its class's training speed (h36m's posing and greeting the slowest, Bandai's
-    // bowing over and over the fastest). The goal is 0.5-2x; the bounds here keep what holds.
+    // The bounds: no class repeats itself, and every 10 s window runs at 0.5-2x its
+    // class's training speed. Measured on the shipped models: 0.52-1.92x (h36m's posing the
+    // slowest, its sittingdown the fastest), Bandai 0.62-1.98x (its bowing the fastest).
     let mut failures = Vec::new();
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
@@ -262,10 +262,10 @@ fn ten_minute_takes_stay_at_their_class_speed() {
             if repeat > 0.0 {
                 failures.push(format!("{name} {class_name}: repeats itself for {repeat:.1} s at a lag of {lag:.1} s"));
             }
-            if !(lo >= 0.25 && hi <= 3.5) {
+            if !(lo >= 0.5 && hi <= 2.0) {
                 failures.push(format!("{name} {class_name}: {lo:.2}-{hi:.2}x"));
             }
         }
     }
-    assert!(failures.is_empty(), "outside 0.25-3.5x or repeating: {failures:?}");
+    assert!(failures.is_empty(), "outside 0.5-2x or repeating: {failures:?}");
 }

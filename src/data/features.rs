@@ -125,6 +125,24 @@ impl FeatureLayout {
         (out, place)
     }
 
+    /// The mean distance every joint moves from one sample to the next (model units), over
+    /// consecutive samples of `features`: the take's joint speed per sample step.
+    pub fn mean_joint_step(&self, features: &[f32]) -> f32 {
+        let j = self.joints();
+        let (positions, _) = self.decode(features, Placement::default());
+        let frames: Vec<&[Vec3]> = positions.chunks_exact(j).collect();
+        let steps = frames.windows(2).map(|w| w[0].iter().zip(w[1]).map(|(a, b)| a.distance(*b)).sum::<f32>() / j as f32);
+        steps.sum::<f32>() / frames.len().saturating_sub(1).max(1) as f32
+    }
+
+    /// [`FeatureLayout::mean_joint_step`] leaving out the body's travel over the ground (its
+    /// turns and the root's height stay in): the pose's own speed per sample step.
+    pub fn mean_pose_step(&self, features: &[f32]) -> f32 {
+        let mut still = features.to_vec();
+        still.chunks_exact_mut(self.dim()).for_each(|f| f[1..3].fill(0.0));
+        self.mean_joint_step(&still)
+    }
+
     /// Where a frame stands: its root on the ground and its heading.
     pub fn placement(&self, frame: &[Vec3]) -> Placement {
         Placement { x: frame[0].x, z: frame[0].z, heading: self.heading(frame) }

@@ -47,8 +47,9 @@ const REPLANT_LIFT: f32 = 0.06;
 /// Toe clearance (metres) at the middle of an ordinary swing (see [`lift_swings`]). On
 /// Bandai, 3 cm scaled by the other lock's weight left its skating ratio at 1.13x real; 5 cm
 /// by the weight cubed gave 0.96x but a mean jerk of 1.303x; 4.5 cm by the weight squared
-/// gives 1.00x and 1.300x.
-const SWING_LIFT: f32 = 0.045;
+/// gave 1.00x and 1.300x, and 5 cm by the weight squared, since long takes keep their pace
+/// ([`super::pace`]), 0.95x and 1.29x (4.5 cm then: 1.01x and 1.28x).
+const SWING_LIFT: f32 = 0.05;
 
 /// A stretch of both feet standing at least this long (seconds) is someone standing, whose
 /// drift is taken out over its first and last [`STAND_EASE_SECONDS`].

@@ -8,6 +8,7 @@ pub mod generate;
 pub mod gltf;
 pub mod init;
 pub mod keys;
+mod pace;
 pub mod path_follow;
 pub mod render;
 pub mod rig;
