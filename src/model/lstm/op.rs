@@ -10,7 +10,7 @@
 //! so the two run side by side on plain borrows.
 use super::kernels::{cell_bwd, matmul, transposed, Strided};
 use super::recurrence::{interleave, time_at, DirFwd};
-use super::{run2, Threading};
+use super::{run2, Pool, Threading};
 use candle_core::{bail, CpuStorage, CustomOp2, Device, Layout, Result, Shape, Storage, Tensor};
 use gemm::Parallelism;
 use std::sync::Mutex;
@@ -140,7 +140,7 @@ impl CustomOp2 for BiLstmOp {
             DirFwd { d, b, t, h, g, whh_t: &whh_t[d], bias: &bsum[d], hs, acts, cs, z, zeros: &zeros, par }.run();
         };
         let [mut fwd, mut bwd] = [0, 1].map(|_| DirBuffers::new(b, t, h));
-        run2(self.directions_side_by_side(), || direction(0, &mut fwd), || direction(1, &mut bwd));
+        run2(self.directions_side_by_side(), Pool::Candle, || direction(0, &mut fwd), || direction(1, &mut bwd));
         let mut out = vec![0f32; b * t * 2 * h];
         interleave(&mut out, [&fwd.hs, &bwd.hs], h);
         *self.cache.lock().unwrap() = Some(FwdCache { acts: [fwd.acts, bwd.acts], cs: [fwd.cs, bwd.cs] });
@@ -180,7 +180,7 @@ impl CustomOp2 for BiLstmOp {
                             matmul((h4, i, bt), dwih, i, Strided::transpose_of(dg, h4), Strided::rows(xs, i), false, par);
                         };
                         let [dg0, dg1] = &mut dg;
-                        run2(parallel, || direction(0, dg0, dwih0, dwhh0, db0), || direction(1, dg1, dwih1, dwhh1, db1));
+                        run2(parallel, Pool::Candle, || direction(0, dg0, dwih0, dwhh0, db0), || direction(1, dg1, dwih1, dwhh1, db1));
                         // the bias gradients: b_hh gets the same as b_ih
                         let (bi, bh) = dbias.split_at_mut(8 * h);
                         bh.copy_from_slice(bi);
@@ -211,7 +211,7 @@ fn input_gradient(dx: &mut [f32], dg: &[Vec<f32>; 2], ps: &[f32], fl: FlatLayout
     let bt = dx.len() / i;
     let half = if parallel { bt / 2 } else { bt };
     let (first, second) = dx.split_at_mut(half * i);
-    run2(parallel, || rows(0, first), || rows(half, second));
+    run2(parallel, Pool::Candle, || rows(0, first), || rows(half, second));
 }
 
 /// Backprop through time for one direction.
