@@ -6,7 +6,7 @@
 //! Weight names under the block's `VarBuilder`: `enc.*` and `dec.*` (see [`super::lstm::BiLstm`]:
 //! `weight_ih_l0`, `weight_hh_l0`, `bias_ih_l0`, `bias_hh_l0` and the same with `_reverse`), and
 //! `head.weight [out_dim, 2H]`, `head.bias [out_dim]`.
-use super::lstm::{matmul, with_f32, BiLstm, CpuBiLstm, Scratch, Strided};
+use super::lstm::{dispatch_simd, matmul, with_f32, BiLstm, CpuBiLstm, Scratch, Strided};
 use candle_core::{bail, CpuStorage, CustomOp1, DType, Device, Layout, Result, Shape, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
@@ -171,14 +171,31 @@ struct DropoutOp {
     mask: Mutex<Option<Vec<f32>>>,
 }
 
-#[inline]
-fn splitmix64(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
+/// The `n`-th draw (from 0) of SplitMix64 seeded with `seed`. Its state only adds a constant per
+/// draw, so any draw is computed directly: the mask's draws are independent of one another and
+/// its loop vectorises (a sequential generator made dropout 3.5% of a training step).
+#[inline(always)]
+fn splitmix64_at(seed: u64, n: u64) -> u64 {
+    let mut z = seed.wrapping_add(n.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
 }
+
+/// The keep mask (`scale` or 0) of every element, each kept if its uniform 24-bit draw is at
+/// least `thr`, and `out = x * mask`.
+#[inline(always)]
+fn dropout_kernel_impl(seed: u64, thr: u32, scale: f32, x: &[f32], mask: &mut [f32], out: &mut [f32]) {
+    // element e takes half e % 2 of draw e / 2
+    for (e, (m, (o, &v))) in mask.iter_mut().zip(out.iter_mut().zip(x)).enumerate() {
+        let r = splitmix64_at(seed, (e / 2) as u64);
+        let u = ((r >> (32 * (e % 2))) as u32) >> 8;
+        *m = if u >= thr { scale } else { 0.0 };
+        *o = v * *m;
+    }
+}
+
+dispatch_simd!(dropout_kernel, dropout_kernel_impl, (seed: u64, thr: u32, scale: f32, x: &[f32], mask: &mut [f32], out: &mut [f32]));
 
 impl CustomOp1 for DropoutOp {
     fn name(&self) -> &'static str {
@@ -194,16 +211,8 @@ impl CustomOp1 for DropoutOp {
         let scale = 1.0 / (1.0 - self.p);
         // keep if a uniform 24-bit draw >= p
         let thr = (self.p as f64 * (1u64 << 24) as f64) as u32;
-        let mut st = self.seed;
-        let mut mask = vec![0f32; x.len()];
-        for pair in mask.chunks_mut(2) {
-            let r = splitmix64(&mut st);
-            for (k, m) in pair.iter_mut().enumerate() {
-                let u = ((r >> (32 * k)) as u32) >> 8;
-                *m = if u >= thr { scale } else { 0.0 };
-            }
-        }
-        let out: Vec<f32> = x.iter().zip(&mask).map(|(a, m)| a * m).collect();
+        let (mut mask, mut out) = (vec![0f32; x.len()], vec![0f32; x.len()]);
+        dropout_kernel(self.seed, thr, scale, x, &mut mask, &mut out);
         *self.mask.lock().unwrap() = Some(mask);
         Ok((CpuStorage::F32(out), l.shape().clone()))
     }

@@ -21,6 +21,7 @@
 use candle_core::{bail, DType, Result, Tensor};
 use candle_nn::{Init, VarBuilder};
 use gemm::Parallelism;
+use std::sync::Arc;
 
 mod frozen;
 mod kernels;
@@ -31,7 +32,8 @@ mod reference;
 mod tests;
 
 pub use frozen::{CpuBiLstm, Scratch};
-pub(crate) use kernels::{matmul, Strided};
+pub(crate) use kernels::{dispatch_simd, matmul, Strided};
+use op::Buffers;
 pub use op::{BiLstmOp, FlatLayout};
 pub(crate) use op::with_f32;
 
@@ -127,6 +129,8 @@ pub struct BiLstm {
     pub bwd: LstmWeights,
     /// Used by [`BiLstm::forward`] and passed on to [`BiLstm::freeze`]'s copy.
     pub threading: Threading,
+    /// The training op's working memory, kept from one call to the next.
+    buffers: Arc<Buffers>,
 }
 
 impl BiLstm {
@@ -146,7 +150,7 @@ impl BiLstm {
         };
         let fwd = get("")?;
         let bwd = get("_reverse")?;
-        Ok(Self { in_dim, hidden, fwd, bwd, threading: Threading::default() })
+        Ok(Self { in_dim, hidden, fwd, bwd, threading: Threading::default(), buffers: Arc::default() })
     }
 
     /// Fast training/inference forward with autograd: `[B, T, I] -> [B, T, 2H]`
@@ -170,7 +174,7 @@ impl BiLstm {
             ],
             0,
         )?;
-        x2.apply_op2(&p, BiLstmOp::new(b, t, i, self.hidden, self.threading))
+        x2.apply_op2(&p, BiLstmOp::new(b, t, i, self.hidden, self.threading).reusing(self.buffers.clone()))
     }
 
     /// Copy the current weights out into plain f32 buffers for [`CpuBiLstm::infer`].
