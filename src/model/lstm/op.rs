@@ -134,9 +134,11 @@ pub(crate) fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> 
     }
 }
 
-/// One direction's buffers of the forward pass, each `[B*T, ..]` except `z` (`[B, 4H]`).
+/// One direction's buffers of the forward pass, each `[B*T, ..]` except `whh_t` (`[H, 4H]`)
+/// and `z` (`[B, 4H]`).
 struct DirBuffers {
     g: Vec<f32>,
+    whh_t: Vec<f32>,
     hs: Vec<f32>,
     acts: Vec<f32>,
     cs: Vec<f32>,
@@ -149,7 +151,7 @@ impl DirBuffers {
     fn take(buffers: &Buffers, b: usize, t: usize, h: usize) -> Self {
         let bt = b * t;
         let take = |n: usize| buffers.take(n);
-        Self { g: take(bt * 4 * h), hs: take(bt * h), acts: take(bt * 4 * h), cs: take(bt * h), z: take(b * 4 * h) }
+        Self { g: take(bt * 4 * h), whh_t: take(4 * h * h), hs: take(bt * h), acts: take(bt * 4 * h), cs: take(bt * h), z: take(b * 4 * h) }
     }
 }
 
@@ -175,29 +177,24 @@ impl CustomOp2 for BiLstmOp {
         if x.len() != b * t * i || p.len() != fl.len() {
             bail!("fused lstm: bad input sizes {} {}", x.len(), p.len());
         }
-        let bsum: [Vec<f32>; 2] = [0, 1].map(|d| {
-            (0..4 * h).map(|j| p[fl.b_ih(d) + j] + p[fl.b_hh(d) + j]).collect::<Vec<f32>>()
-        });
-        // once per call rather than a repack at every step
-        let whh_t: [Vec<f32>; 2] = [0, 1].map(|d| {
-            let mut w = self.buffers.take(4 * h * h);
-            transpose_into(&p[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h], 4 * h, h, &mut w);
-            w
-        });
         let zeros = vec![0f32; h];
         let par = self.threading.gemm_parallelism();
         let direction = |d: usize, buf: &mut DirBuffers| {
+            let bias: Vec<f32> = (0..4 * h).map(|j| p[fl.b_ih(d) + j] + p[fl.b_hh(d) + j]).collect();
+            // W_hh transposed once per call rather than repacked by gemm at every step; here, not
+            // before the directions split, so that the two transposes run side by side
+            transpose_into(&p[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h], 4 * h, h, &mut buf.whh_t);
             // g [BT, 4H] = x [BT, I] · W_ih[d]ᵀ
             let w_ih = Strided::transpose_of(&p[fl.w_ih(d)..fl.w_ih(d + 1)], i);
             matmul((b * t, 4 * h, i), &mut buf.g, 4 * h, Strided::rows(x, i), w_ih, false, par);
-            let DirBuffers { g, hs, acts, cs, z } = buf;
-            DirFwd { d, b, t, h, g, whh_t: &whh_t[d], bias: &bsum[d], hs, acts, cs, z, zeros: &zeros, par }.run();
+            let DirBuffers { g, whh_t, hs, acts, cs, z } = buf;
+            DirFwd { d, b, t, h, g, whh_t, bias: &bias, hs, acts, cs, z, zeros: &zeros, par }.run();
         };
         let [mut fwd, mut bwd] = [0, 1].map(|_| DirBuffers::take(&self.buffers, b, t, h));
         run2(self.directions_side_by_side(), Pool::Candle, || direction(0, &mut fwd), || direction(1, &mut bwd));
         let mut out = vec![0f32; b * t * 2 * h];
         interleave(&mut out, [&fwd.hs, &bwd.hs], h);
-        for v in whh_t.into_iter().chain([fwd.g, fwd.hs, fwd.z, bwd.g, bwd.hs, bwd.z]) {
+        for v in [fwd.g, fwd.whh_t, fwd.hs, fwd.z, bwd.g, bwd.whh_t, bwd.hs, bwd.z] {
             self.buffers.give(v);
         }
         *self.cache.lock().unwrap() = Some(FwdCache { acts: [fwd.acts, bwd.acts], cs: [fwd.cs, bwd.cs] });
