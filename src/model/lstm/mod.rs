@@ -88,18 +88,24 @@ fn run2<A: FnOnce() + Send, B: FnOnce() + Send>(parallel: bool, pool: Pool, a: A
         b();
         return;
     }
-    match pool {
-        Pool::Rayon => {
+    // Without workers (CANDLE_NUM_THREADS=1, the setting for a busy machine) candle's pool would
+    // run both halves on this thread: rayon's then.
+    let candle = match pool {
+        Pool::Candle => Some(candle_core::utils::barrier_pool()).filter(|p| p.n_workers() > 0),
+        Pool::Rayon => None,
+    };
+    match candle {
+        None => {
             rayon::join(a, b);
         }
-        Pool::Candle => {
+        Some(candle) => {
             fn run_once<F: FnOnce()>(f: &std::sync::Mutex<Option<F>>) {
                 if let Some(f) = f.lock().unwrap().take() {
                     f()
                 }
             }
             let (a, b) = (std::sync::Mutex::new(Some(a)), std::sync::Mutex::new(Some(b)));
-            candle_core::utils::barrier_pool().execute_chunked(2, |halves| {
+            candle.execute_chunked(2, |halves| {
                 for half in halves {
                     if half == 0 {
                         run_once(&a)
