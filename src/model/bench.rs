@@ -90,6 +90,7 @@ fn one_hot(b: usize, c: usize, dev: &Device) -> Result<Tensor> {
 /// optimiser, same data): fast LSTM + [`ProjectAdamW`], fast LSTM + `candle_nn::AdamW`, and
 /// candle-nn's LSTM + `candle_nn::AdamW`, stepped round-robin in the same call.
 pub fn bench_train(cfg: TrainBenchConfig, budget: Budget) -> Result<TrainBench> {
+    super::memory::retain_freed_memory();
     let dev = Device::Cpu;
     let (b, t, f, c) = (cfg.batch, cfg.steps_in, cfg.feat, cfg.classes);
     let x = Tensor::randn(0f32, 1.0, (b, t, f), &dev)?;

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod adamw;
 pub mod corpus;
 pub mod glocal;
+pub mod memory;
 pub mod spec;
 pub mod train;
 

@@ -161,6 +161,7 @@ const VALIDATION_WINDOWS: usize = 256;
 /// Trains one stage into `opts.out`, creating `model.json` and the seed bank when absent.
 pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel: &AtomicBool) -> Result<ModelSpec> {
     opts.validate()?;
+    super::memory::retain_freed_memory();
     let (weights_path, state_path) = (opts.weights_path(), opts.state_path());
     if opts.resume && !state_path.exists() && weights_path.exists() {
         bail!(

@@ -3,7 +3,7 @@
 //! once the largest batch has been seen.
 use super::kernels::{matmul, Strided};
 use super::recurrence::{interleave, DirFwd};
-use super::{run2, Threading};
+use super::{run2, Pool, Threading};
 use gemm::Parallelism;
 
 /// Frozen weights of a [`super::BiLstm`] for autograd-free inference.
@@ -67,7 +67,7 @@ impl CpuBiLstm {
         let parallel = self.threading != Threading::Single;
         let Scratch { dirs: [fwd, bwd], zeros } = sc;
         let zeros: &[f32] = zeros;
-        run2(parallel, || self.infer_dir(0, x, b, t, fwd, zeros), || self.infer_dir(1, x, b, t, bwd, zeros));
+        run2(parallel, Pool::Rayon, || self.infer_dir(0, x, b, t, fwd, zeros), || self.infer_dir(1, x, b, t, bwd, zeros));
         interleave(out, [&fwd.hs[..b * t * h], &bwd.hs[..b * t * h]], h);
     }
 

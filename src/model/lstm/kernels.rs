@@ -11,12 +11,17 @@ use gemm::Parallelism;
 /// weight `[N, K]` is repacked on every call: at batch 1 that repacking was a fifth of a block.
 pub(super) fn transposed(w: &[f32], rows: usize, cols: usize) -> Vec<f32> {
     let mut t = vec![0f32; rows * cols];
+    transpose_into(w, rows, cols, &mut t);
+    t
+}
+
+/// [`transposed`] into `t` (`rows * cols` values).
+pub(super) fn transpose_into(w: &[f32], rows: usize, cols: usize, t: &mut [f32]) {
     for r in 0..rows {
         for c in 0..cols {
             t[c * rows + r] = w[r * cols + c];
         }
     }
-    t
 }
 
 /// [`transposed`] for each direction's block of two stacked `[rows, cols]` matrices.
@@ -223,7 +228,8 @@ fn axpy_rows2_impl(ha: &[f32], hb: &[f32], wt: &[f32], za: &mut [f32], zb: &mut 
 }
 
 /// Defines `$name`, which runs `$impl_` compiled for AVX-512 or AVX2+FMA when the CPU has them
-/// (the loops above are written to auto-vectorise) and as plain code otherwise.
+/// (the loops above are written to auto-vectorise) and as plain code otherwise. `$impl_` must
+/// be `#[inline(always)]`, so that it is compiled inside each build.
 macro_rules! dispatch_simd {
     ($name:ident, $impl_:ident, ($($arg:ident : $ty:ty),*)) => {
         #[allow(clippy::too_many_arguments)]
@@ -254,6 +260,9 @@ macro_rules! dispatch_simd {
         }
     };
 }
+
+// for the other elementwise kernels of training (dropout, AdamW)
+pub(crate) use dispatch_simd;
 
 dispatch_simd!(cell_fwd, cell_fwd_impl, (h: usize, z: &[f32], g: &[f32], bias: &[f32], c_prev: &[f32], acts: &mut [f32], c: &mut [f32], hout: &mut [f32]));
 dispatch_simd!(cell_bwd, cell_bwd_impl, (h: usize, dout: &[f32], dh_rec: &[f32], dc: &mut [f32], acts: &[f32], c: &[f32], c_prev: &[f32], dz: &mut [f32]));

@@ -21,6 +21,7 @@
 use candle_core::{bail, DType, Result, Tensor};
 use candle_nn::{Init, VarBuilder};
 use gemm::Parallelism;
+use std::sync::Arc;
 
 mod frozen;
 mod kernels;
@@ -31,17 +32,18 @@ mod reference;
 mod tests;
 
 pub use frozen::{CpuBiLstm, Scratch};
-pub(crate) use kernels::{matmul, Strided};
+pub(crate) use kernels::{dispatch_simd, matmul, Strided};
+use op::Buffers;
 pub use op::{BiLstmOp, FlatLayout};
 pub(crate) use op::with_f32;
 
 /// How the two directions of a bidirectional LSTM use the cores.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Threading {
-    /// The two directions side by side on rayon's pool, single-threaded gemm inside. The
-    /// default: with the directions on `rayon::join` (no threads spawned beside rayon's), a
-    /// training step measured 1.15-1.37x faster than with a parallel gemm per call, which wakes
-    /// rayon's workers for every small gemm (docs/BENCHMARKS.md).
+    /// The two directions side by side, single-threaded gemm inside (training on candle's
+    /// worker pool, inference on rayon's, see [`Pool`]). The default: side by side, a training
+    /// step measured 1.15-1.37x faster than with a parallel gemm per call, which wakes the
+    /// workers for every small gemm (docs/BENCHMARKS.md).
     #[default]
     PerDirection,
     /// Directions one after the other in training, gemm parallel over rayon (the frozen path
@@ -64,13 +66,55 @@ impl Threading {
     }
 }
 
-/// `a` and `b` side by side on rayon's pool when `parallel`, else one after the other.
-fn run2<A: FnOnce() + Send, B: FnOnce() + Send>(parallel: bool, a: A, b: B) {
-    if parallel {
-        rayon::join(a, b);
-    } else {
+/// Where [`run2`] puts its two halves when they run side by side.
+#[derive(Clone, Copy)]
+enum Pool {
+    /// rayon's: the frozen path, which runs among rayon work (the bone projection) and no
+    /// candle ops.
+    Rayon,
+    /// candle's own worker pool, the threads of candle's elementwise ops: the training op, which
+    /// runs among candle ops. Those workers spin for a while (~0.25 ms) after every op, so halves
+    /// handed to rayon's threads instead fight them for the cores: a training step measured
+    /// 1.05-1.10x faster this way with the machine otherwise quiet (with both cores busy with other
+    /// work, ~0.9x: candle's pool waits for a descheduled worker, rayon's does not).
+    Candle,
+}
+
+/// `a` and `b` side by side on `pool` when `parallel`, else one after the other. On candle's
+/// pool the calling thread takes whichever half no worker has taken.
+fn run2<A: FnOnce() + Send, B: FnOnce() + Send>(parallel: bool, pool: Pool, a: A, b: B) {
+    if !parallel {
         a();
         b();
+        return;
+    }
+    // Without workers (CANDLE_NUM_THREADS=1, the setting for a busy machine) candle's pool would
+    // run both halves on this thread: rayon's then.
+    let candle = match pool {
+        Pool::Candle => Some(candle_core::utils::barrier_pool()).filter(|p| p.n_workers() > 0),
+        Pool::Rayon => None,
+    };
+    match candle {
+        None => {
+            rayon::join(a, b);
+        }
+        Some(candle) => {
+            fn run_once<F: FnOnce()>(f: &std::sync::Mutex<Option<F>>) {
+                if let Some(f) = f.lock().unwrap().take() {
+                    f()
+                }
+            }
+            let (a, b) = (std::sync::Mutex::new(Some(a)), std::sync::Mutex::new(Some(b)));
+            candle.execute_chunked(2, |halves| {
+                for half in halves {
+                    if half == 0 {
+                        run_once(&a)
+                    } else {
+                        run_once(&b)
+                    }
+                }
+            });
+        }
     }
 }
 
@@ -91,6 +135,8 @@ pub struct BiLstm {
     pub bwd: LstmWeights,
     /// Used by [`BiLstm::forward`] and passed on to [`BiLstm::freeze`]'s copy.
     pub threading: Threading,
+    /// The training op's working memory, kept from one call to the next.
+    buffers: Arc<Buffers>,
 }
 
 impl BiLstm {
@@ -110,7 +156,7 @@ impl BiLstm {
         };
         let fwd = get("")?;
         let bwd = get("_reverse")?;
-        Ok(Self { in_dim, hidden, fwd, bwd, threading: Threading::default() })
+        Ok(Self { in_dim, hidden, fwd, bwd, threading: Threading::default(), buffers: Arc::default() })
     }
 
     /// Fast training/inference forward with autograd: `[B, T, I] -> [B, T, 2H]`
@@ -134,7 +180,7 @@ impl BiLstm {
             ],
             0,
         )?;
-        x2.apply_op2(&p, BiLstmOp::new(b, t, i, self.hidden, self.threading))
+        x2.apply_op2(&p, BiLstmOp::new(b, t, i, self.hidden, self.threading).reusing(self.buffers.clone()))
     }
 
     /// Copy the current weights out into plain f32 buffers for [`CpuBiLstm::infer`].

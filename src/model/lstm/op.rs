@@ -7,13 +7,44 @@
 //! forward pass: per step one gemm for `dh_{t-1}`, then one gemm each for `dW_hh` and `dW_ih`,
 //! and `dx` (skipped when `x` is not in the autograd graph); the bias gradients are column sums.
 //! Each direction owns its buffers (gates, gate gradients, its parts of the parameter gradient),
-//! so the two run side by side on plain borrows.
-use super::kernels::{cell_bwd, matmul, transposed, Strided};
+//! so the two run side by side on plain borrows. The working buffers come from the layer's
+//! [`Buffers`] and go back to it when the op is dropped.
+use super::kernels::{cell_bwd, matmul, transpose_into, Strided};
 use super::recurrence::{interleave, time_at, DirFwd};
-use super::{run2, Threading};
+use super::{run2, Pool, Threading};
 use candle_core::{bail, CpuStorage, CustomOp2, Device, Layout, Result, Shape, Storage, Tensor};
 use gemm::Parallelism;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
+
+/// Working buffers an LSTM layer's ops keep between calls. A training step needs the same
+/// ~10 MB of gates, cells and gate gradients per layer every time; fresh zeroed buffers cost
+/// their memset every step (6% of a step's samples in perf), reused ones are already in cache.
+#[derive(Default)]
+pub struct Buffers(Mutex<Vec<Vec<f32>>>);
+
+impl Buffers {
+    /// A buffer of `n` floats holding whatever an earlier use left in it: only for buffers that
+    /// are written before they are read. The smallest free one that fits, so each keeps to its
+    /// size and steady-state training neither allocates nor clears.
+    fn take(&self, n: usize) -> Vec<f32> {
+        let mut free = self.0.lock().unwrap();
+        let fit = (0..free.len()).filter(|&k| free[k].capacity() >= n).min_by_key(|&k| free[k].capacity());
+        let mut v = fit.map(|k| free.swap_remove(k)).unwrap_or_default();
+        v.resize(n, 0.0);
+        v
+    }
+
+    fn give(&self, v: Vec<f32>) {
+        self.0.lock().unwrap().push(v);
+    }
+}
+
+impl std::fmt::Debug for Buffers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let free = self.0.lock().map_or(0, |v| v.len());
+        write!(f, "Buffers({free} free)")
+    }
+}
 
 /// What the backward pass needs from the forward pass, per direction.
 struct FwdCache {
@@ -60,11 +91,19 @@ pub struct BiLstmOp {
     h: usize,
     threading: Threading,
     cache: Mutex<Option<FwdCache>>,
+    buffers: Arc<Buffers>,
 }
 
 impl BiLstmOp {
+    /// With buffers of its own; [`Self::reusing`] shares a layer's.
     pub fn new(b: usize, t: usize, i: usize, h: usize, threading: Threading) -> Self {
-        Self { b, t, i, h, threading, cache: Mutex::new(None) }
+        Self { b, t, i, h, threading, cache: Mutex::new(None), buffers: Arc::default() }
+    }
+
+    /// Takes its working buffers from (and returns them to) `buffers`.
+    pub(super) fn reusing(mut self, buffers: Arc<Buffers>) -> Self {
+        self.buffers = buffers;
+        self
     }
     fn layout(&self) -> FlatLayout {
         FlatLayout { i: self.i, h: self.h }
@@ -95,9 +134,11 @@ pub(crate) fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> 
     }
 }
 
-/// One direction's buffers of the forward pass, each `[B*T, ..]` except `z` (`[B, 4H]`).
+/// One direction's buffers of the forward pass, each `[B*T, ..]` except `whh_t` (`[H, 4H]`)
+/// and `z` (`[B, 4H]`).
 struct DirBuffers {
     g: Vec<f32>,
+    whh_t: Vec<f32>,
     hs: Vec<f32>,
     acts: Vec<f32>,
     cs: Vec<f32>,
@@ -105,10 +146,21 @@ struct DirBuffers {
 }
 
 impl DirBuffers {
-    fn new(b: usize, t: usize, h: usize) -> Self {
+    /// Every one is written before it is read (the gemms overwrite, the recurrence writes every
+    /// row), so they need no clearing.
+    fn take(buffers: &Buffers, b: usize, t: usize, h: usize) -> Self {
         let bt = b * t;
-        let zeros = |n: usize| vec![0f32; n];
-        Self { g: zeros(bt * 4 * h), hs: zeros(bt * h), acts: zeros(bt * 4 * h), cs: zeros(bt * h), z: zeros(b * 4 * h) }
+        let take = |n: usize| buffers.take(n);
+        Self { g: take(bt * 4 * h), whh_t: take(4 * h * h), hs: take(bt * h), acts: take(bt * 4 * h), cs: take(bt * h), z: take(b * 4 * h) }
+    }
+}
+
+impl Drop for BiLstmOp {
+    /// The forward cache back to the layer's buffers, once the graph holding the op is gone.
+    fn drop(&mut self) {
+        if let Ok(Some(FwdCache { acts, cs })) = self.cache.get_mut().map(Option::take) {
+            acts.into_iter().chain(cs).for_each(|v| self.buffers.give(v));
+        }
     }
 }
 
@@ -125,24 +177,26 @@ impl CustomOp2 for BiLstmOp {
         if x.len() != b * t * i || p.len() != fl.len() {
             bail!("fused lstm: bad input sizes {} {}", x.len(), p.len());
         }
-        let bsum: [Vec<f32>; 2] = [0, 1].map(|d| {
-            (0..4 * h).map(|j| p[fl.b_ih(d) + j] + p[fl.b_hh(d) + j]).collect::<Vec<f32>>()
-        });
-        // once per call rather than a repack at every step
-        let whh_t: [Vec<f32>; 2] = [0, 1].map(|d| transposed(&p[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h], 4 * h, h));
         let zeros = vec![0f32; h];
         let par = self.threading.gemm_parallelism();
         let direction = |d: usize, buf: &mut DirBuffers| {
+            let bias: Vec<f32> = (0..4 * h).map(|j| p[fl.b_ih(d) + j] + p[fl.b_hh(d) + j]).collect();
+            // W_hh transposed once per call rather than repacked by gemm at every step; here, not
+            // before the directions split, so that the two transposes run side by side
+            transpose_into(&p[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h], 4 * h, h, &mut buf.whh_t);
             // g [BT, 4H] = x [BT, I] · W_ih[d]ᵀ
             let w_ih = Strided::transpose_of(&p[fl.w_ih(d)..fl.w_ih(d + 1)], i);
             matmul((b * t, 4 * h, i), &mut buf.g, 4 * h, Strided::rows(x, i), w_ih, false, par);
-            let DirBuffers { g, hs, acts, cs, z } = buf;
-            DirFwd { d, b, t, h, g, whh_t: &whh_t[d], bias: &bsum[d], hs, acts, cs, z, zeros: &zeros, par }.run();
+            let DirBuffers { g, whh_t, hs, acts, cs, z } = buf;
+            DirFwd { d, b, t, h, g, whh_t, bias: &bias, hs, acts, cs, z, zeros: &zeros, par }.run();
         };
-        let [mut fwd, mut bwd] = [0, 1].map(|_| DirBuffers::new(b, t, h));
-        run2(self.directions_side_by_side(), || direction(0, &mut fwd), || direction(1, &mut bwd));
+        let [mut fwd, mut bwd] = [0, 1].map(|_| DirBuffers::take(&self.buffers, b, t, h));
+        run2(self.directions_side_by_side(), Pool::Candle, || direction(0, &mut fwd), || direction(1, &mut bwd));
         let mut out = vec![0f32; b * t * 2 * h];
         interleave(&mut out, [&fwd.hs, &bwd.hs], h);
+        for v in [fwd.g, fwd.whh_t, fwd.hs, fwd.z, bwd.g, bwd.whh_t, bwd.hs, bwd.z] {
+            self.buffers.give(v);
+        }
         *self.cache.lock().unwrap() = Some(FwdCache { acts: [fwd.acts, bwd.acts], cs: [fwd.cs, bwd.cs] });
         Ok((CpuStorage::F32(out), Shape::from((b, t, 2 * h))))
     }
@@ -157,7 +211,8 @@ impl CustomOp2 for BiLstmOp {
             Some(c) => c,
             None => bail!("fused lstm: backward without forward cache"),
         };
-        let mut dg = [vec![0f32; bt * h4], vec![0f32; bt * h4]];
+        // every row written by the cell backward before any read
+        let mut dg = [0, 1].map(|_| self.buffers.take(bt * h4));
         let mut dp = vec![0f32; fl.len()];
         let mut dx = if need_dx { vec![0f32; bt * i] } else { Vec::new() };
         let par = self.threading.gemm_parallelism();
@@ -175,12 +230,14 @@ impl CustomOp2 for BiLstmOp {
                         let direction = |d: usize, dg: &mut [f32], dwih: &mut [f32], dwhh: &mut [f32], db: &mut [f32]| {
                             let whh = &ps[fl.w_hh(d)..fl.w_hh(d) + 4 * h * h];
                             let (acts, cs) = (&cache.acts[d], &cache.cs[d]);
-                            DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg: &mut *dg, dw: dwhh, db, par }.run();
+                            let hp = self.buffers.take(bt * h);
+                            let hp = DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg: &mut *dg, dw: dwhh, db, hp, par }.run();
+                            self.buffers.give(hp);
                             // dW_ih[d] [4H, I] = dG_dᵀ [4H, BT] · x [BT, I]
                             matmul((h4, i, bt), dwih, i, Strided::transpose_of(dg, h4), Strided::rows(xs, i), false, par);
                         };
                         let [dg0, dg1] = &mut dg;
-                        run2(parallel, || direction(0, dg0, dwih0, dwhh0, db0), || direction(1, dg1, dwih1, dwhh1, db1));
+                        run2(parallel, Pool::Candle, || direction(0, dg0, dwih0, dwhh0, db0), || direction(1, dg1, dwih1, dwhh1, db1));
                         // the bias gradients: b_hh gets the same as b_ih
                         let (bi, bh) = dbias.split_at_mut(8 * h);
                         bh.copy_from_slice(bi);
@@ -192,6 +249,7 @@ impl CustomOp2 for BiLstmOp {
             })
         })????;
         drop(guard);
+        dg.into_iter().for_each(|v| self.buffers.give(v));
         let dev = Device::Cpu;
         let dx = if need_dx { Some(Tensor::from_vec(dx, x.shape(), &dev)?) } else { None };
         Ok((dx, Some(Tensor::from_vec(dp, fl.len(), &dev)?)))
@@ -211,7 +269,7 @@ fn input_gradient(dx: &mut [f32], dg: &[Vec<f32>; 2], ps: &[f32], fl: FlatLayout
     let bt = dx.len() / i;
     let half = if parallel { bt / 2 } else { bt };
     let (first, second) = dx.split_at_mut(half * i);
-    run2(parallel, || rows(0, first), || rows(half, second));
+    run2(parallel, Pool::Candle, || rows(0, first), || rows(half, second));
 }
 
 /// Backprop through time for one direction.
@@ -232,12 +290,14 @@ struct DirBwd<'a> {
     /// Gradient of this direction's `W_hh [4H, H]` and bias `[4H]`, written.
     dw: &'a mut [f32],
     db: &'a mut [f32],
+    /// Scratch `[B*T, H]` for the previous hidden states (any contents), handed back by `run`.
+    hp: Vec<f32>,
     par: Parallelism,
 }
 
 impl DirBwd<'_> {
-    fn run(self) {
-        let DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg, dw, db, par } = self;
+    fn run(self) -> Vec<f32> {
+        let DirBwd { d, b, t, h, dout, hs, whh, acts, cs, dg, dw, db, mut hp, par } = self;
         let h4 = 4 * h;
         let mut dh_rec = vec![0f32; b * h];
         let mut dc = vec![0f32; b * h];
@@ -270,8 +330,8 @@ impl DirBwd<'_> {
             }
         }
         // h_prev for every (b, t) of this direction, zero at the first step.
-        let mut hp = vec![0f32; b * t * h];
         for bb in 0..b {
+            hp[(bb * t + time_at(d, t, 0)) * h..][..h].fill(0.0);
             for s in 1..t {
                 let row = bb * t + time_at(d, t, s);
                 let prow = bb * t + time_at(d, t, s - 1);
@@ -287,5 +347,6 @@ impl DirBwd<'_> {
                 *a += v;
             }
         }
+        hp
     }
 }
