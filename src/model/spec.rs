@@ -93,6 +93,14 @@ pub struct ModelSpec {
     /// models lock (Bandai since its lock splits the contacts its network's feet slide through).
     #[serde(default = "locks_feet")]
     pub foot_lock: bool,
+    /// Whether the foot lock makes the body travel as far as its feet carry it
+    /// ([`crate::synth::foot_lock::Travel::FromFeet`]): for a network whose stance feet slide
+    /// with the body (Bandai's run). Off, the lock holds the feet and moves the hips only as far
+    /// as the legs need; h36m's walk, whose feet the lock already holds (support-point speed
+    /// 1.27x real), slowed from 0.73 to 0.62x its real speed when carried, and its class
+    /// control 1 s after another class's seed fell from 93.1 to 89.4%.
+    #[serde(default)]
+    pub carry_by_feet: bool,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
     #[serde(default)]

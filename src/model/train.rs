@@ -303,6 +303,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         dense_norm,
         class_speed: corpus.class_speeds(),
         foot_lock: true,
+        carry_by_feet: false,
         glogen,
         locgen,
         glogen_training: None,

@@ -12,7 +12,7 @@ use super::constraints::{check_keys, Key, RootPath};
 use super::keys::{fix_roots, key_pose, rewarp, warp_dense, warp_sparse, PlacedKey};
 use super::pace::RecentPace;
 use super::path_follow::{follow_path, GroundPath};
-use super::foot_lock::{foot_lock, FootLocked};
+use super::foot_lock::{foot_lock, FootLocked, Travel};
 use super::init::{initial_features, InitPose};
 use super::smoothstep;
 use super::timeline::Timeline;
@@ -541,7 +541,10 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
         Motion::from_positions(skeleton, spec.fps, positions)
     };
     let segments = segment_spans(&timeline, &spec.classes, &interval_starts, motion.frames());
-    let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock && spec.foot_lock)?;
+    // A root path has laid out where the body goes; without one, the feet of a model whose
+    // network slides them say how far.
+    let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet } else { Travel::Kept };
+    let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock && spec.foot_lock, travel)?;
     let motion = rewarp(motion, &spec.layout, &keys);
     progress(1.0);
     Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts, warnings })
