@@ -146,7 +146,7 @@ fn carried_by_feet(motion: &Motion, roles: &JointRoles, contacts: &FootContacts)
     let (low, high) = CARRY_HEIGHT;
     let carrying = |side: Side| {
         let leg = roles.leg(side);
-        let contact = eased(&contacts.side(side).to_vec(), (CARRY_EASE_SECONDS * motion.fps).max(1.0));
+        let contact = eased(runs(contacts.side(side)), frames, (CARRY_EASE_SECONDS * motion.fps).max(1.0));
         (0..frames)
             .map(|t| {
                 let height = [Some(leg.ankle), leg.toe].into_iter().flatten().map(|j| motion.frame(t)[j].y * unit).fold(f32::INFINITY, f32::min);
@@ -186,11 +186,8 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
     let frames = motion.frames();
     let both: Vec<bool> = contacts.left.iter().zip(&contacts.right).map(|(l, r)| *l && *r).collect();
     let shortest = (STAND_SECONDS * motion.fps).round() as usize;
-    let standing: Vec<bool> = runs(&both).into_iter().filter(|(s, e)| e - s >= shortest).fold(vec![false; frames], |mut f, (s, e)| {
-        f[s..e].fill(true);
-        f
-    });
-    let weight = eased(&standing, (STAND_EASE_SECONDS * motion.fps).max(1.0));
+    let standing = runs(&both).into_iter().filter(|(s, e)| e - s >= shortest);
+    let weight = eased(standing, frames, (STAND_EASE_SECONDS * motion.fps).max(1.0));
     let ankles = [roles.left.ankle, roles.right.ankle];
     // The feet's own frame-to-frame jitter is not drift: subtracted from the whole body, it
     // would shake the hips (a standing h36m take's hip jerk 1.75x the network's).
@@ -204,10 +201,11 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
     moved_back(motion, steps.iter().zip(&weight).map(|(s, w)| *s * *w))
 }
 
-/// Per frame, 1 inside each run of `flags` and easing to 0 over `ease` frames at its ends.
-fn eased(flags: &[bool], ease: f32) -> Vec<f32> {
-    let mut weight = vec![0.0f32; flags.len()];
-    for (start, end) in runs(flags) {
+/// Per frame of `frames`, 1 inside each of the runs `[start, end)` and easing to 0 over
+/// `ease` frames at its ends.
+fn eased(runs: impl IntoIterator<Item = (usize, usize)>, frames: usize, ease: f32) -> Vec<f32> {
+    let mut weight = vec![0.0f32; frames];
+    for (start, end) in runs {
         for (t, w) in weight.iter_mut().enumerate().take(end).skip(start) {
             *w = smoothstep((t - start + 1).min(end - t) as f32 / ease);
         }

@@ -493,7 +493,9 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             strength
         };
         embeddings.push(model.rollout_block(&input, &previous, &plan.class, strength, opts.join_seams, &mut out));
-        pace.push(model, plan.target, &raw_block(&spec, &previous, &out));
+        if opts.keep_alive {
+            pace.push(model, plan.target, &raw_block(&spec, &previous, &out));
+        }
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
         }
