@@ -46,6 +46,10 @@ pub struct TrainArgs {
     rollout: usize,
     #[arg(long, default_value_t = 0.1)]
     class_dropout: f32,
+    /// GloGen predicts each pose as an offset from the last pose of its input, so blocks
+    /// start where their context leaves off.
+    #[arg(long)]
+    residual: bool,
     /// Dense frames between sparse poses (the paper's M + 1).
     #[arg(long, default_value_t = 5)]
     stride: usize,
@@ -87,6 +91,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.use_class = !args.no_class;
     opts.rollout_blocks = args.rollout;
     opts.class_dropout = args.class_dropout;
+    opts.residual = args.residual;
     opts.stride = args.stride;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
@@ -110,7 +115,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
         &mut |p| {
             if let Some(v) = p.val_error {
                 last_val = v;
-                bar.println(format!("step {}: loss {:.4}, validation error {:.2}", p.step, p.loss, v));
+                let line = format!("step {}: loss {:.4}, validation error {:.2} ({:.1} steps/s)", p.step, p.loss, v, p.steps_per_s);
+                // A hidden bar (output to a log file) drops its printed lines.
+                if bar.is_hidden() {
+                    eprintln!("{line}");
+                } else {
+                    bar.println(line);
+                }
             }
             bar.set_position(p.step as u64);
             bar.set_message(format!("loss {:.4} val {:.2} {:.1} steps/s", p.loss, last_val, p.steps_per_s));

@@ -93,6 +93,7 @@ impl GlocalModel {
         let guided = cond.is_some() && self.spec.glogen.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6;
         if !guided {
             self.glogen.infer(input, cond, 1, t, out);
+            self.offset_from_last(input, out);
             return self.glogen.last_encoding(1, t).to_vec();
         }
         // The conditioned and unconditioned passes as one batch of two: the weights stream
@@ -105,7 +106,20 @@ impl GlocalModel {
         for ((o, c), u) in out.iter_mut().zip(conditioned).zip(unconditioned) {
             *o = u + strength * (c - u);
         }
+        self.offset_from_last(input, out);
         self.glogen.last_encoding(2, t)[..t * 2 * self.spec.glogen.block.hidden].to_vec()
+    }
+
+    /// A residual GloGen's block is offsets from the last pose of its input.
+    fn offset_from_last(&self, input: &[f32], out: &mut [f32]) {
+        if !self.spec.glogen.residual {
+            return;
+        }
+        let dim = self.spec.layout.dim();
+        let last = &input[input.len() - dim..];
+        for pose in out.chunks_exact_mut(dim) {
+            pose.iter_mut().zip(last).for_each(|(o, l)| *o += l);
+        }
     }
 
     /// One step of GloGen's rollout: a block from `input` (the context as GloGen should see

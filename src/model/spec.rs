@@ -41,6 +41,11 @@ pub struct GloGenSpec {
     /// Blocks the model rolls out on its own outputs per training window (1 in the paper).
     pub rollout_blocks: usize,
     pub loss: LossKind,
+    /// Each predicted pose is an offset from the last pose of the block's input (Seq2Seq's
+    /// residual), so a block starts where its context leaves off instead of wherever the
+    /// decoder places its first pose (models saved before the choice: absolute poses).
+    #[serde(default)]
+    pub residual: bool,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -60,6 +60,8 @@ pub struct TrainOptions {
     pub class_in_decoder: bool,
     pub class_dropout: f32,
     pub rollout_blocks: usize,
+    /// GloGen predicts offsets from the last pose of its input ([`GloGenSpec::residual`]).
+    pub residual: bool,
     pub stride: usize,
     pub block_len: usize,
     pub locgen_window: usize,
@@ -92,6 +94,7 @@ impl TrainOptions {
             class_in_decoder: true,
             class_dropout: 0.1,
             rollout_blocks: 2,
+            residual: false,
             stride: 5,
             block_len: 10,
             locgen_window: 10,
@@ -266,6 +269,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         class_dropout: if opts.use_class { opts.class_dropout } else { 0.0 },
         rollout_blocks: opts.rollout_blocks.max(1),
         loss: opts.loss,
+        residual: opts.residual,
     };
     let locgen = LocGenSpec {
         block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
@@ -577,10 +581,7 @@ impl StageTrainer<'_> {
         let mut input = x.clone();
         let mut total: Option<Tensor> = None;
         for r in 0..blocks {
-            let mut pred = block.forward(&input, cond.as_ref(), true)?;
-            if self.opts.stage == Stage::Locgen {
-                pred = (pred + &input)?;
-            }
+            let pred = self.predict(block, &input, cond.as_ref(), true)?;
             let target = y.narrow(1, r * steps_in, steps_in)?;
             let last = input.narrow(1, steps_in - 1, 1)?;
             let l = joint_flow_loss(&pred, &target, &last, loss_kind)?;
@@ -628,6 +629,17 @@ impl StageTrainer<'_> {
         out
     }
 
+    /// The stage's prediction from `input` `[B, T, dim]`: LocGen's is a residual on its
+    /// interpolated input, a residual GloGen's an offset from the input's last pose.
+    fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>, train: bool) -> Result<Tensor> {
+        let pred = block.forward(input, cond, train)?;
+        Ok(match self.opts.stage {
+            Stage::Locgen => (pred + input)?,
+            Stage::Glogen if self.spec.glogen.residual => pred.broadcast_add(&input.narrow(1, input.dim(1)? - 1, 1)?)?,
+            Stage::Glogen => pred,
+        })
+    }
+
     /// Mean joint position error (skeleton units) of the block and of the stage's baseline.
     fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)> {
         let dim = self.layout().dim();
@@ -645,11 +657,7 @@ impl StageTrainer<'_> {
                 Tensor::from_vec(c, (n, cond_dim), &Device::Cpu)
             })
             .transpose()?;
-        let mut pred = block.forward(&x, cond.as_ref(), false)?;
-        if self.opts.stage == Stage::Locgen {
-            pred = (pred + &x)?;
-        }
-        let pred = pred.flatten_all()?.to_vec1::<f32>()?;
+        let pred = self.predict(block, &x, cond.as_ref(), false)?.flatten_all()?.to_vec1::<f32>()?;
         let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
         for (w, p) in windows.iter().zip(pred.chunks_exact(steps * dim)) {
             let mut p = p.to_vec();
