@@ -50,6 +50,9 @@ pub struct TrainArgs {
     /// start where their context leaves off.
     #[arg(long)]
     residual: bool,
+    /// GloGen trains on its blocks joined at their seams, as generation shows them.
+    #[arg(long)]
+    joined: bool,
     /// Dense frames between sparse poses (the paper's M + 1).
     #[arg(long, default_value_t = 5)]
     stride: usize,
@@ -92,6 +95,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.rollout_blocks = args.rollout;
     opts.class_dropout = args.class_dropout;
     opts.residual = args.residual;
+    opts.joined = args.joined;
     opts.stride = args.stride;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;

@@ -11,7 +11,6 @@ use super::motion::{mean, Pool, COMMON_FPS};
 use super::suites::{model_dir, SuiteOptions};
 use super::table::{Markdown, Table};
 use crate::data::features::{wrap, FeatureLayout};
-use crate::data::registry::Dataset;
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
 use crate::motion::{JointRoles, Motion};
@@ -177,7 +176,7 @@ fn one_class(class: &str, variant: usize) -> GenerateOptions {
 pub fn constraints_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
     let mut md = Markdown::new(DEFINITIONS);
     let mut models = Vec::new();
-    for dataset in [Dataset::H36m, Dataset::Bandai] {
+    for dataset in super::suites::suite_datasets(opts)? {
         let mut model = GlocalModel::load(&model_dir(opts, dataset))?;
         log(&format!("constraints: {dataset} classifier"));
         let corpus = Corpus::load(dataset, &opts.data, model.spec.stride, 3)?;

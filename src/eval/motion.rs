@@ -542,12 +542,8 @@ fn cell(v: f64, digits: usize) -> String {
 }
 
 pub fn motion_suite(opts: &SuiteOptions, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
-    let datasets: Vec<Dataset> = match &opts.model {
-        Some(p) => vec![crate::model::spec::ModelSpec::read(p)?.dataset.parse()?],
-        None => vec![Dataset::H36m, Dataset::Bandai],
-    };
     let mut results = Vec::new();
-    for dataset in datasets {
+    for dataset in super::suites::suite_datasets(opts)? {
         results.push(model_result(dataset, opts, cfg, log)?);
     }
     let mut md = Markdown::new(format!("{DEFINITIONS}\n\nGenerated: the shipped defaults (anchored transitions, class strength, keep-alive, LocGen, bone projection) from each class's first {} seed-bank windows with noise seeds {:?}, {} s scored after the seed block per take; {} two-class takes per class ({} s + {} s); one {} s take per class for repeats. \"no lock\" is the same takes with `foot_lock` off.\n", cfg.variants, cfg.seeds, cfg.take_seconds, cfg.transitions, cfg.segment_seconds, cfg.segment_seconds, cfg.long_seconds));

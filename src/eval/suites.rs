@@ -140,6 +140,14 @@ pub(crate) fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {
     })
 }
 
+/// The shipped models' datasets a two-model suite runs on: `--model`'s own alone, or both.
+pub(crate) fn suite_datasets(opts: &SuiteOptions) -> Result<Vec<Dataset>> {
+    Ok(match &opts.model {
+        Some(p) => vec![ModelSpec::read(p)?.dataset.parse()?],
+        None => vec![Dataset::H36m, Dataset::Bandai],
+    })
+}
+
 // ---------------------------------------------------------------------------------------
 // cmu-euclid
 
@@ -738,11 +746,7 @@ fn locgen_suite(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markd
 fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
     let mut md = Markdown::new("Each class generated for 120 s from its first seed (noise seed 1), judged per 10 s window: mean joint speed over the class's real mean speed (training split), relative bone-length error (after the shipped bone projection, and of the raw network output without it), and whether every value is finite. Keep-alive (re-anchoring a stalled segment on its class's seed windows) is on, as shipped; one column gives the lowest window speed with it off. The 60 s columns are the first six windows of the same take.\n");
     let mut out = Vec::new();
-    let datasets: Vec<Dataset> = match &opts.model {
-        Some(p) => vec![ModelSpec::read(p)?.dataset.parse()?],
-        None => vec![Dataset::H36m, Dataset::Bandai],
-    };
-    for dataset in datasets {
+    for dataset in suite_datasets(opts)? {
         let dir = model_dir(opts, dataset);
         if !dir.join("glogen.safetensors").exists() {
             md.text(&format!("\n{}: no model.\n", dir.display()));
@@ -799,4 +803,23 @@ fn long_term(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown
         md.table(table);
     }
     Ok((md, json!({"classes": out})))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A two-model suite given `--model` runs that model's dataset alone (the constraints
+    /// suite once loaded an h36m model for Bandai too and failed on the classifier's shapes).
+    #[test]
+    fn a_given_model_runs_its_own_dataset_alone() {
+        let shipped = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name);
+        for (name, dataset) in [("h36m", Dataset::H36m), ("bandai", Dataset::Bandai)] {
+            let opts = SuiteOptions { model: Some(shipped(name)), ..Default::default() };
+            assert_eq!(suite_datasets(&opts).unwrap(), vec![dataset]);
+        }
+        assert_eq!(suite_datasets(&SuiteOptions::default()).unwrap(), vec![Dataset::H36m, Dataset::Bandai]);
+        let missing = SuiteOptions { model: Some(PathBuf::from("no/such/model")), ..Default::default() };
+        assert!(suite_datasets(&missing).is_err());
+    }
 }

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
-use candle_core::{DType, Device};
+use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use glam::Vec3;
 
@@ -266,8 +266,7 @@ fn join_seam(last: &[f32], block: &mut [f32], dim: usize) {
     if poses < 2 {
         return;
     }
-    let span = poses / 2;
-    let fade: Vec<f32> = (0..span).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos())).collect();
+    let fade = join_fade(poses);
     for f in 0..dim {
         let target = if (1..ROOT_FEATURES).contains(&f) {
             0.5 * (last[f] + block[dim + f])
@@ -279,6 +278,33 @@ fn join_seam(last: &[f32], block: &mut [f32], dim: usize) {
             block[k * dim + f] += shift * w;
         }
     }
+}
+
+/// The share of a seam's shift each of a block's `poses` keeps: a raised cosine from 1 at its
+/// first pose to 0 at its middle.
+fn join_fade(poses: usize) -> Vec<f32> {
+    let span = poses / 2;
+    (0..poses).map(|k| if k < span { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) } else { 0.0 }).collect()
+}
+
+/// [`join_seam`] on a batch of blocks `[B, T, D]` onto their poses before `[B, 1, D]`, as
+/// differentiable tensor operations: what training on joined rollouts backpropagates through.
+pub fn join_seams_tensor(blocks: &Tensor, last: &Tensor) -> candle_core::Result<Tensor> {
+    let (_, poses, dim) = blocks.dims3()?;
+    if poses < 2 {
+        return Ok(blocks.clone());
+    }
+    let device = blocks.device();
+    let first = blocks.narrow(1, 0, 1)?;
+    let second = blocks.narrow(1, 1, 1)?;
+    let root: Vec<f32> = (0..dim).map(|f| if (1..ROOT_FEATURES).contains(&f) { 1.0 } else { 0.0 }).collect();
+    let root = Tensor::from_vec(root, (1, 1, dim), device)?;
+    let root_target = ((last + &second)? * 0.5)?;
+    let pose_target = ((last + &second)? - &first)?;
+    let target = (root_target.broadcast_mul(&root)? + pose_target.broadcast_mul(&(1.0 - &root)?)?)?;
+    let shift = (target - first)?;
+    let fade = Tensor::from_vec(join_fade(poses), (1, poses, 1), device)?;
+    blocks + shift.broadcast_mul(&fade)?
 }
 
 /// Builds a block and fills it from a safetensors file.
@@ -318,4 +344,30 @@ pub fn load_weights(path: &Path, varmap: &VarMap) -> Result<(), Error> {
 
 fn file_error(what: String, cause: impl std::error::Error + Send + Sync + 'static) -> Error {
     Error::File { what, cause: cause.into() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Training's tensor join is generation's join: the same poses to float rounding, for
+    /// blocks of either parity of length.
+    #[test]
+    fn tensor_join_matches_the_rollouts_join() {
+        for (poses, dim) in [(10, 7), (9, 5)] {
+            let value = |i: usize| ((i * 7919) % 97) as f32 / 13.0 - 3.5;
+            let blocks: Vec<f32> = (0..2 * poses * dim).map(value).collect();
+            let last: Vec<f32> = (0..2 * dim).map(|i| value(i + 5000)).collect();
+            let joined = join_seams_tensor(&Tensor::from_vec(blocks.clone(), (2, poses, dim), &Device::Cpu).unwrap(), &Tensor::from_vec(last.clone(), (2, 1, dim), &Device::Cpu).unwrap()).unwrap();
+            let joined = joined.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            for b in 0..2 {
+                let mut block = blocks[b * poses * dim..(b + 1) * poses * dim].to_vec();
+                join_seam(&last[b * dim..(b + 1) * dim], &mut block, dim);
+                assert_ne!(block, blocks[b * poses * dim..(b + 1) * poses * dim], "the join moved nothing");
+                for (a, t) in block.iter().zip(&joined[b * poses * dim..(b + 1) * poses * dim]) {
+                    assert!((a - t).abs() < 1e-5, "{a} against {t}");
+                }
+            }
+        }
+    }
 }

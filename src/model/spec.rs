@@ -46,6 +46,11 @@ pub struct GloGenSpec {
     /// decoder places its first pose (models saved before the choice: absolute poses).
     #[serde(default)]
     pub residual: bool,
+    /// Trained on its blocks joined at their seams as generation joins them
+    /// (`GlocalModel::rollout_block`): the loss sees the joined block and the rollout's next
+    /// block reads it.
+    #[serde(default)]
+    pub joined: bool,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

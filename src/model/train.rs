@@ -19,7 +19,7 @@ use rand::{Rng, SeedableRng};
 use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{interpolated_window, sample_window, Corpus, Track};
-use super::glocal::{load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
+use super::glocal::{join_seams_tensor, load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
 use super::spec::{sha256_hex, GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{FeatureLayout, Interpolation, Normalizer, Placement};
@@ -62,6 +62,8 @@ pub struct TrainOptions {
     pub rollout_blocks: usize,
     /// GloGen predicts offsets from the last pose of its input ([`GloGenSpec::residual`]).
     pub residual: bool,
+    /// GloGen trains on its blocks joined at their seams ([`GloGenSpec::joined`]).
+    pub joined: bool,
     pub stride: usize,
     pub block_len: usize,
     pub locgen_window: usize,
@@ -95,6 +97,7 @@ impl TrainOptions {
             class_dropout: 0.1,
             rollout_blocks: 2,
             residual: false,
+            joined: false,
             stride: 5,
             block_len: 10,
             locgen_window: 10,
@@ -270,6 +273,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         rollout_blocks: opts.rollout_blocks.max(1),
         loss: opts.loss,
         residual: opts.residual,
+        joined: opts.joined,
     };
     let locgen = LocGenSpec {
         block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
@@ -630,14 +634,16 @@ impl StageTrainer<'_> {
     }
 
     /// The stage's prediction from `input` `[B, T, dim]`: LocGen's is a residual on its
-    /// interpolated input, a residual GloGen's an offset from the input's last pose.
+    /// interpolated input, a residual GloGen's an offset from the input's last pose, a
+    /// joined GloGen's block joined onto that pose.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>, train: bool) -> Result<Tensor> {
         let pred = block.forward(input, cond, train)?;
-        Ok(match self.opts.stage {
-            Stage::Locgen => (pred + input)?,
-            Stage::Glogen if self.spec.glogen.residual => pred.broadcast_add(&input.narrow(1, input.dim(1)? - 1, 1)?)?,
-            Stage::Glogen => pred,
-        })
+        if self.opts.stage == Stage::Locgen {
+            return Ok((pred + input)?);
+        }
+        let last = input.narrow(1, input.dim(1)? - 1, 1)?;
+        let pred = if self.spec.glogen.residual { pred.broadcast_add(&last)? } else { pred };
+        Ok(if self.spec.glogen.joined { join_seams_tensor(&pred, &last)? } else { pred })
     }
 
     /// Mean joint position error (skeleton units) of the block and of the stage's baseline.
