@@ -12,6 +12,7 @@ mod pace;
 pub mod path_follow;
 pub mod render;
 pub mod rig;
+mod steer;
 pub mod timeline;
 
 /// How a generation ends other than with a take, where the caller acts on the kind (other

@@ -1,0 +1,293 @@
+//! How each block of the rollout is steered: its context eased towards a real window of its
+//! class at a class change, and keep-alive's rule on the take's own motion (a stalled,
+//! rushing, slow or looping take leans on a seed window of its class and is urged on).
+//! The plan (`generate::SparseTimeline::plan`) says what each block asks for; this says what
+//! the motion so far makes of it.
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use super::generate::{BlockPlan, GenerateOptions};
+use super::init::InitPose;
+use super::pace::RecentPace;
+use crate::data::features::ROOT_FEATURES;
+use crate::model::glocal::GlocalModel;
+
+/// Guidance at least this strong in the blocks of an anchored class change.
+const CHANGE_CLASS_STRENGTH: f32 = 2.5;
+
+/// A block whose poses move less than this fraction of its class's typical motion (the mean
+/// over the seed bank) has stalled: deterministic regression drifts towards the mean pose
+/// over minutes, so keep-alive re-anchors it.
+const STALL_BELOW: f32 = 0.9;
+
+/// A block whose poses move less than this fraction of its class's typical motion has
+/// nearly frozen: keep-alive leans on its window harder.
+const FROZEN_BELOW: f32 = 0.5;
+
+/// The most a stalled block's guidance is raised (times the class strength, in proportion to
+/// how far its motion fell below [`STALL_BELOW`]): leaning on seed windows alone left h36m's
+/// greeting and discussion at 0.59 and 0.57 of the real class's joint speed (the network
+/// regresses to slow motion from a lively context), guidance urges the class's own motion
+/// on (0.74 and 0.66 with 2, 0.76 and 0.68 with 3, where Bandai's bowing rushed to 3.1x its
+/// training speed over ten minutes).
+const STALLED_GUIDANCE_GAIN: f32 = 2.0;
+
+/// A block whose poses move more than this multiple of its class's typical motion is
+/// rushing (a gesture repeated ever faster): keep-alive re-anchors it too.
+const RUSH_ABOVE: f32 = 1.5;
+
+/// A take whose last seconds move slower than this fraction of its class's training speed
+/// ([`RecentPace`]) is leant on and urged on however its last block moved; one faster than
+/// [`PACE_FAST`] is leant towards its class's calmer windows, with plain conditioning, until
+/// it slows. Measured on ten-minute takes of every class (`cargo test --test synth
+/// ten_minute`): without the pace, 10 s windows ran at 0.37-2.12x the training speed on
+/// h36m and 0.46-2.71x on Bandai; with it, 0.52-1.92x and 0.62-1.98x.
+const PACE_SLOW: f32 = 0.7;
+const PACE_FAST: f32 = 1.3;
+
+/// A still block in a take whose last seconds ran faster than this ([`RecentPace`]) is its
+/// rest, not a stall: urging it on made Bandai's bowing burst to 2.2x its class's speed.
+const RESTING_ABOVE: f32 = 1.2;
+
+/// Blocks a keep-alive waits after any anchoring before it may re-anchor again, so a
+/// naturally still moment (a pause in a gesture) is not cut short at once.
+const KEEP_ALIVE_GAP: usize = 1;
+
+/// Blocks over which a keep-alive eases the context towards its anchor window.
+const KEEP_ALIVE_EASE: usize = 2;
+
+/// A keep-alive pulls the context this far (at random in this range) towards its anchor, so
+/// no two re-anchorings are alike.
+const KEEP_ALIVE_STRENGTH: std::ops::Range<f32> = 0.6..1.0;
+
+/// How far the block after a slow stretch ([`PACE_SLOW`]) starts from its anchor window: all
+/// the way, the same window chosen twice in a take gave the same block twice.
+const SLOW_TAKE_STRENGTH: std::ops::Range<f32> = 0.8..0.95;
+
+/// The rollout is deterministic, so a take that moves at its class's pace can still settle
+/// into a loop: a steady walk became one gait cycle repeated exactly for six minutes. When
+/// the last half block of poses comes back to an earlier stretch within this fraction of
+/// the class's typical step (per pose, over the joint features), keep-alive leans the
+/// context towards a seed window as it does for a stalled take.
+const LOOP_TOLERANCE: f32 = 0.25;
+
+/// A context being eased towards a real window of its class, by a growing share at each of
+/// its `blocks` blocks (the seam join keeps the easing from popping).
+struct Easing {
+    /// A class change (not a keep-alive).
+    change: bool,
+    anchor: Vec<f32>,
+    step: usize,
+    blocks: usize,
+    /// The block by which the easing reaches its full `strength`.
+    reach: usize,
+    strength: f32,
+}
+
+/// The steering's state over a take.
+pub(super) struct Steering {
+    bank: AnchorBank,
+    pace: RecentPace,
+    easing: Option<Easing>,
+    /// The class the context was last anchored on (or started from).
+    context_class: Option<usize>,
+    /// The seed window the take starts from, as (class, its index among the class's
+    /// windows): leaning on it again from a similar pose replays the start of the take.
+    start_window: Option<(usize, usize)>,
+    since_anchor: usize,
+    last_anchor: Option<usize>,
+    anchors: StdRng,
+    keep_alive: bool,
+    class_strength: f32,
+    dim: usize,
+    block_len: usize,
+}
+
+impl Steering {
+    pub fn new(model: &GlocalModel, opts: &GenerateOptions) -> Self {
+        let spec = &model.spec;
+        let start_window = match &opts.init {
+            InitPose::SeedIndex(i) => model.seeds.get(*i).map(|s| (s.class, model.seeds[..*i].iter().filter(|o| o.class == s.class).count())),
+            InitPose::SeedClass { class, variant } => spec.class_index(class).ok().and_then(|c| Some((c, model.class_seed_index(c, *variant)?))),
+            InitPose::File { .. } => None,
+        };
+        Self {
+            bank: AnchorBank::new(model),
+            pace: RecentPace::new(model),
+            easing: None,
+            context_class: start_window.map(|(class, _)| class),
+            start_window,
+            since_anchor: 0,
+            last_anchor: None,
+            anchors: StdRng::seed_from_u64(opts.seed ^ 0xA1C4_0125),
+            keep_alive: opts.keep_alive,
+            class_strength: opts.class_strength,
+            dim: spec.layout.dim(),
+            block_len: spec.block_len,
+        }
+    }
+
+    /// Steers the block `plan` asks for: eases `input` (its context, normalised) as the plan
+    /// and the take so far (`sparse`, normalised) ask, and returns the block's guidance.
+    pub fn block(&mut self, plan: &BlockPlan, input: &mut [f32], sparse: &[f32]) -> f32 {
+        let (dim, t) = (self.dim, self.block_len);
+        let motion = pose_motion(input, dim) / self.bank.typical[plan.target].max(f32::EPSILON);
+        let may_keep_alive = self.keep_alive && self.since_anchor >= KEEP_ALIVE_GAP;
+        let recent = self.pace.of(plan.target);
+        // Slow when either measure says so (a drifting stand reads fast with its travel in);
+        // fast by the whole body's speed, which the finished take keeps.
+        let slow_take = recent.is_some_and(|p| p.whole.min(p.pose) < PACE_SLOW);
+        let fast_take = recent.is_some_and(|p| p.whole > PACE_FAST);
+        let slow_block = motion < STALL_BELOW && !recent.is_some_and(|p| p.whole > RESTING_ABOVE);
+        let rushing = motion > RUSH_ABOVE || fast_take;
+        let stalled = may_keep_alive && (slow_block || slow_take || rushing);
+        let switching = plan.ease_blocks > 0 && self.context_class != Some(plan.target);
+        let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
+        // A loop is broken even while a keep-alive eases: leaning on a window the take leant
+        // on before, from a similar pose, replays that stretch. (While a class change eases,
+        // the search would decide nothing.)
+        let leaning = self.easing.as_ref().is_some_and(|e| !e.change);
+        let looping = may_keep_alive && (self.easing.is_none() || leaning) && repeats_earlier(sparse, dim, t / 2, t, LOOP_TOLERANCE * self.bank.typical[plan.target]);
+        if (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
+            // A take slow for seconds starts its next block from (nearly) a lively window, one
+            // block only: twice from the same context gives the same block twice.
+            let (blocks, strength) = if switching {
+                (plan.ease_blocks, 1.0)
+            } else if slow_take {
+                (1, self.anchors.random_range(SLOW_TAKE_STRENGTH))
+            } else {
+                (KEEP_ALIVE_EASE, self.anchors.random_range(KEEP_ALIVE_STRENGTH))
+            };
+            let typical = self.bank.typical[plan.target];
+            // A loop is broken by any other window; a lively one thrown into a still take
+            // made Bandai's bowing burst to 3-4x its typical motion.
+            let wanted = if switching || !stalled { 0.0..=f32::INFINITY } else if rushing { 0.0..=typical } else { typical..=f32::INFINITY };
+            let start = self.start_window.and_then(|(class, k)| (class == plan.target).then_some(k));
+            let avoid: Vec<usize> = self.last_anchor.into_iter().chain(start).collect();
+            self.easing = self.bank.pick(plan.target, wanted, &mut self.anchors, &avoid).map(|(k, anchor)| {
+                self.last_anchor = Some(k);
+                // A class change ends on the new class's window. A keep-alive leans towards its
+                // window by its random strength (0.6-1.0): a take far below its class's motion
+                // by its last block (a third less had kept a stalled h36m phoning take at
+                // 0.2-0.5x its typical motion however often it leant), any other a block later
+                // (leaning every slow take that hard raised Bandai's mean jerk from 1.21x to
+                // 1.34x real). A loop the lean makes is caught by [`repeats_earlier`].
+                let reach = if switching { (blocks - 1).max(1) } else if motion < FROZEN_BELOW || slow_take { blocks } else { blocks + 1 };
+                Easing { change: switching, anchor, step: 0, blocks, reach, strength }
+            });
+            self.context_class = Some(plan.target);
+            self.since_anchor = 0;
+        }
+        self.since_anchor += 1;
+        if let Some(e) = self.easing.as_mut() {
+            e.step += 1;
+            let alpha = (e.strength * e.step as f32 / e.reach as f32).min(1.0);
+            input.iter_mut().zip(&e.anchor).for_each(|(v, a)| *v += alpha * (a - *v));
+            if e.step == e.blocks {
+                self.easing = None;
+            }
+        }
+        // A class change is where the prior must beat the context's momentum most: its blocks
+        // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`].
+        let strength = if changing { self.class_strength.max(CHANGE_CLASS_STRENGTH) } else { self.class_strength };
+        // A stalled block's class is urged on too: guidance scaled by how far it fell short.
+        if !self.keep_alive || changing {
+            strength
+        } else if fast_take {
+            strength.min(1.0)
+        } else if slow_block || slow_take {
+            strength * (STALL_BELOW / motion.max(f32::EPSILON)).clamp(1.0, STALLED_GUIDANCE_GAIN)
+        } else {
+            strength
+        }
+    }
+
+    /// The block GloGen made of it, after the pose before it (both normalised): what the
+    /// take's pace is measured on.
+    pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
+        if self.keep_alive {
+            self.pace.push(model, class, &raw_block(&model.spec, previous, block));
+        }
+    }
+}
+
+struct AnchorBank {
+    /// Per class: (normalised window, its motion), in seed-bank order.
+    windows: Vec<Vec<(Vec<f32>, f32)>>,
+    typical: Vec<f32>,
+}
+
+impl AnchorBank {
+    fn new(model: &GlocalModel) -> Self {
+        let dim = model.spec.layout.dim();
+        let mut windows = vec![Vec::new(); model.spec.classes.len()];
+        for seed in &model.seeds {
+            let mut window = seed.features.clone();
+            model.spec.sparse_norm.normalize(&mut window);
+            if let Some(w) = windows.get_mut(seed.class) {
+                let motion = pose_motion(&window, dim);
+                w.push((window, motion));
+            }
+        }
+        let typical = windows.iter().map(|w| if w.is_empty() { 0.0 } else { w.iter().map(|(_, m)| m).sum::<f32>() / w.len() as f32 }).collect();
+        Self { windows, typical }
+    }
+
+    /// A random window of `class` whose motion is in `wanted` (a keep-alive wants a window
+    /// that moves: re-anchoring a stalled take on a still window of the class keeps it still;
+    /// a rushing one wants a calm window), none of `avoid` where there is a choice, with its
+    /// index.
+    fn pick(&self, class: usize, wanted: std::ops::RangeInclusive<f32>, rng: &mut StdRng, avoid: &[usize]) -> Option<(usize, Vec<f32>)> {
+        let windows: Vec<(usize, &(Vec<f32>, f32))> = self.windows.get(class)?.iter().enumerate().collect();
+        let fitting: Vec<&(usize, &(Vec<f32>, f32))> = windows.iter().filter(|(_, (_, m))| wanted.contains(m)).collect();
+        let pool = if fitting.is_empty() { windows.iter().collect() } else { fitting };
+        let fresh: Vec<_> = pool.iter().filter(|(k, _)| !avoid.contains(k)).collect();
+        let &(k, (window, _)) = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
+        Some((k, window.clone()))
+    }
+}
+
+/// A block's poses after the pose before it (all normalised), as raw features.
+fn raw_block(spec: &crate::model::spec::ModelSpec, previous: &[f32], block: &[f32]) -> Vec<f32> {
+    let mut poses = [previous, block].concat();
+    spec.sparse_norm.denormalize(&mut poses);
+    poses
+}
+
+/// Mean distance between consecutive poses of a normalised sparse window, over the joint
+/// features (the root's velocities stay constant in steady walking, so they are left out).
+fn pose_motion(window: &[f32], dim: usize) -> f32 {
+    let poses: Vec<&[f32]> = window.chunks_exact(dim).collect();
+    let steps = poses.windows(2).map(|p| distance2(&p[0][ROOT_FEATURES..], &p[1][ROOT_FEATURES..]).sqrt());
+    steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
+}
+
+/// The squared distance between two feature vectors.
+fn distance2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum()
+}
+
+/// Whether the last `span` poses of `sparse` (normalised) repeat a stretch of the take at
+/// least `min_lag` poses earlier: the root-mean-square distance between the joint features
+/// of corresponding poses is within `tolerance`. Without the lag a still take would match
+/// the poses just before it and count as a loop. Each candidate stops at the first pose that
+/// puts it out of reach, so the search over the whole take costs about one pose comparison
+/// per earlier pose.
+fn repeats_earlier(sparse: &[f32], dim: usize, span: usize, min_lag: usize, tolerance: f32) -> bool {
+    let poses = sparse.len() / dim;
+    if span == 0 || poses < span + min_lag.max(span) {
+        return false;
+    }
+    let joints = |k: usize| &sparse[k * dim + ROOT_FEATURES..(k + 1) * dim];
+    let recent = poses - span;
+    let budget = tolerance * tolerance * span as f32;
+    (0..=recent - min_lag.max(span)).any(|start| {
+        let mut total = 0.0;
+        (0..span).all(|i| {
+            total += distance2(joints(start + i), joints(recent + i));
+            total <= budget
+        })
+    })
+}
+
