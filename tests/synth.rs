@@ -245,8 +245,9 @@ fn transitions_act_on_a_boundary_at_a_block_seam() {
 #[test]
 fn ten_minute_takes_stay_at_their_class_speed() {
     // The bounds: no class repeats itself, and every 10 s window runs at 0.5-2x its
-    // class's training speed. Measured on the shipped models: 0.52-1.92x (h36m's posing the
-    // slowest, its sittingdown the fastest), Bandai 0.62-1.98x (its bowing the fastest).
+    // class's training speed. Measured on the shipped models: 0.57-1.91x (h36m's directions
+    // and greeting the slowest, its sittingdown the fastest), Bandai 0.60-1.65x (its guiding
+    // the slowest, its bowing the fastest).
     let mut failures = Vec::new();
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
