@@ -294,6 +294,13 @@ fn l3_l4_l5_l6_l16_flags_out_of_range_are_refused() {
         refused(&args, &[flag]);
         assert!(!fresh.exists(), "{flag} {value} left a folder");
     }
+    // GloGen's block options on a stage or variant that has no such blocks.
+    for (stage, flags) in [("locgen", &["--residual"][..]), ("locgen", &["--joined"]), ("glogen", &["--paper", "--joined"])] {
+        let mut args = vec!["train", "--dataset", "bandai", "--stage", stage, "--steps", "5", "--out", s(&fresh)];
+        args.extend(flags);
+        refused(&args, &["--residual", "--joined"]);
+        assert!(!fresh.exists(), "{stage} {flags:?} left a folder");
+    }
     let sheet = t.path().join("sheet.png");
     refused(&["render", "--in", s(&start), "--out", s(&sheet), "--columns", "1000", "--rows", "1000"], &["--columns"]);
     refused(&["render", "--in", s(&start), "--out", s(&sheet), "--columns", "26843546"], &["--columns"]);

@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -101,6 +101,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
     if args.paper {
+        if args.residual || args.joined {
+            bail!("--paper trains the paper's GloGen, which has neither --residual nor --joined");
+        }
         opts.class_in_decoder = false;
         opts.class_dropout = 0.0;
         opts.rollout_blocks = 1;

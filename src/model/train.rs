@@ -147,6 +147,9 @@ impl TrainOptions {
         if self.out.is_file() {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
+        if self.stage == Stage::Locgen && (self.residual || self.joined) {
+            bail!("--residual and --joined shape GloGen's blocks; they do not apply to --stage locgen");
+        }
         Ok(())
     }
 }
