@@ -8,6 +8,7 @@ use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::data::write::write_atomic;
+use crate::eval::suites::CLASS_CONTROL_TAKES;
 use crate::eval::{run_suite, Suite, SuiteOptions};
 use super::args::TransitionArg;
 use crate::synth::DEFAULT_CLASS_STRENGTH;
@@ -51,6 +52,9 @@ pub struct EvalArgs {
     /// Fewer and shorter takes (the motion suite), for a quick look.
     #[arg(long)]
     quick: bool,
+    /// Takes per class and condition in the h36m and bandai suites' class-control matrix.
+    #[arg(long, default_value_t = CLASS_CONTROL_TAKES as u64, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    class_control_takes: u64,
 }
 
 /// The suites one `--suite` value names: one, or every suite for `all`.
@@ -74,6 +78,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         keep_alive: !(args.no_keep_alive || args.paper),
         join_seams: !(args.no_seam_join || args.paper),
         quick: args.quick,
+        class_control_takes: args.class_control_takes as usize,
         ..Default::default()
     };
     if let Some(c) = args.cache {

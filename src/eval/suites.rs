@@ -88,6 +88,9 @@ pub struct SuiteOptions {
     pub join_seams: bool,
     /// A reduced setting (fewer and shorter takes) where a suite has one.
     pub quick: bool,
+    /// Takes per class and condition in the class-control matrix: each is 1 / (classes x
+    /// takes) of an accuracy, so more takes tell 94% from 95%.
+    pub class_control_takes: usize,
 }
 
 impl SuiteOptions {
@@ -99,7 +102,7 @@ impl SuiteOptions {
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true, quick: false }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
     }
 }
 
@@ -494,6 +497,8 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown,
 // h36m / bandai: class-conditioned generation
 
 const GEN_VARIANTS: usize = 16;
+/// Takes per class and condition in the class-control matrix by default.
+pub const CLASS_CONTROL_TAKES: usize = 16;
 const GEN_NOISE_SEEDS: [u64; 2] = [1, 2];
 const REAL_PER_CLASS: usize = 64;
 /// Seconds between the start of the requested class and the scored frames.
@@ -638,7 +643,8 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
         for transition_s in TRANSITIONS_S {
             let (mut clips, mut labels) = (Vec::new(), Vec::new());
             for class in 0..k {
-                for v in 0..GEN_VARIANTS {
+                // Past the class's seed windows the variants wrap, with other starts and seeds.
+                for v in 0..opts.class_control_takes {
                     let other = (class + 1 + v % (k - 1)) % k;
                     // Each take its own variation seed, as repeated takes in the studio.
                     let (m, first) = scored_take(&mut model, opts, class, start, other, v, 1 + v as u64, transition_s, frames)?;
@@ -652,7 +658,7 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
     let mut md = Markdown::new(format!(
         "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n",
         dir.display(), opts.transition, opts.class_strength, if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
-        gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), GEN_VARIANTS
+        gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), opts.class_control_takes
     ));
     let mut samples = Table::new(["samples", "FID", "accuracy", "diversity", "multimodality"]);
     samples.row(real.row("Real test split (reference; FID = train vs test)".into()));
