@@ -128,11 +128,7 @@ impl FeatureLayout {
     /// The mean distance every joint moves from one sample to the next (model units), over
     /// consecutive samples of `features`: the take's joint speed per sample step.
     pub fn mean_joint_step(&self, features: &[f32]) -> f32 {
-        let j = self.joints();
-        let (positions, _) = self.decode(features, Placement::default());
-        let frames: Vec<&[Vec3]> = positions.chunks_exact(j).collect();
-        let steps = frames.windows(2).map(|w| w[0].iter().zip(w[1]).map(|(a, b)| a.distance(*b)).sum::<f32>() / j as f32);
-        steps.sum::<f32>() / frames.len().saturating_sub(1).max(1) as f32
+        crate::motion::mean_joint_step(&self.decode(features, Placement::default()).0, self.joints()) as f32
     }
 
     /// [`FeatureLayout::mean_joint_step`] leaving out the body's travel over the ground (its

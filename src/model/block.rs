@@ -6,7 +6,7 @@
 //! Weight names under the block's `VarBuilder`: `enc.*` and `dec.*` (see [`super::lstm::BiLstm`]:
 //! `weight_ih_l0`, `weight_hh_l0`, `bias_ih_l0`, `bias_hh_l0` and the same with `_reverse`), and
 //! `head.weight [out_dim, 2H]`, `head.bias [out_dim]`.
-use super::lstm::{dispatch_simd, matmul, with_f32, BiLstm, CpuBiLstm, Scratch, Strided};
+use super::lstm::{contiguous_f32, dispatch_simd, matmul, with_f32, BiLstm, CpuBiLstm, Scratch, Strided};
 use candle_core::{bail, CpuStorage, CustomOp1, CustomOp3, DType, Device, Layout, Result, Shape, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
@@ -179,7 +179,8 @@ impl CustomOp3 for HeadOp {
     }
 
     fn cpu_fwd(&self, sd: &CpuStorage, ld: &Layout, sw: &CpuStorage, lw: &Layout, sb: &CpuStorage, lb: &Layout) -> Result<(CpuStorage, Shape)> {
-        let (d, w, b) = (contiguous(sd, ld)?, contiguous(sw, lw)?, contiguous(sb, lb)?);
+        let operand = |s, l| contiguous_f32(s, l, "linear head");
+        let (d, w, b) = (operand(sd, ld)?, operand(sw, lw)?, operand(sb, lb)?);
         let (o, k) = (b.len(), lw.dims()[1]);
         let dims = ld.dims();
         if lw.dims() != [o, k] || dims.last() != Some(&k) {
@@ -215,14 +216,6 @@ impl CustomOp3 for HeadOp {
         })??;
         let dev = Device::Cpu;
         Ok((Some(Tensor::from_vec(dd, d.shape(), &dev)?), Some(Tensor::from_vec(dw, (o, k), &dev)?), Some(Tensor::from_vec(db, o, &dev)?)))
-    }
-}
-
-/// The contiguous f32 values of a CPU storage.
-fn contiguous<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
-    match l.contiguous_offsets() {
-        Some((a, b)) => Ok(&s.as_slice::<f32>()?[a..b]),
-        None => bail!("linear head: operands must be contiguous"),
     }
 }
 
@@ -269,11 +262,7 @@ impl CustomOp1 for DropoutOp {
     }
 
     fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> Result<(CpuStorage, Shape)> {
-        let data = s.as_slice::<f32>()?;
-        let x = match l.contiguous_offsets() {
-            Some((a, b)) => &data[a..b],
-            None => bail!("dropout: input must be contiguous"),
-        };
+        let x = contiguous_f32(s, l, "dropout")?;
         let scale = 1.0 / (1.0 - self.p);
         // keep if a uniform 24-bit draw >= p
         let thr = (self.p as f64 * (1u64 << 24) as f64) as u32;

@@ -120,16 +120,7 @@ fn model_joints(skeleton: &Skeleton, body_root: usize) -> Vec<usize> {
 
 /// Mean speed of all joints, units per second.
 pub fn mean_joint_speed(m: &Motion) -> f32 {
-    if m.frames() < 2 {
-        return 0.0;
-    }
-    let j = m.joints();
-    let mut sum = 0.0f64;
-    for t in 1..m.frames() {
-        let (a, b) = (m.frame(t - 1), m.frame(t));
-        sum += a.iter().zip(b).map(|(p, q)| p.distance(*q) as f64).sum::<f64>();
-    }
-    (sum / ((m.frames() - 1) * j) as f64 * m.fps as f64) as f32
+    (crate::motion::mean_joint_step(m.positions(), m.joints()) * m.fps as f64) as f32
 }
 
 /// A random training window: `count` sparse samples `stride` apart from one clip, class

@@ -18,4 +18,4 @@ pub use roles::{words, JointRoles, Leg, RolesError, Side};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError};
 pub use solve::solve_local_poses;
-pub use take::{floor_height, Motion};
+pub use take::{floor_height, mean_joint_step, Motion};

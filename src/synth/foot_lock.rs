@@ -147,10 +147,11 @@ fn carried_by_feet(motion: &Motion, roles: &JointRoles, contacts: &FootContacts)
     let carrying = |side: Side| {
         let leg = roles.leg(side);
         let contact = eased(runs(contacts.side(side)), frames, (CARRY_EASE_SECONDS * motion.fps).max(1.0));
+        let foot = leg.foot_joints();
         (0..frames)
             .map(|t| {
-                let height = [Some(leg.ankle), leg.toe].into_iter().flatten().map(|j| motion.frame(t)[j].y * unit).fold(f32::INFINITY, f32::min);
-                let slower = step(t, leg.ankle).length() < step(t, 0).length();
+                let height = foot.iter().map(|&j| motion.frame(t)[j].y * unit).fold(f32::INFINITY, f32::min);
+                let slower = step(t, leg.ankle).length() < step(t, roles.body_root).length();
                 let near = if slower { 1.0 - smoothstep((height - low) / (high - low)) } else { 0.0 };
                 contact[t].max(near)
             })

@@ -35,7 +35,7 @@ pub use frozen::{CpuBiLstm, Scratch};
 pub(crate) use kernels::{dispatch_simd, matmul, Strided};
 use op::Buffers;
 pub use op::{BiLstmOp, FlatLayout};
-pub(crate) use op::with_f32;
+pub(crate) use op::{contiguous_f32, with_f32};
 
 /// How the two directions of a bidirectional LSTM use the cores.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -113,11 +113,12 @@ impl BiLstmOp {
     }
 }
 
-fn contiguous_f32<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
+/// The f32 values of a custom op's contiguous CPU operand; `op` names the op in the error.
+pub(crate) fn contiguous_f32<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
     let data = s.as_slice::<f32>()?;
     match l.contiguous_offsets() {
         Some((a, b)) => Ok(&data[a..b]),
-        None => bail!("fused lstm: input must be contiguous"),
+        None => bail!("{op}: input must be contiguous"),
     }
 }
 
@@ -129,7 +130,7 @@ pub(crate) fn with_f32<R>(t: &Tensor, f: impl FnOnce(&[f32]) -> R) -> Result<R> 
     }
     let (st, l) = t.storage_and_layout();
     match &*st {
-        Storage::Cpu(cpu) => Ok(f(contiguous_f32(cpu, l)?)),
+        Storage::Cpu(cpu) => Ok(f(contiguous_f32(cpu, l, "fused lstm")?)),
         _ => bail!("fused lstm: only CPU tensors are supported"),
     }
 }
@@ -172,8 +173,8 @@ impl CustomOp2 for BiLstmOp {
     fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
         let (b, t, i, h) = (self.b, self.t, self.i, self.h);
         let fl = self.layout();
-        let x = contiguous_f32(s1, l1)?;
-        let p = contiguous_f32(s2, l2)?;
+        let x = contiguous_f32(s1, l1, "fused lstm")?;
+        let p = contiguous_f32(s2, l2, "fused lstm")?;
         if x.len() != b * t * i || p.len() != fl.len() {
             bail!("fused lstm: bad input sizes {} {}", x.len(), p.len());
         }
