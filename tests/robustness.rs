@@ -295,10 +295,11 @@ fn l3_l4_l5_l6_l16_flags_out_of_range_are_refused() {
         assert!(!fresh.exists(), "{flag} {value} left a folder");
     }
     // GloGen's block options on a stage or variant that has no such blocks.
-    for (stage, flags) in [("locgen", &["--residual"][..]), ("locgen", &["--joined"]), ("glogen", &["--paper", "--joined"])] {
+    let variants = [("locgen", &["--residual"][..]), ("locgen", &["--joined"]), ("locgen", &["--two-sided-join"]), ("glogen", &["--paper", "--joined"]), ("glogen", &["--paper", "--two-sided-join"])];
+    for (stage, flags) in variants {
         let mut args = vec!["train", "--dataset", "bandai", "--stage", stage, "--steps", "5", "--out", s(&fresh)];
         args.extend(flags);
-        refused(&args, &["--residual", "--joined"]);
+        refused(&args, &["--residual", "--joined", "--two-sided-join"]);
         assert!(!fresh.exists(), "{stage} {flags:?} left a folder");
     }
     let sheet = t.path().join("sheet.png");

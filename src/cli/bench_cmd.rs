@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::model::bench::{bench_infer, bench_train, Budget, TrainBenchConfig};
 use crate::model::glocal::GlocalModel;
-use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, Segment, Timeline, Waypoint, DEFAULT_CLASS_STRENGTH};
+use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, Segment, Timeline, Waypoint};
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
@@ -48,9 +48,10 @@ pub enum BenchCommand {
         model: PathBuf,
         #[arg(long, default_value_t = 5)]
         repeats: usize,
-        /// 1 does the PyTorch reference's work (no classifier-free guidance pass).
-        #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
-        class_strength: f32,
+        /// 1 does the PyTorch reference's work (no classifier-free guidance pass). Default:
+        /// the model's own.
+        #[arg(long)]
+        class_strength: Option<f32>,
         /// Without the foot lock (its cost is the difference).
         #[arg(long)]
         no_foot_lock: bool,
@@ -181,15 +182,16 @@ pub struct GenerateBench {
 
 /// Best-of-`repeats` wall time of whole takes (GloGen + LocGen + pace + bone projection)
 /// cycling through the model's classes in 10 s segments.
-pub fn bench_generate(dir: &Path, repeats: usize, class_strength: f32, foot_lock: bool) -> Result<GenerateBench> {
+pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, foot_lock: bool) -> Result<GenerateBench> {
     let mut model = GlocalModel::load(dir)?;
+    let class_strength = class_strength.unwrap_or(model.spec.class_strength);
     let classes = model.spec.classes.clone();
     let mut runs = Vec::new();
     for (seconds, constrained) in [(10.0f32, false), (60.0, false), (60.0, true), (600.0, false)] {
         let segments = (0..(seconds / 10.0) as usize)
             .map(|k| Segment::new(classes[k % classes.len()].clone(), 10.0))
             .collect();
-        let mut opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength, foot_lock, ..Default::default() };
+        let mut opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength: Some(class_strength), foot_lock, ..Default::default() };
         if constrained {
             // A seed pose of each of four classes, 12 s apart, and a 40 m zigzag.
             let key = |k: usize| Key { seconds: 12.0 * (k + 1) as f32, source: KeySource::Init(InitPose::SeedClass { class: classes[k % classes.len()].clone(), variant: 0 }), fix_root: false };

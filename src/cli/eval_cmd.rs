@@ -11,7 +11,6 @@ use crate::data::write::write_atomic;
 use crate::eval::suites::CLASS_CONTROL_TAKES;
 use crate::eval::{run_suite, Suite, SuiteOptions};
 use super::args::TransitionArg;
-use crate::synth::DEFAULT_CLASS_STRENGTH;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
@@ -36,9 +35,9 @@ pub struct EvalArgs {
     /// The class-generation suites' transition (ablation: `cut` is the paper's class prior alone).
     #[arg(long, value_enum, default_value = "anchor")]
     transition: TransitionArg,
-    /// The class-generation suites' classifier-free guidance weight.
-    #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
-    class_strength: f32,
+    /// The suites' classifier-free guidance weight (default: each model's own).
+    #[arg(long)]
+    class_strength: Option<f32>,
     /// The class-generation suites without keep-alive (with `--transition cut --class-strength
     /// 1`: the paper's mechanism alone).
     #[arg(long)]
@@ -74,7 +73,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         train_baselines: args.train_baselines,
         model: args.model,
         transition: if args.paper { TransitionArg::Cut } else { args.transition }.into(),
-        class_strength: if args.paper { 1.0 } else { args.class_strength },
+        class_strength: if args.paper { Some(1.0) } else { args.class_strength },
         keep_alive: !(args.no_keep_alive || args.paper),
         join_seams: !(args.no_seam_join || args.paper),
         quick: args.quick,

@@ -14,7 +14,7 @@ use crate::synth::rig::{onto_model_file, onto_skeleton_file};
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::{TransitionArg, UnitsArg};
-use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, SegmentSpan, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
@@ -58,9 +58,9 @@ pub struct GenerateArgs {
     #[arg(long)]
     pub paper: bool,
     /// Classifier-free guidance weight (1: plain conditioning; ignored by models trained
-    /// without class dropout).
-    #[arg(long, default_value_t = DEFAULT_CLASS_STRENGTH)]
-    pub class_strength: f32,
+    /// without class dropout). Default: the model's own (its model.json's `class_strength`).
+    #[arg(long)]
+    pub class_strength: Option<f32>,
     /// Variation seed: 0 gives the model's deterministic take, others differ slightly.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

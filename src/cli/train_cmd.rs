@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::data::archive::DataRoot;
 use crate::data::features::Interpolation;
 use super::args::{LossArg, StageArg};
+use crate::model::spec::SeamJoin;
 use crate::model::train::{train, Stage, TrainOptions};
 
 #[derive(Args, Debug)]
@@ -53,6 +54,10 @@ pub struct TrainArgs {
     /// GloGen trains on its blocks joined at their seams, as generation shows them.
     #[arg(long)]
     joined: bool,
+    /// GloGen's blocks are joined two-sided: half of each seam's shift goes on the block
+    /// before (in generation, and in training with --joined).
+    #[arg(long)]
+    two_sided_join: bool,
     /// Dense frames between sparse poses (the paper's M + 1).
     #[arg(long, default_value_t = 5)]
     stride: usize,
@@ -96,13 +101,14 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.class_dropout = args.class_dropout;
     opts.residual = args.residual;
     opts.joined = args.joined;
+    opts.seam_join = if args.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
     opts.stride = args.stride;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
     if args.paper {
-        if args.residual || args.joined {
-            bail!("--paper trains the paper's GloGen, which has neither --residual nor --joined");
+        if args.residual || args.joined || args.two_sided_join {
+            bail!("--paper trains the paper's GloGen, which has neither --residual, --joined nor --two-sided-join");
         }
         opts.class_in_decoder = false;
         opts.class_dropout = 0.0;

@@ -24,7 +24,7 @@ use crate::model::glocal::GlocalModel;
 use crate::model::spec::{LossKind, ModelSpec};
 use crate::model::train::{train, Stage, TrainOptions};
 use crate::motion::Motion;
-use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, Transition, DEFAULT_CLASS_STRENGTH};
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, Transition};
 
 /// The suites behind `glocal eval --suite NAME`, in the order `all` runs them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,7 +82,8 @@ pub struct SuiteOptions {
     /// How the class-generation suites' takes change class (the shipped anchored transition,
     /// or the paper's class prior alone) and their class strength: for ablations.
     pub transition: Transition,
-    pub class_strength: f32,
+    /// None: each model's own ([`crate::model::spec::ModelSpec::class_strength`]).
+    pub class_strength: Option<f32>,
     pub keep_alive: bool,
     /// GloGen's blocks joined at their seams ([`crate::model::glocal::GlocalModel::rollout_block`]).
     pub join_seams: bool,
@@ -102,7 +103,7 @@ impl SuiteOptions {
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: DEFAULT_CLASS_STRENGTH, keep_alive: true, join_seams: true, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
     }
 }
 
@@ -657,7 +658,7 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
     }
     let mut md = Markdown::new(format!(
         "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n",
-        dir.display(), opts.transition, opts.class_strength, if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
+        dir.display(), opts.transition, opts.generate_options().class_strength_for(&spec), if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
         gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), opts.class_control_takes
     ));
     let mut samples = Table::new(["samples", "FID", "accuracy", "diversity", "multimodality"]);
@@ -675,7 +676,7 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
     }
     md.table(per_class);
     Ok((md, json!({
-        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.class_strength, "keep_alive": opts.keep_alive,
+        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.generate_options().class_strength_for(&spec), "keep_alive": opts.keep_alive,
         "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
         "real_test": real.json(), "generated": generated.json(),
         "class_control": conditions.iter().map(|(start, transition_s, n, s)| json!({"start": format!("{start:?}"), "transition_s": transition_s, "clips": n, "scores": s.json()})).collect::<Vec<_>>(),

@@ -10,7 +10,7 @@ use glam::Vec3;
 
 use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
 use super::corpus::interpolated_window;
-use super::spec::{ModelSpec, Seed};
+use super::spec::{ModelSpec, SeamJoin, Seed};
 use super::Error;
 use crate::data::features::{interpolate, Placement, ROOT_FEATURES};
 use crate::motion::{floor_height, Motion};
@@ -21,6 +21,13 @@ pub const SEEDS_FILE: &str = "seeds.json";
 
 /// LocGen windows per batch: 256 windows (102 s at 25 fps) keep its workspace near 20 MB.
 const LOCGEN_CHUNK: usize = 256;
+
+/// The poses a GloGen block is joined onto (normalised features): the block before it, or
+/// at least its last pose, and whether a two-sided join may move them.
+pub struct SeamBefore<'a> {
+    pub poses: &'a mut [f32],
+    pub movable: bool,
+}
 
 pub struct GlocalModel {
     pub dir: PathBuf,
@@ -123,19 +130,19 @@ impl GlocalModel {
     }
 
     /// One step of GloGen's rollout: a block from `input` (the context as GloGen should see
-    /// it, eased towards an anchor or noised), joined onto `previous`, the pose actually
-    /// before it (normalised), when `join` is set. Returns the block's embedding.
+    /// it, eased towards an anchor or noised), joined onto the poses actually before it
+    /// (normalised) when `join` names them. Returns the block's embedding.
     ///
     /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
     /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
     /// inside a block). Joining shifts the block so that its first pose is one of its own
     /// steps on from the context's last pose, and fades the shift out over the first half of
     /// the block with a raised cosine, which keeps the block's own motion and its end where
-    /// GloGen put it.
-    pub fn rollout_block(&mut self, input: &[f32], previous: &[f32], class: &[f32], strength: f32, join: bool, out: &mut [f32]) -> Vec<f32> {
+    /// GloGen put it; a two-sided join ([`SeamJoin`]) moves the block before by half of it.
+    pub fn rollout_block(&mut self, input: &[f32], class: &[f32], strength: f32, join: Option<SeamBefore<'_>>, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.glogen_block(input, class, strength, out);
-        if join {
-            join_seam(previous, out, self.spec.layout.dim());
+        if let Some(before) = join {
+            join_seam(before.poses, before.movable, out, self.spec.layout.dim(), self.spec.glogen.seam_join);
         }
         embedding
     }
@@ -182,9 +189,12 @@ impl GlocalModel {
         self.spec.sparse_norm.normalize(&mut sparse);
         let class_vec = self.class_vector(class);
         let mut out = vec![0.0; t * dim];
-        for _ in 0..blocks {
-            let input = sparse[sparse.len() - t * dim..].to_vec();
-            self.rollout_block(&input, &input[(t - 1) * dim..], &class_vec, 1.0, join_seams, &mut out);
+        for b in 0..blocks {
+            let context = sparse.len() - t * dim;
+            let input = sparse[context..].to_vec();
+            // The observed poses stay where they were observed.
+            let before = SeamBefore { poses: &mut sparse[context..], movable: b > 0 };
+            self.rollout_block(&input, &class_vec, 1.0, join_seams.then_some(before), &mut out);
             sparse.extend_from_slice(&out);
         }
         let mut predicted = sparse.split_off(t * dim);
@@ -261,22 +271,41 @@ impl GlocalModel {
 /// landing foot through the floor at every seam of a walk (Bandai's walks then floated 86%
 /// of the time over the floor those dips set); the mean of the two steps left a hitch (the
 /// seam interval 0.77x the others' speed). Measured in docs/DESIGN.md ("Seams").
-fn join_seam(last: &[f32], block: &mut [f32], dim: usize) {
+///
+/// `before` is the block before (at least its last pose); with [`SeamJoin::TwoSided`] and
+/// `movable` it takes half the shift, opposite, faded in over its last half, and the new
+/// block the other half, so neither block's first half carries all of the other's pose.
+fn join_seam(before: &mut [f32], movable: bool, block: &mut [f32], dim: usize, kind: SeamJoin) {
     let poses = block.len() / dim;
     if poses < 2 {
         return;
     }
+    let last = &before[before.len() - dim..];
+    let shift: Vec<f32> = (0..dim)
+        .map(|f| {
+            let target = if (1..ROOT_FEATURES).contains(&f) { 0.5 * (last[f] + block[dim + f]) } else { last[f] + block[dim + f] - block[f] };
+            target - block[f]
+        })
+        .collect();
+    let share = seam_share(kind, movable && before.len() == block.len());
     let fade = join_fade(poses);
-    for f in 0..dim {
-        let target = if (1..ROOT_FEATURES).contains(&f) {
-            0.5 * (last[f] + block[dim + f])
-        } else {
-            last[f] + block[dim + f] - block[f]
-        };
-        let shift = target - block[f];
+    for (k, w) in fade.iter().enumerate() {
+        block[k * dim..(k + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v += share * d * w);
+    }
+    if share < 1.0 {
         for (k, w) in fade.iter().enumerate() {
-            block[k * dim + f] += shift * w;
+            let pose = poses - 1 - k;
+            before[pose * dim..(pose + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v -= (1.0 - share) * d * w);
         }
+    }
+}
+
+/// The share of a seam's shift the new block takes; the block before takes the rest.
+fn seam_share(kind: SeamJoin, before_movable: bool) -> f32 {
+    if kind == SeamJoin::TwoSided && before_movable {
+        0.5
+    } else {
+        1.0
     }
 }
 
@@ -287,24 +316,35 @@ fn join_fade(poses: usize) -> Vec<f32> {
     (0..poses).map(|k| if k < span { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) } else { 0.0 }).collect()
 }
 
-/// [`join_seam`] on a batch of blocks `[B, T, D]` onto their poses before `[B, 1, D]`, as
-/// differentiable tensor operations: what training on joined rollouts backpropagates through.
-pub fn join_seams_tensor(blocks: &Tensor, last: &Tensor) -> candle_core::Result<Tensor> {
+/// [`join_seam`] on a batch of blocks `[B, T, D]` onto the blocks before them `[B, T, D]`
+/// (or their last poses `[B, 1, D]`, which stay where they are), as differentiable tensor
+/// operations: what training on joined rollouts backpropagates through. Returns the joined
+/// blocks before and the joined blocks.
+pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin) -> candle_core::Result<(Tensor, Tensor)> {
     let (_, poses, dim) = blocks.dims3()?;
     if poses < 2 {
-        return Ok(blocks.clone());
+        return Ok((before.clone(), blocks.clone()));
     }
     let device = blocks.device();
+    let last = before.narrow(1, before.dim(1)? - 1, 1)?;
     let first = blocks.narrow(1, 0, 1)?;
     let second = blocks.narrow(1, 1, 1)?;
     let root: Vec<f32> = (0..dim).map(|f| if (1..ROOT_FEATURES).contains(&f) { 1.0 } else { 0.0 }).collect();
     let root = Tensor::from_vec(root, (1, 1, dim), device)?;
-    let root_target = ((last + &second)? * 0.5)?;
-    let pose_target = ((last + &second)? - &first)?;
+    let root_target = ((&last + &second)? * 0.5)?;
+    let pose_target = ((&last + &second)? - &first)?;
     let target = (root_target.broadcast_mul(&root)? + pose_target.broadcast_mul(&(1.0 - &root)?)?)?;
     let shift = (target - first)?;
-    let fade = Tensor::from_vec(join_fade(poses), (1, poses, 1), device)?;
-    blocks + shift.broadcast_mul(&fade)?
+    let share = seam_share(kind, before.dim(1)? == poses) as f64;
+    let fade = join_fade(poses);
+    let head = Tensor::from_vec(fade.clone(), (1, poses, 1), device)?;
+    let joined = (blocks + shift.broadcast_mul(&head)?.affine(share, 0.0)?)?;
+    if share == 1.0 {
+        return Ok((before.clone(), joined));
+    }
+    let tail = Tensor::from_vec(fade.into_iter().rev().collect(), (1, poses, 1), device)?;
+    let before = (before - shift.broadcast_mul(&tail)?.affine(1.0 - share, 0.0)?)?;
+    Ok((before, joined))
 }
 
 /// Builds a block and fills it from a safetensors file.
@@ -351,23 +391,52 @@ mod tests {
     use super::*;
 
     /// Training's tensor join is generation's join: the same poses to float rounding, for
-    /// blocks of either parity of length.
+    /// blocks of either parity of length, one-sided onto a last pose and two-sided onto a
+    /// whole block before.
     #[test]
     fn tensor_join_matches_the_rollouts_join() {
         for (poses, dim) in [(10, 7), (9, 5)] {
-            let value = |i: usize| ((i * 7919) % 97) as f32 / 13.0 - 3.5;
-            let blocks: Vec<f32> = (0..2 * poses * dim).map(value).collect();
-            let last: Vec<f32> = (0..2 * dim).map(|i| value(i + 5000)).collect();
-            let joined = join_seams_tensor(&Tensor::from_vec(blocks.clone(), (2, poses, dim), &Device::Cpu).unwrap(), &Tensor::from_vec(last.clone(), (2, 1, dim), &Device::Cpu).unwrap()).unwrap();
-            let joined = joined.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-            for b in 0..2 {
-                let mut block = blocks[b * poses * dim..(b + 1) * poses * dim].to_vec();
-                join_seam(&last[b * dim..(b + 1) * dim], &mut block, dim);
-                assert_ne!(block, blocks[b * poses * dim..(b + 1) * poses * dim], "the join moved nothing");
-                for (a, t) in block.iter().zip(&joined[b * poses * dim..(b + 1) * poses * dim]) {
-                    assert!((a - t).abs() < 1e-5, "{a} against {t}");
+            for (kind, before_poses) in [(SeamJoin::OneSided, 1), (SeamJoin::TwoSided, poses)] {
+                let value = |i: usize| ((i * 7919) % 97) as f32 / 13.0 - 3.5;
+                let blocks: Vec<f32> = (0..2 * poses * dim).map(value).collect();
+                let before: Vec<f32> = (0..2 * before_poses * dim).map(|i| value(i + 5000)).collect();
+                let tensor = |v: &[f32], p: usize| Tensor::from_vec(v.to_vec(), (2, p, dim), &Device::Cpu).unwrap();
+                let (joined_before, joined) = join_seams_tensor(&tensor(&before, before_poses), &tensor(&blocks, poses), kind).unwrap();
+                let flat = |t: Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+                let (joined_before, joined) = (flat(joined_before), flat(joined));
+                for b in 0..2 {
+                    let (width, before_width) = (poses * dim, before_poses * dim);
+                    let mut block = blocks[b * width..(b + 1) * width].to_vec();
+                    let mut prior = before[b * before_width..(b + 1) * before_width].to_vec();
+                    join_seam(&mut prior, true, &mut block, dim, kind);
+                    assert_ne!(block, blocks[b * width..(b + 1) * width], "the join moved nothing");
+                    assert_eq!(prior != before[b * before_width..(b + 1) * before_width], kind == SeamJoin::TwoSided, "{kind:?} moved the block before or left it");
+                    let expected = joined[b * width..(b + 1) * width].iter().chain(&joined_before[b * before_width..(b + 1) * before_width]);
+                    for (a, t) in block.iter().chain(&prior).zip(expected) {
+                        assert!((a - t).abs() < 1e-5, "{a} against {t}");
+                    }
                 }
             }
+        }
+    }
+
+    /// A two-sided join leaves the seam's step what a one-sided join makes it: one of the
+    /// new block's own steps on from the (moved) pose before.
+    #[test]
+    fn two_sided_join_closes_the_seam_as_the_one_sided_does() {
+        let (poses, dim) = (10, 6);
+        let value = |i: usize| ((i * 104729) % 89) as f32 / 11.0 - 4.0;
+        let block: Vec<f32> = (0..poses * dim).map(value).collect();
+        let before: Vec<f32> = (0..poses * dim).map(|i| value(i + 777)).collect();
+        let mut seams = Vec::new();
+        for kind in [SeamJoin::OneSided, SeamJoin::TwoSided] {
+            let (mut prior, mut joined) = (before.clone(), block.clone());
+            join_seam(&mut prior, true, &mut joined, dim, kind);
+            let last = &prior[(poses - 1) * dim..];
+            seams.push((ROOT_FEATURES..dim).map(|f| joined[f] - last[f]).collect::<Vec<f32>>());
+        }
+        for (a, b) in seams[0].iter().zip(&seams[1]) {
+            assert!((a - b).abs() < 1e-5, "seam step {a} one-sided against {b} two-sided");
         }
     }
 }

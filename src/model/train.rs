@@ -20,7 +20,7 @@ use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{interpolated_window, sample_window, Corpus, Track};
 use super::glocal::{join_seams_tensor, load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
-use super::spec::{sha256_hex, GloGenSpec, LocGenSpec, LossKind, ModelSpec, Seed, StageRecord, FORMAT_VERSION};
+use super::spec::{sha256_hex, GloGenSpec, DEFAULT_CLASS_STRENGTH, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{FeatureLayout, Interpolation, Normalizer, Placement};
 use crate::data::registry::Dataset;
@@ -64,6 +64,8 @@ pub struct TrainOptions {
     pub residual: bool,
     /// GloGen trains on its blocks joined at their seams ([`GloGenSpec::joined`]).
     pub joined: bool,
+    /// How GloGen's blocks are joined, in training and in generation ([`GloGenSpec::seam_join`]).
+    pub seam_join: SeamJoin,
     pub stride: usize,
     pub block_len: usize,
     pub locgen_window: usize,
@@ -98,6 +100,7 @@ impl TrainOptions {
             rollout_blocks: 2,
             residual: false,
             joined: false,
+            seam_join: SeamJoin::OneSided,
             stride: 5,
             block_len: 10,
             locgen_window: 10,
@@ -147,8 +150,9 @@ impl TrainOptions {
         if self.out.is_file() {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
-        if self.stage == Stage::Locgen && (self.residual || self.joined) {
-            bail!("--residual and --joined shape GloGen's blocks; they do not apply to --stage locgen");
+        let two_sided = self.seam_join == SeamJoin::TwoSided;
+        if self.stage == Stage::Locgen && (self.residual || self.joined || two_sided) {
+            bail!("--residual, --joined and --two-sided-join shape GloGen's blocks; they do not apply to --stage locgen");
         }
         Ok(())
     }
@@ -277,6 +281,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         loss: opts.loss,
         residual: opts.residual,
         joined: opts.joined,
+        seam_join: opts.seam_join,
     };
     let locgen = LocGenSpec {
         block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
@@ -315,6 +320,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         class_speed: corpus.class_speeds(),
         foot_lock: true,
         carry_by_feet: false,
+        class_strength: DEFAULT_CLASS_STRENGTH,
         glogen,
         locgen,
         glogen_training: None,
@@ -585,18 +591,35 @@ impl StageTrainer<'_> {
         let y = Tensor::from_vec(ys, (b, steps_in * blocks, dim), &Device::Cpu)?;
         let cond = (cond_dim > 0).then(|| Tensor::from_vec(conds, (b, cond_dim), &Device::Cpu)).transpose()?;
         let loss_kind = if self.opts.stage == Stage::Glogen { self.spec.glogen.loss } else { LossKind::JointFlow };
+        // Every block of the rollout, as generation leaves it: joined onto the block before,
+        // which a two-sided join moves in turn (the observed context stays).
+        let mut preds: Vec<Tensor> = Vec::with_capacity(blocks);
         let mut input = x.clone();
+        for _ in 0..blocks {
+            let mut pred = self.predict(block, &input, cond.as_ref(), true)?;
+            if self.opts.stage == Stage::Glogen && self.spec.glogen.joined {
+                let before = match preds.last() {
+                    Some(previous) => previous.clone(),
+                    None => input.narrow(1, steps_in - 1, 1)?,
+                };
+                let (before, joined) = join_seams_tensor(&before, &pred, self.spec.glogen.seam_join)?;
+                if let Some(previous) = preds.last_mut() {
+                    *previous = before;
+                }
+                pred = joined;
+            }
+            input = pred.clone();
+            preds.push(pred);
+        }
         let mut total: Option<Tensor> = None;
-        for r in 0..blocks {
-            let pred = self.predict(block, &input, cond.as_ref(), true)?;
+        for (r, pred) in preds.iter().enumerate() {
             let target = y.narrow(1, r * steps_in, steps_in)?;
-            let last = input.narrow(1, steps_in - 1, 1)?;
-            let l = joint_flow_loss(&pred, &target, &last, loss_kind)?;
+            let last = if r == 0 { x.narrow(1, steps_in - 1, 1)? } else { preds[r - 1].narrow(1, steps_in - 1, 1)? };
+            let l = joint_flow_loss(pred, &target, &last, loss_kind)?;
             total = Some(match total {
                 Some(t) => (t + l)?,
                 None => l,
             });
-            input = pred;
         }
         Ok((total.expect("at least one block") / blocks as f64)?)
     }
@@ -637,16 +660,14 @@ impl StageTrainer<'_> {
     }
 
     /// The stage's prediction from `input` `[B, T, dim]`: LocGen's is a residual on its
-    /// interpolated input, a residual GloGen's an offset from the input's last pose, a
-    /// joined GloGen's block joined onto that pose.
+    /// interpolated input, a residual GloGen's an offset from the input's last pose.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>, train: bool) -> Result<Tensor> {
         let pred = block.forward(input, cond, train)?;
         if self.opts.stage == Stage::Locgen {
             return Ok((pred + input)?);
         }
         let last = input.narrow(1, input.dim(1)? - 1, 1)?;
-        let pred = if self.spec.glogen.residual { pred.broadcast_add(&last)? } else { pred };
-        Ok(if self.spec.glogen.joined { join_seams_tensor(&pred, &last)? } else { pred })
+        Ok(if self.spec.glogen.residual { pred.broadcast_add(&last)? } else { pred })
     }
 
     /// Mean joint position error (skeleton units) of the block and of the stage's baseline.
@@ -666,7 +687,11 @@ impl StageTrainer<'_> {
                 Tensor::from_vec(c, (n, cond_dim), &Device::Cpu)
             })
             .transpose()?;
-        let pred = self.predict(block, &x, cond.as_ref(), false)?.flatten_all()?.to_vec1::<f32>()?;
+        let mut pred = self.predict(block, &x, cond.as_ref(), false)?;
+        if self.opts.stage == Stage::Glogen && self.spec.glogen.joined {
+            pred = join_seams_tensor(&x.narrow(1, steps - 1, 1)?, &pred, self.spec.glogen.seam_join)?.1;
+        }
+        let pred = pred.flatten_all()?.to_vec1::<f32>()?;
         let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
         for (w, p) in windows.iter().zip(pred.chunks_exact(steps * dim)) {
             let mut p = p.to_vec();

@@ -8,6 +8,7 @@ use super::advice::seated_too_short;
 use super::app::{ExportRange, Guarded, InitTab, StudioApp, MAX_INIT_FRAME};
 use super::dialogs::Purpose;
 use super::timeline::color32;
+use crate::model::spec::DEFAULT_CLASS_STRENGTH;
 use crate::synth::export::Units;
 use crate::synth::render::class_color;
 use crate::synth::timeline::{MAX_PACE, MAX_TRANSITION_SECONDS, MIN_PACE};
@@ -196,9 +197,16 @@ impl StudioApp {
         });
         ui.add(Slider::new(&mut self.doc.options.transition_seconds, 0.0..=MAX_TRANSITION_SECONDS).text("transition length (s)"))
             .on_hover_text("Seconds over which each class change happens, centred on its boundary (0: a cut). A segment can have its own: select it on the timeline");
-        ui.add_enabled(guidance, Slider::new(&mut self.doc.options.class_strength, 0.0..=3.0).text("class strength"))
-            .on_hover_text("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity")
+        // Until it is moved, the slider shows (and takes are made with) the model's own strength.
+        let own = self.model.as_ref().map_or(DEFAULT_CLASS_STRENGTH, |m| m.spec.class_strength);
+        let mut strength = self.doc.options.class_strength.unwrap_or(own);
+        let slider = ui
+            .add_enabled(guidance, Slider::new(&mut strength, 0.0..=4.0).text("class strength"))
+            .on_hover_text(format!("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity. This model's own: {own}"))
             .on_disabled_hover_text("This model was trained without class dropout, so the strength cannot be changed");
+        if slider.changed() {
+            self.doc.options.class_strength = Some(strength);
+        }
         let locks_feet = self.model.as_ref().is_some_and(|m| m.spec.foot_lock);
         ui.horizontal_wrapped(|ui| {
             ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.options.locgen, "LocGen refinement"))

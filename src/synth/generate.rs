@@ -16,7 +16,8 @@ use super::init::{initial_features, InitPose};
 use super::smoothstep;
 use super::steer::Steering;
 use super::timeline::Timeline;
-use crate::model::glocal::GlocalModel;
+use crate::model::glocal::{GlocalModel, SeamBefore};
+use crate::model::spec::{ModelSpec, MAX_CLASS_STRENGTH};
 use crate::motion::contacts::FootContacts;
 use crate::motion::{solve_local_poses, Motion};
 
@@ -49,12 +50,6 @@ pub enum KeyMethod {
     RollOn,
 }
 
-/// The default classifier-free guidance weight. Measured on both shipped models (docs/RESULTS.md):
-/// against plain conditioning (1.0) it lifts class control after a 2 s transition from 89-93%
-/// to 94-97% with FID at the real data's level; stronger guidance (2.5) adds 1-3 points but
-/// moves FID and poses away from the data (seated hips 5-9 cm higher in one take).
-pub const DEFAULT_CLASS_STRENGTH: f32 = 1.5;
-
 /// The default length of a class change, centred on the boundary (one h36m block, two
 /// Bandai blocks).
 pub const DEFAULT_TRANSITION_SECONDS: f32 = 2.0;
@@ -70,8 +65,9 @@ pub struct GenerateOptions {
     /// Seconds over which the take changes class, centred on each boundary (a segment's own
     /// `transition` overrides it); 0 is a cut whatever `transition` says.
     pub transition_seconds: f32,
-    /// Classifier-free guidance weight (1 = plain conditioning).
-    pub class_strength: f32,
+    /// Classifier-free guidance weight (1 = plain conditioning); none, the model's own
+    /// ([`ModelSpec::class_strength`]).
+    pub class_strength: Option<f32>,
     /// Seeds the choice of anchor windows and the small pose noise that make repeated takes
     /// differ.
     pub seed: u64,
@@ -105,7 +101,7 @@ impl Default for GenerateOptions {
             locgen: true,
             transition: Transition::Anchor,
             transition_seconds: DEFAULT_TRANSITION_SECONDS,
-            class_strength: DEFAULT_CLASS_STRENGTH,
+            class_strength: None,
             seed: 0,
             variation: 0.0,
             project_bones: true,
@@ -130,12 +126,17 @@ impl GenerateOptions {
         self
     }
 
+    /// The guidance a take of the model `spec` describes is made with.
+    pub fn class_strength_for(&self, spec: &ModelSpec) -> f32 {
+        self.class_strength.unwrap_or(spec.class_strength)
+    }
+
     /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks
     /// that pop at their seams, feet as the network made them.
     pub fn paper(mut self) -> Self {
         self.transition = Transition::Cut;
         self.transition_seconds = 0.0;
-        self.class_strength = 1.0;
+        self.class_strength = Some(1.0);
         self.keep_alive = false;
         self.join_seams = false;
         self.foot_lock = false;
@@ -308,8 +309,9 @@ impl SparseTimeline {
 pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
     let spec = model.spec.clone();
     let timeline = SparseTimeline::new(model, opts)?;
-    if !(0.0..=10.0).contains(&opts.class_strength) {
-        bail!("class strength must be between 0 and 10, got {}", opts.class_strength);
+    let class_strength = opts.class_strength_for(&spec);
+    if !(0.0..=MAX_CLASS_STRENGTH).contains(&class_strength) {
+        bail!("class strength must be between 0 and {MAX_CLASS_STRENGTH}, got {class_strength}");
     }
     let dim = spec.layout.dim();
     let t = spec.block_len;
@@ -330,16 +332,21 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
     let (mut embeddings, mut block_classes) = (Vec::new(), Vec::new());
     let mut out = vec![0.0; t * dim];
     for (b, plan) in plans.iter().enumerate() {
-        let context = &sparse[sparse.len() - t * dim..];
-        let mut input = context.to_vec();
-        let previous = context[context.len() - dim..].to_vec();
+        let context = sparse.len() - t * dim;
+        let mut input = sparse[context..].to_vec();
         let strength = steering.block(plan, &mut input, &sparse);
         if opts.variation > 0.0 && opts.seed != 0 {
             input.iter_mut().for_each(|v| *v += opts.variation * noise.random_range(-1.0f32..1.0));
         }
         block_classes.push(plan.target);
-        embeddings.push(model.rollout_block(&input, &previous, &plan.class, strength, opts.join_seams, &mut out));
-        steering.record(model, plan.target, &previous, &out);
+        // The seed and a block that holds a key stay where they are.
+        let movable = b > 0 && plans[b - 1].keys.is_empty();
+        let before = SeamBefore { poses: &mut sparse[context..], movable };
+        embeddings.push(model.rollout_block(&input, &plan.class, strength, opts.join_seams.then_some(before), &mut out));
+        if movable && opts.join_seams {
+            steering.amend_last(model, &sparse[context - dim..context], &sparse[context..]);
+        }
+        steering.record(model, plan.target, &sparse[sparse.len() - dim..], &out);
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");
         }
@@ -351,9 +358,10 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             // the block is rolled out again from the context that ends on the key.
             let after = (key.sparse + 1) * dim;
             if after < sparse.len() && opts.key_method == KeyMethod::RollOn {
-                let context = &sparse[after - t * dim..after];
-                let previous = context[context.len() - dim..].to_vec();
-                model.rollout_block(context, &previous, &plan.class, strength, opts.join_seams, &mut out);
+                let mut context = sparse[after - t * dim..after].to_vec();
+                let input = context.clone();
+                let key_before = SeamBefore { poses: &mut context, movable: false };
+                model.rollout_block(&input, &plan.class, strength, opts.join_seams.then_some(key_before), &mut out);
                 let rest = sparse.len() - after;
                 sparse[after..].copy_from_slice(&out[..rest]);
             }

@@ -31,7 +31,7 @@ pub(crate) fn smoothstep(x: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
-pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan, Transition, DEFAULT_CLASS_STRENGTH, DEFAULT_TRANSITION_SECONDS};
+pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan, Transition, DEFAULT_TRANSITION_SECONDS};
 pub use constraints::{Key, KeySource, RootPath, Waypoint};
 pub use init::InitPose;
 pub use timeline::{Segment, Timeline};

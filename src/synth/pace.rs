@@ -66,6 +66,14 @@ impl RecentPace {
         }
     }
 
+    /// The last block again, as a two-sided seam join left it.
+    pub fn amend_last(&mut self, model: &GlocalModel, poses: &[f32]) {
+        let layout = &model.spec.layout;
+        if let Some(last) = self.blocks.back_mut() {
+            *last = (last.0, layout.mean_joint_step(poses), layout.mean_pose_step(poses));
+        }
+    }
+
     /// The last [`PACE_SECONDS`]' pace in `class`, once they are all of `class`.
     pub fn of(&self, class: usize) -> Option<Pace> {
         let (whole, pose) = *self.reference.get(class)?;

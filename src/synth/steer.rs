@@ -13,8 +13,14 @@ use super::pace::RecentPace;
 use crate::data::features::ROOT_FEATURES;
 use crate::model::glocal::GlocalModel;
 
-/// Guidance at least this strong in the blocks of an anchored class change.
-const CHANGE_CLASS_STRENGTH: f32 = 2.5;
+/// Guidance at least this strong in the blocks of an anchored class change and the
+/// [`CHANGE_SETTLE_SECONDS`] after it.
+const CHANGE_CLASS_STRENGTH: f32 = 2.75;
+
+/// Seconds after a class change's easing whose guidance stays at least
+/// [`CHANGE_CLASS_STRENGTH`]: where the easing ends, the new class's window still competes with
+/// the old class's momentum.
+const CHANGE_SETTLE_SECONDS: f32 = 4.0;
 
 /// A block whose poses move less than this fraction of its class's typical motion (the mean
 /// over the seed bank) has stalled: deterministic regression drifts towards the mean pose
@@ -96,6 +102,9 @@ pub(super) struct Steering {
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
     since_anchor: usize,
+    /// Blocks left of a finished class change's [`CHANGE_SETTLE_SECONDS`].
+    settling: usize,
+    settle_blocks: usize,
     last_anchor: Option<usize>,
     anchors: StdRng,
     keep_alive: bool,
@@ -119,10 +128,12 @@ impl Steering {
             context_class: start_window.map(|(class, _)| class),
             start_window,
             since_anchor: 0,
+            settling: 0,
+            settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
             last_anchor: None,
             anchors: StdRng::seed_from_u64(opts.seed ^ 0xA1C4_0125),
             keep_alive: opts.keep_alive,
-            class_strength: opts.class_strength,
+            class_strength: opts.class_strength_for(&model.spec),
             dim: spec.layout.dim(),
             block_len: spec.block_len,
         }
@@ -144,6 +155,8 @@ impl Steering {
         let stalled = may_keep_alive && (slow_block || slow_take || rushing);
         let switching = plan.ease_blocks > 0 && self.context_class != Some(plan.target);
         let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
+        let settling = !changing && self.settling > 0;
+        self.settling = if changing { self.settle_blocks } else { self.settling.saturating_sub(1) };
         // A loop is broken even while a keep-alive eases: leaning on a window the take leant
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
@@ -190,7 +203,7 @@ impl Steering {
         }
         // A class change is where the prior must beat the context's momentum most: its blocks
         // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`].
-        let strength = if changing { self.class_strength.max(CHANGE_CLASS_STRENGTH) } else { self.class_strength };
+        let strength = if changing || settling { self.class_strength.max(CHANGE_CLASS_STRENGTH) } else { self.class_strength };
         // A stalled block's class is urged on too: guidance scaled by how far it fell short.
         if !self.keep_alive || changing {
             strength
@@ -208,6 +221,14 @@ impl Steering {
     pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
         if self.keep_alive {
             self.pace.push(model, class, &raw_block(&model.spec, previous, block));
+        }
+    }
+
+    /// The last block recorded, again as the next block's seam join left it (a two-sided
+    /// join moves its last half): the pace is measured on the poses the take keeps.
+    pub fn amend_last(&mut self, model: &GlocalModel, previous: &[f32], block: &[f32]) {
+        if self.keep_alive {
+            self.pace.amend_last(model, &raw_block(&model.spec, previous, block));
         }
     }
 }
