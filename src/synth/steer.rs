@@ -312,3 +312,27 @@ fn repeats_earlier(sparse: &[f32], dim: usize, span: usize, min_lag: usize, tole
     })
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// A class change's guidance holds over its easing and the [`CHANGE_SETTLE_SECONDS`] after
+    /// it (two h36m blocks), then falls back to the take's own.
+    #[test]
+    fn a_class_change_keeps_its_guidance_while_it_settles() {
+        let model = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m")).unwrap();
+        let spec = &model.spec;
+        let (walking, sitting) = (spec.class_index("walking").unwrap(), spec.class_index("sitting").unwrap());
+        let opts = GenerateOptions { init: InitPose::SeedClass { class: "walking".into(), variant: 0 }, keep_alive: false, ..Default::default() };
+        let mut steering = Steering::new(&model, &opts);
+        let mut context = model.seed_of_class(walking, 0).unwrap().features.clone();
+        spec.sparse_norm.normalize(&mut context);
+        let plan = BlockPlan { class: model.class_vector(sitting), target: sitting, ease_blocks: 2, keys: Vec::new() };
+        let strengths: Vec<f32> = (0..6).map(|_| steering.block(&plan, &mut context.clone(), &context)).collect();
+        let (held, own) = (CHANGE_CLASS_STRENGTH.max(spec.class_strength), spec.class_strength);
+        assert!(held > own, "the change's guidance {held} is no stronger than the model's {own}");
+        assert_eq!(strengths, [held, held, held, held, own, own], "two easing blocks, two settling, then the take's own");
+    }
+}
