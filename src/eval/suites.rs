@@ -656,9 +656,10 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
             conditions.push((start, transition_s, clips.len(), score(&clf, &clips, &labels, &test_f, k)?));
         }
     }
+    let class_strength = opts.generate_options().class_strength_for(&spec);
     let mut md = Markdown::new(format!(
         "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n",
-        dir.display(), opts.transition, opts.generate_options().class_strength_for(&spec), if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
+        dir.display(), opts.transition, class_strength, if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
         gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), opts.class_control_takes
     ));
     let mut samples = Table::new(["samples", "FID", "accuracy", "diversity", "multimodality"]);
@@ -676,7 +677,7 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
     }
     md.table(per_class);
     Ok((md, json!({
-        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": opts.generate_options().class_strength_for(&spec), "keep_alive": opts.keep_alive,
+        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": class_strength, "keep_alive": opts.keep_alive,
         "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
         "real_test": real.json(), "generated": generated.json(),
         "class_control": conditions.iter().map(|(start, transition_s, n, s)| json!({"start": format!("{start:?}"), "transition_s": transition_s, "clips": n, "scores": s.json()})).collect::<Vec<_>>(),

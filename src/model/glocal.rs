@@ -22,13 +22,6 @@ pub const SEEDS_FILE: &str = "seeds.json";
 /// LocGen windows per batch: 256 windows (102 s at 25 fps) keep its workspace near 20 MB.
 const LOCGEN_CHUNK: usize = 256;
 
-/// The poses a GloGen block is joined onto (normalised features): the block before it, or
-/// at least its last pose, and whether a two-sided join may move them.
-pub struct SeamBefore<'a> {
-    pub poses: &'a mut [f32],
-    pub movable: bool,
-}
-
 pub struct GlocalModel {
     pub dir: PathBuf,
     pub spec: ModelSpec,
@@ -131,7 +124,8 @@ impl GlocalModel {
 
     /// One step of GloGen's rollout: a block from `input` (the context as GloGen should see
     /// it, eased towards an anchor or noised), joined onto the poses actually before it
-    /// (normalised) when `join` names them. Returns the block's embedding.
+    /// (normalised) when `join` names them: the whole block before, which a two-sided join
+    /// may move, or only its last pose, which stays. Returns the block's embedding.
     ///
     /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
     /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
@@ -139,10 +133,10 @@ impl GlocalModel {
     /// steps on from the context's last pose, and fades the shift out over the first half of
     /// the block with a raised cosine, which keeps the block's own motion and its end where
     /// GloGen put it; a two-sided join ([`SeamJoin`]) moves the block before by half of it.
-    pub fn rollout_block(&mut self, input: &[f32], class: &[f32], strength: f32, join: Option<SeamBefore<'_>>, out: &mut [f32]) -> Vec<f32> {
+    pub fn rollout_block(&mut self, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.glogen_block(input, class, strength, out);
         if let Some(before) = join {
-            join_seam(before.poses, before.movable, out, self.spec.layout.dim(), self.spec.glogen.seam_join);
+            join_seam(before, out, self.spec.layout.dim(), self.spec.glogen.seam_join);
         }
         embedding
     }
@@ -192,9 +186,9 @@ impl GlocalModel {
         for b in 0..blocks {
             let context = sparse.len() - t * dim;
             let input = sparse[context..].to_vec();
-            // The observed poses stay where they were observed.
-            let before = SeamBefore { poses: &mut sparse[context..], movable: b > 0 };
-            self.rollout_block(&input, &class_vec, 1.0, join_seams.then_some(before), &mut out);
+            // The observed poses stay where they were observed: the join sees their last alone.
+            let before = if b > 0 { context } else { sparse.len() - dim };
+            self.rollout_block(&input, &class_vec, 1.0, join_seams.then_some(&mut sparse[before..]), &mut out);
             sparse.extend_from_slice(&out);
         }
         let mut predicted = sparse.split_off(t * dim);
@@ -272,10 +266,10 @@ impl GlocalModel {
 /// of the time over the floor those dips set); the mean of the two steps left a hitch (the
 /// seam interval 0.77x the others' speed). Measured in docs/DESIGN.md ("Seams").
 ///
-/// `before` is the block before (at least its last pose); with [`SeamJoin::TwoSided`] and
-/// `movable` it takes half the shift, opposite, faded in over its last half, and the new
+/// `before` is the whole block before or only its last pose; with [`SeamJoin::TwoSided`] a
+/// whole block takes half the shift, opposite, faded in over its last half, and the new
 /// block the other half, so neither block's first half carries all of the other's pose.
-fn join_seam(before: &mut [f32], movable: bool, block: &mut [f32], dim: usize, kind: SeamJoin) {
+fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin) {
     let poses = block.len() / dim;
     if poses < 2 {
         return;
@@ -287,7 +281,7 @@ fn join_seam(before: &mut [f32], movable: bool, block: &mut [f32], dim: usize, k
             target - block[f]
         })
         .collect();
-    let share = seam_share(kind, movable && before.len() == block.len());
+    let share = seam_share(kind, before.len() == block.len());
     let fade = join_fade(poses);
     for (k, w) in fade.iter().enumerate() {
         block[k * dim..(k + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v += share * d * w);
@@ -300,9 +294,10 @@ fn join_seam(before: &mut [f32], movable: bool, block: &mut [f32], dim: usize, k
     }
 }
 
-/// The share of a seam's shift the new block takes; the block before takes the rest.
-fn seam_share(kind: SeamJoin, before_movable: bool) -> f32 {
-    if kind == SeamJoin::TwoSided && before_movable {
+/// The share of a seam's shift the new block takes; the block before, when it is there whole,
+/// takes the rest.
+fn seam_share(kind: SeamJoin, whole_block_before: bool) -> f32 {
+    if kind == SeamJoin::TwoSided && whole_block_before {
         0.5
     } else {
         1.0
@@ -408,7 +403,7 @@ mod tests {
                     let (width, before_width) = (poses * dim, before_poses * dim);
                     let mut block = blocks[b * width..(b + 1) * width].to_vec();
                     let mut prior = before[b * before_width..(b + 1) * before_width].to_vec();
-                    join_seam(&mut prior, true, &mut block, dim, kind);
+                    join_seam(&mut prior, &mut block, dim, kind);
                     assert_ne!(block, blocks[b * width..(b + 1) * width], "the join moved nothing");
                     assert_eq!(prior != before[b * before_width..(b + 1) * before_width], kind == SeamJoin::TwoSided, "{kind:?} moved the block before or left it");
                     let expected = joined[b * width..(b + 1) * width].iter().chain(&joined_before[b * before_width..(b + 1) * before_width]);
@@ -431,7 +426,7 @@ mod tests {
         let mut seams = Vec::new();
         for kind in [SeamJoin::OneSided, SeamJoin::TwoSided] {
             let (mut prior, mut joined) = (before.clone(), block.clone());
-            join_seam(&mut prior, true, &mut joined, dim, kind);
+            join_seam(&mut prior, &mut joined, dim, kind);
             let last = &prior[(poses - 1) * dim..];
             seams.push((ROOT_FEATURES..dim).map(|f| joined[f] - last[f]).collect::<Vec<f32>>());
         }

@@ -597,7 +597,7 @@ impl StageTrainer<'_> {
         let mut input = x.clone();
         for _ in 0..blocks {
             let mut pred = self.predict(block, &input, cond.as_ref(), true)?;
-            if self.opts.stage == Stage::Glogen && self.spec.glogen.joined {
+            if self.joins_blocks() {
                 let before = match preds.last() {
                     Some(previous) => previous.clone(),
                     None => input.narrow(1, steps_in - 1, 1)?,
@@ -659,6 +659,11 @@ impl StageTrainer<'_> {
         out
     }
 
+    /// Whether the stage is a GloGen trained on its blocks joined at their seams.
+    fn joins_blocks(&self) -> bool {
+        self.opts.stage == Stage::Glogen && self.spec.glogen.joined
+    }
+
     /// The stage's prediction from `input` `[B, T, dim]`: LocGen's is a residual on its
     /// interpolated input, a residual GloGen's an offset from the input's last pose.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>, train: bool) -> Result<Tensor> {
@@ -688,7 +693,7 @@ impl StageTrainer<'_> {
             })
             .transpose()?;
         let mut pred = self.predict(block, &x, cond.as_ref(), false)?;
-        if self.opts.stage == Stage::Glogen && self.spec.glogen.joined {
+        if self.joins_blocks() {
             pred = join_seams_tensor(&x.narrow(1, steps - 1, 1)?, &pred, self.spec.glogen.seam_join)?.1;
         }
         let pred = pred.flatten_all()?.to_vec1::<f32>()?;

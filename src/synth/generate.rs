@@ -16,7 +16,7 @@ use super::init::{initial_features, InitPose};
 use super::smoothstep;
 use super::steer::Steering;
 use super::timeline::Timeline;
-use crate::model::glocal::{GlocalModel, SeamBefore};
+use crate::model::glocal::GlocalModel;
 use crate::model::spec::{ModelSpec, MAX_CLASS_STRENGTH};
 use crate::motion::contacts::FootContacts;
 use crate::motion::{solve_local_poses, Motion};
@@ -339,10 +339,11 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             input.iter_mut().for_each(|v| *v += opts.variation * noise.random_range(-1.0f32..1.0));
         }
         block_classes.push(plan.target);
-        // The seed and a block that holds a key stay where they are.
+        // The seed and a block that holds a key stay where they are: the join sees their last
+        // pose alone.
         let movable = b > 0 && plans[b - 1].keys.is_empty();
-        let before = SeamBefore { poses: &mut sparse[context..], movable };
-        embeddings.push(model.rollout_block(&input, &plan.class, strength, opts.join_seams.then_some(before), &mut out));
+        let before = if movable { context } else { sparse.len() - dim };
+        embeddings.push(model.rollout_block(&input, &plan.class, strength, opts.join_seams.then_some(&mut sparse[before..]), &mut out));
         if movable && opts.join_seams {
             steering.amend_last(model, &sparse[context - dim..context], &sparse[context..]);
         }
@@ -358,10 +359,9 @@ pub fn generate(model: &mut GlocalModel, opts: &GenerateOptions, progress: &mut 
             // the block is rolled out again from the context that ends on the key.
             let after = (key.sparse + 1) * dim;
             if after < sparse.len() && opts.key_method == KeyMethod::RollOn {
-                let mut context = sparse[after - t * dim..after].to_vec();
-                let input = context.clone();
-                let key_before = SeamBefore { poses: &mut context, movable: false };
-                model.rollout_block(&input, &plan.class, strength, opts.join_seams.then_some(key_before), &mut out);
+                let input = sparse[after - t * dim..after].to_vec();
+                let mut key = input[(t - 1) * dim..].to_vec();
+                model.rollout_block(&input, &plan.class, strength, opts.join_seams.then_some(&mut key[..]), &mut out);
                 let rest = sparse.len() - after;
                 sparse[after..].copy_from_slice(&out[..rest]);
             }

@@ -59,8 +59,7 @@ impl RecentPace {
 
     /// One more block of `class`: its sparse poses (raw features) after the pose before it.
     pub fn push(&mut self, model: &GlocalModel, class: usize, poses: &[f32]) {
-        let layout = &model.spec.layout;
-        self.blocks.push_back((class, layout.mean_joint_step(poses), layout.mean_pose_step(poses)));
+        self.blocks.push_back(block_steps(model, class, poses));
         if self.blocks.len() > self.span {
             self.blocks.pop_front();
         }
@@ -68,9 +67,8 @@ impl RecentPace {
 
     /// The last block again, as a two-sided seam join left it.
     pub fn amend_last(&mut self, model: &GlocalModel, poses: &[f32]) {
-        let layout = &model.spec.layout;
         if let Some(last) = self.blocks.back_mut() {
-            *last = (last.0, layout.mean_joint_step(poses), layout.mean_pose_step(poses));
+            *last = block_steps(model, last.0, poses);
         }
     }
 
@@ -84,4 +82,11 @@ impl RecentPace {
         let n = self.span as f32;
         Some(Pace { whole: self.blocks.iter().map(|b| b.1).sum::<f32>() / n / whole, pose: self.blocks.iter().map(|b| b.2).sum::<f32>() / n / pose })
     }
+}
+
+/// A block of `class` as the pace keeps it: its mean joint step with the body's travel and
+/// without.
+fn block_steps(model: &GlocalModel, class: usize, poses: &[f32]) -> (usize, f32, f32) {
+    let layout = &model.spec.layout;
+    (class, layout.mean_joint_step(poses), layout.mean_pose_step(poses))
 }
