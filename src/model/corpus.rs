@@ -19,6 +19,8 @@ const MIN_BONE_FRACTION: f32 = 0.02;
 pub struct Track {
     pub class: usize,
     pub file: String,
+    /// Bandai's style, Human3.6M's subject ([`registry::Clip::tag`]).
+    pub tag: String,
     pub motion: Motion,
 }
 
@@ -58,7 +60,7 @@ impl Corpus {
             let Some(class) = kept.iter().position(|&k| k == clip.class) else { continue };
             let mut motion = clip.motion.resample(fps).subset(&source_joints);
             motion.skeleton = layout.skeleton.clone();
-            let track = Track { class, file: clip.file, motion };
+            let track = Track { class, file: clip.file, tag: clip.tag, motion };
             match clip.split {
                 Split::Train => train.push(track),
                 Split::Test => test.push(track),
