@@ -32,45 +32,67 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
     if n == 0 {
         return Vec::new();
     }
-    let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (j, p) in skeleton.parents().iter().enumerate() {
-        if let Some(p) = *p {
-            if p < j {
-                children[p].push(j);
-            }
-        }
-    }
     let scale = skeleton.offsets().iter().map(|o| o.length()).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
     let eps = 1e-6 * scale;
-    // Frames are independent: spread them over the cores.
-    positions.par_chunks_exact(n).map(|frame| solve_frame(skeleton, &children, frame, eps)).collect()
-}
-
-fn solve_frame(skeleton: &Skeleton, children: &[Vec<usize>], frame: &[Vec3], eps: f32) -> LocalPose {
-    let n = skeleton.len();
-    let mut world = vec![Quat::IDENTITY; n];
-    let mut rotations = vec![Quat::IDENTITY; n];
-    let mut translations = skeleton.offsets().to_vec();
-    let mut pairs: Vec<(Vec3, Vec3)> = Vec::new();
-    for j in 0..n {
-        let parent = skeleton.parents()[j].filter(|&p| p < j);
-        let base = parent.map_or(Quat::IDENTITY, |p| world[p]);
-        if parent.is_none() {
-            translations[j] = frame[j];
-        }
-        pairs.clear();
-        for &c in &children[j] {
-            let rest = skeleton.offsets()[c];
-            let actual = frame[c] - frame[j];
-            if rest.length() > eps && actual.length() > eps && actual.is_finite() {
-                pairs.push((rest.normalize(), actual.normalize()));
+    // Each joint's children with a usable rest bone, and that bone's rest direction: the same
+    // for every frame.
+    let mut children: Vec<Vec<(usize, Vec3)>> = vec![Vec::new(); n];
+    for (j, p) in skeleton.parents().iter().enumerate() {
+        let rest = skeleton.offsets()[j];
+        if let Some(p) = p.filter(|&p| p < j) {
+            if rest.length() > eps {
+                children[p].push((j, rest.normalize()));
             }
         }
-        let w = fit(base, &pairs);
-        world[j] = w;
-        rotations[j] = (base.inverse() * w).normalize();
     }
-    LocalPose { rotations, translations }
+    let solver = FrameSolver { skeleton, children, eps };
+    // Frames are independent: spread them over the cores, each thread with its own scratch.
+    positions.par_chunks_exact(n).map_init(|| Scratch::new(n), |scratch, frame| solver.solve(frame, scratch)).collect()
+}
+
+struct FrameSolver<'a> {
+    skeleton: &'a Skeleton,
+    children: Vec<Vec<(usize, Vec3)>>,
+    eps: f32,
+}
+
+/// A frame's working space, reused from frame to frame.
+struct Scratch {
+    world: Vec<Quat>,
+    pairs: Vec<(Vec3, Vec3)>,
+}
+
+impl Scratch {
+    fn new(joints: usize) -> Self {
+        Self { world: vec![Quat::IDENTITY; joints], pairs: Vec::new() }
+    }
+}
+
+impl FrameSolver<'_> {
+    fn solve(&self, frame: &[Vec3], scratch: &mut Scratch) -> LocalPose {
+        let n = self.skeleton.len();
+        let mut rotations = vec![Quat::IDENTITY; n];
+        let mut translations = self.skeleton.offsets().to_vec();
+        let Scratch { world, pairs } = scratch;
+        for j in 0..n {
+            let parent = self.skeleton.parents()[j].filter(|&p| p < j);
+            let base = parent.map_or(Quat::IDENTITY, |p| world[p]);
+            if parent.is_none() {
+                translations[j] = frame[j];
+            }
+            pairs.clear();
+            for &(c, rest) in &self.children[j] {
+                let actual = frame[c] - frame[j];
+                if actual.length() > self.eps && actual.is_finite() {
+                    pairs.push((rest, actual.normalize()));
+                }
+            }
+            let w = fit(base, pairs);
+            world[j] = w;
+            rotations[j] = (base.inverse() * w).normalize();
+        }
+        LocalPose { rotations, translations }
+    }
 }
 
 /// The world rotation of a joint whose parent's world rotation is `base`, from (rest, actual)
