@@ -52,7 +52,7 @@ pub const DEFINITIONS: &str = "Definitions (all at 30 fps, metres; the floor of 
 pub struct MotionSuiteConfig {
     /// Seed-bank windows per class, each with every noise seed; `None` is every window of the
     /// class's bank. The bank is in clip order, which for Bandai is its styles in alphabetical
-    /// order: the first three byebye windows are all the style "active", which waves at 0.63
+    /// order: the first three byebye windows are all the style "active", which waves at 0.66
     /// m/s against a training median of 0.11, so a few first windows are not a fair sample.
     pub variants: Option<usize>,
     pub seeds: Vec<u64>,
@@ -673,10 +673,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
 /// from the training split's, which bounds how near any model of the training split can come.
 fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
     let tag = if r.dataset == Dataset::Bandai { "style" } else { "subject" };
-    md.text(&format!("
-Joint speed per {tag} (m/s, each {tag}'s clips of the class):
-
-"));
+    md.text(&format!("\nJoint speed per {tag} (m/s, each {tag}'s clips of the class):\n\n"));
     let mut table = Table::new(["class".to_string(), format!("training split: slowest / median / fastest {tag}"), format!("test split, each {tag}")]);
     let named = |(name, speed): &(String, f64)| format!("{} {name}", cell(*speed, 3));
     for (name, [train, test]) in r.classes.iter().zip(&r.tag_speeds) {
