@@ -499,8 +499,9 @@ struct ModelResult {
     tag_speeds: Vec<[Vec<(String, f64)>; 2]>,
 }
 
-/// Mean joint speed (m/s) of each (class, tag) over `tracks`, per class, slowest first.
-fn joint_speed_per_tag(tracks: &[Track], classes: usize) -> Vec<Vec<(String, f64)>> {
+/// Per class, the sum of every joint's speed and how many speeds it sums ([`joint_speed_sum`])
+/// over each tag's tracks of `tracks`.
+fn joint_speed_sums(tracks: &[Track], classes: usize) -> Vec<BTreeMap<&str, (f64, usize)>> {
     let mut sums: Vec<BTreeMap<&str, (f64, usize)>> = vec![BTreeMap::new(); classes];
     for track in tracks {
         let m = track.motion.resample(COMMON_FPS);
@@ -509,25 +510,28 @@ fn joint_speed_per_tag(tracks: &[Track], classes: usize) -> Vec<Vec<(String, f64
         entry.0 += sum;
         entry.1 += count;
     }
-    sums.into_iter()
+    sums
+}
+
+/// Mean joint speed (m/s, at [`COMMON_FPS`]) per class, all its tags together.
+fn joint_speed_per_class(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<f64> {
+    sums.iter()
         .map(|tags| {
-            let mut speeds: Vec<(String, f64)> = tags.into_iter().map(|(tag, (s, c))| (tag.to_string(), s / c.max(1) as f64)).collect();
-            speeds.sort_by(|a, b| a.1.total_cmp(&b.1));
-            speeds
+            let (sum, count) = tags.values().fold((0.0, 0), |(s, c), &(ts, tc)| (s + ts, c + tc));
+            sum / count.max(1) as f64
         })
         .collect()
 }
 
-/// Mean speed of all joints (m/s, at [`COMMON_FPS`]) per class over `tracks`.
-fn joint_speed_per_class(tracks: &[Track], classes: usize) -> Vec<f64> {
-    let mut sums = vec![(0.0f64, 0usize); classes];
-    for track in tracks {
-        let m = track.motion.resample(COMMON_FPS);
-        let (sum, count) = joint_speed_sum(&metres(&m), m.joints());
-        sums[track.class].0 += sum;
-        sums[track.class].1 += count;
-    }
-    sums.iter().map(|&(s, c)| s / c.max(1) as f64).collect()
+/// Mean joint speed (m/s) of each tag, per class, slowest first.
+fn joint_speed_per_tag(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<Vec<(String, f64)>> {
+    sums.iter()
+        .map(|tags| {
+            let mut speeds: Vec<(String, f64)> = tags.iter().map(|(tag, &(s, c))| (tag.to_string(), s / c.max(1) as f64)).collect();
+            speeds.sort_by(|a, b| a.1.total_cmp(&b.1));
+            speeds
+        })
+        .collect()
 }
 
 /// Rows of the main table: (key, label, digits).
@@ -601,6 +605,8 @@ fn model_result(dataset: Dataset, opts: &SuiteOptions, cfg: &MotionSuiteConfig, 
     let unlocked = generated_pools(&mut model, cfg, &base, false)?;
     log(&format!("motion: {dataset} generated, shipped"));
     let shipped = generated_pools(&mut model, cfg, &base, true)?;
+    let classes = spec.classes.len();
+    let train_sums = joint_speed_sums(&corpus.train, classes);
     let summarise = |pools: &[Pool]| (pools.iter().map(Pool::summary).collect(), pools.iter().map(Pool::interval_profile).collect());
     let (r, u, s) = (summarise(&real), summarise(&unlocked), summarise(&shipped));
     Ok(ModelResult {
@@ -608,8 +614,8 @@ fn model_result(dataset: Dataset, opts: &SuiteOptions, cfg: &MotionSuiteConfig, 
         dir: dir.display().to_string(),
         classes: spec.classes.clone(),
         sources: [("real", r.0, r.1), ("no lock", u.0, u.1), ("generated", s.0, s.1)],
-        train_speed: joint_speed_per_class(&corpus.train, spec.classes.len()),
-        tag_speeds: joint_speed_per_tag(&corpus.train, spec.classes.len()).into_iter().zip(joint_speed_per_tag(&corpus.test, spec.classes.len())).map(|(a, b)| [a, b]).collect(),
+        train_speed: joint_speed_per_class(&train_sums),
+        tag_speeds: joint_speed_per_tag(&train_sums).into_iter().zip(joint_speed_per_tag(&joint_speed_sums(&corpus.test, classes))).map(|(a, b)| [a, b]).collect(),
     })
 }
 

@@ -312,7 +312,6 @@ fn repeats_earlier(sparse: &[f32], dim: usize, span: usize, min_lag: usize, tole
     })
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
