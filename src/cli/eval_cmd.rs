@@ -10,6 +10,7 @@ use crate::data::archive::DataRoot;
 use crate::data::write::write_atomic;
 use crate::eval::suites::CLASS_CONTROL_TAKES;
 use crate::eval::{run_suite, Suite, SuiteOptions};
+use crate::synth::Preset;
 use super::args::TransitionArg;
 
 #[derive(Args, Debug)]
@@ -45,7 +46,7 @@ pub struct EvalArgs {
     /// The suites' takes and forecasts with GloGen's blocks unjoined at their seams.
     #[arg(long)]
     no_seam_join: bool,
-    /// The paper's GlocalNet: `--transition cut --class-strength 1 --no-keep-alive --no-seam-join`.
+    /// The paper's GlocalNet (`synth::Preset::Paper`, as `glocal generate --paper`): cut transitions, class strength 1, no keep-alive, no seam join, no foot lock.
     #[arg(long)]
     paper: bool,
     /// Fewer and shorter takes (the motion suite), for a quick look.
@@ -72,10 +73,11 @@ pub fn run(args: EvalArgs) -> Result<()> {
         data: DataRoot::resolve(args.data.as_deref()),
         train_baselines: args.train_baselines,
         model: args.model,
-        transition: if args.paper { TransitionArg::Cut } else { args.transition }.into(),
-        class_strength: if args.paper { Some(1.0) } else { args.class_strength },
-        keep_alive: !(args.no_keep_alive || args.paper),
-        join_seams: !(args.no_seam_join || args.paper),
+        transition: args.transition.into(),
+        class_strength: args.class_strength,
+        keep_alive: !args.no_keep_alive,
+        join_seams: !args.no_seam_join,
+        preset: Preset::from_paper_flag(args.paper),
         quick: args.quick,
         class_control_takes: args.class_control_takes as usize,
         ..Default::default()

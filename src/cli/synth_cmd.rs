@@ -14,7 +14,7 @@ use crate::synth::rig::{onto_model_file, onto_skeleton_file};
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::{TransitionArg, UnitsArg};
-use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
+use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, Preset, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
@@ -136,9 +136,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         Some(map) => retarget_foreign_files(&model, &mut opts, map)?,
         None => Vec::new(),
     };
-    if args.paper {
-        opts = opts.paper();
-    }
+    let opts = Preset::from_paper_flag(args.paper).apply(opts);
     let start = Instant::now();
     let bar = ProgressBar::new(1000);
     bar.set_style(ProgressStyle::with_template("{bar:30} {percent}% {elapsed}")?);

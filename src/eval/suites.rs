@@ -24,7 +24,7 @@ use crate::model::glocal::GlocalModel;
 use crate::model::spec::{LossKind, ModelSpec};
 use crate::model::train::{train, Stage, TrainOptions};
 use crate::motion::Motion;
-use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline, Transition};
+use crate::synth::{generate, GenerateOptions, InitPose, Preset, Segment, Timeline, Transition};
 
 /// The suites behind `glocal eval --suite NAME`, in the order `all` runs them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,6 +87,8 @@ pub struct SuiteOptions {
     pub keep_alive: bool,
     /// GloGen's blocks joined at their seams ([`crate::model::glocal::GlocalModel::rollout_block`]).
     pub join_seams: bool,
+    /// Applied over the fields above: `Preset::Paper` is `glocal eval --paper`.
+    pub preset: Preset,
     /// A reduced setting (fewer and shorter takes) where a suite has one.
     pub quick: bool,
     /// Takes per class and condition in the class-control matrix: each is 1 / (classes x
@@ -97,13 +99,13 @@ pub struct SuiteOptions {
 impl SuiteOptions {
     /// The generation options these suite options ask for, the rest as shipped.
     pub fn generate_options(&self) -> GenerateOptions {
-        GenerateOptions { transition: self.transition, class_strength: self.class_strength, keep_alive: self.keep_alive, join_seams: self.join_seams, ..Default::default() }
+        self.preset.apply(GenerateOptions { transition: self.transition, class_strength: self.class_strength, keep_alive: self.keep_alive, join_seams: self.join_seams, ..Default::default() })
     }
 }
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, preset: Preset::Shipped, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
     }
 }
 
@@ -339,7 +341,7 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdow
                 for &(ti, t0) in &starts {
                     let m = &corpus.test[ti].motion;
                     let mut p = m.frame(t0).to_vec();
-                    p.extend(model.forecast(m, t0, k, 1, opts.join_seams)?);
+                    p.extend(model.forecast(m, t0, k, 1, opts.generate_options().join_seams)?);
                     preds.push(p);
                 }
                 rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
@@ -441,7 +443,7 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown,
             let truth: Vec<Vec3> = (0..n_out).flat_map(|k| m16.frame(w + n_in + k).to_vec()).collect();
             real.push(view2d(&skel, truth, &model_joints, hips, unit));
             let observed = m25.frame(*t0).to_vec();
-            let keys: Vec<Vec3> = observed.iter().copied().chain(model.forecast(m25, *t0, class, blocks, opts.join_seams)?).collect();
+            let keys: Vec<Vec3> = observed.iter().copied().chain(model.forecast(m25, *t0, class, blocks, opts.generate_options().join_seams)?).collect();
             for (mi, locgen) in [(0, true), (1, false)] {
                 let dense = model.densify(&keys, locgen);
                 let frames: Vec<Vec3> = (1..=n_out).flat_map(|k| metrics::pose_at(&dense, skel.len(), spec.fps, k as f32 * dt16)).collect();
@@ -656,10 +658,11 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
             conditions.push((start, transition_s, clips.len(), score(&clf, &clips, &labels, &test_f, k)?));
         }
     }
-    let class_strength = opts.generate_options().class_strength_for(&spec);
+    let generation = opts.generate_options();
+    let class_strength = generation.class_strength_for(&spec);
     let mut md = Markdown::new(format!(
         "{dataset} ({}, {:?} transition, class strength {}, keep-alive {}): classifier GRU({}) on {frames}-frame clips at {} fps, trained on the real training split ({} steps, {:.0} s), test accuracy {:.3} on {} real test windows. FID against the real test windows' classifier features; diversity over 200 random pairs, multimodality over 20 pairs per class (Action2Motion). Class-conditioned: {} clips ({} classes x {} seeds x {} noise seeds, the {frames} frames right after the seed). Class control: {} takes per class and condition, each requesting its class from a start (the class's own seed, another class's seed, or the last poses of a {PREVIOUS_SEGMENT_S} s timeline segment of another class), scored on the {frames} frames that follow a transition of 0, 1 or 2 s after the requested class begins.\n\n",
-        dir.display(), opts.transition, class_strength, if opts.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
+        dir.display(), generation.transition, class_strength, if generation.keep_alive { "on" } else { "off" }, cfg.hidden, spec.fps, cfg.steps, clf.record.train_seconds, clf.record.test_accuracy, clf.record.test_windows,
         gen_clips.len(), k, GEN_VARIANTS, GEN_NOISE_SEEDS.len(), opts.class_control_takes
     ));
     let mut samples = Table::new(["samples", "FID", "accuracy", "diversity", "multimodality"]);
@@ -677,7 +680,7 @@ fn class_generation(dataset: Dataset, opts: &SuiteOptions, log: &mut dyn FnMut(&
     }
     md.table(per_class);
     Ok((md, json!({
-        "model": dir, "classes": spec.classes, "transition": opts.transition, "class_strength": class_strength, "keep_alive": opts.keep_alive,
+        "model": dir, "classes": spec.classes, "transition": generation.transition, "class_strength": class_strength, "keep_alive": generation.keep_alive,
         "classifier": {"config": cfg, "test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "train_seconds": clf.record.train_seconds},
         "real_test": real.json(), "generated": generated.json(),
         "class_control": conditions.iter().map(|(start, transition_s, n, s)| json!({"start": format!("{start:?}"), "transition_s": transition_s, "clips": n, "scores": s.json()})).collect::<Vec<_>>(),

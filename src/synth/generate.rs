@@ -130,18 +130,6 @@ impl GenerateOptions {
     pub fn class_strength_for(&self, spec: &ModelSpec) -> f32 {
         self.class_strength.unwrap_or(spec.class_strength)
     }
-
-    /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks
-    /// that pop at their seams, feet as the network made them.
-    pub fn paper(mut self) -> Self {
-        self.transition = Transition::Cut;
-        self.transition_seconds = 0.0;
-        self.class_strength = Some(1.0);
-        self.keep_alive = false;
-        self.join_seams = false;
-        self.foot_lock = false;
-        self
-    }
 }
 
 /// A segment's place in the generated take.

@@ -9,6 +9,7 @@ pub mod gltf;
 pub mod init;
 pub mod keys;
 mod pace;
+pub mod preset;
 pub mod path_follow;
 pub mod render;
 pub mod rig;
@@ -34,4 +35,5 @@ pub(crate) fn smoothstep(x: f32) -> f32 {
 pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan, Transition, DEFAULT_TRANSITION_SECONDS};
 pub use constraints::{Key, KeySource, RootPath, Waypoint};
 pub use init::InitPose;
+pub use preset::Preset;
 pub use timeline::{Segment, Timeline};
