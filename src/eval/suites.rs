@@ -245,6 +245,7 @@ fn baseline(opts: &SuiteOptions, corpus: &Corpus, norm: &crate::data::features::
 }
 
 fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let join_seams = opts.generate_options().join_seams;
     let sets = [(Dataset::CmuExpmap, vec![("walking", "Walking")]), (Dataset::CmuDance, vec![("indian", "Indian Dance"), ("martial", "Martial Arts")])];
     let published: [(&str, [(&str, [f64; 8]); 4]); 3] = [
         ("Walking", [
@@ -341,7 +342,7 @@ fn cmu_euclid(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdow
                 for &(ti, t0) in &starts {
                     let m = &corpus.test[ti].motion;
                     let mut p = m.frame(t0).to_vec();
-                    p.extend(model.forecast(m, t0, k, 1, opts.generate_options().join_seams)?);
+                    p.extend(model.forecast(m, t0, k, 1, join_seams)?);
                     preds.push(p);
                 }
                 rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
@@ -388,6 +389,7 @@ fn view2d(skeleton: &std::sync::Arc<crate::motion::Skeleton>, frames: Vec<Vec3>,
 }
 
 fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let join_seams = opts.generate_options().join_seams;
     let dir = model_dir(opts, Dataset::H36m);
     let mut model = GlocalModel::load(&dir)?;
     let spec = model.spec.clone();
@@ -443,7 +445,7 @@ fn h36m_mmd(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown,
             let truth: Vec<Vec3> = (0..n_out).flat_map(|k| m16.frame(w + n_in + k).to_vec()).collect();
             real.push(view2d(&skel, truth, &model_joints, hips, unit));
             let observed = m25.frame(*t0).to_vec();
-            let keys: Vec<Vec3> = observed.iter().copied().chain(model.forecast(m25, *t0, class, blocks, opts.generate_options().join_seams)?).collect();
+            let keys: Vec<Vec3> = observed.iter().copied().chain(model.forecast(m25, *t0, class, blocks, join_seams)?).collect();
             for (mi, locgen) in [(0, true), (1, false)] {
                 let dense = model.densify(&keys, locgen);
                 let frames: Vec<Vec3> = (1..=n_out).flat_map(|k| metrics::pose_at(&dense, skel.len(), spec.fps, k as f32 * dt16)).collect();

@@ -5,8 +5,8 @@
 //! outputs and caches. With glibc's defaults the largest come from `mmap` and go back with
 //! `munmap`, and the heaps of rayon's threads are trimmed with `madvise`, so every step faults
 //! its pages in afresh: perf showed ~10 000 page faults a step, 12% of the CPU time in the
-//! kernel and ~17% of the samples under page faults (docs/history/benchmarks-2026-12-01.md, "Training against PyTorch"; late
-//! evening). Keeping freed memory in the heaps lets the next step reuse it.
+//! kernel and ~17% of the samples under page faults (docs/history/benchmarks-2026-12-01.md,
+//! "Training against PyTorch"). Keeping freed memory in the heaps lets the next step reuse it.
 
 /// Largest allocation still served from the heaps (glibc's ceiling for this setting on
 /// 64-bit); a training step's largest buffer is a few MB.

@@ -2,11 +2,9 @@
 //! `glocal generate --paper`, `glocal eval --paper` and the studio alike, so the three
 //! cannot disagree about what the paper's method is.
 
-use serde::{Deserialize, Serialize};
-
 use super::generate::{GenerateOptions, Transition};
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Preset {
     /// The product's method: every addition on (anchored transitions, guidance, keep-alive,
     /// seam joins, foot lock), each as the options say.
