@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use glocal::model::block::BlockWorkspace;
 use glocal::model::glocal::GlocalModel;
 use glocal::model::spec::ModelSpec;
 
@@ -16,7 +17,7 @@ fn shipped(name: &str) -> PathBuf {
 #[test]
 fn shipped_models_load_generate_and_beat_zero_velocity() {
     for name in ["h36m", "bandai"] {
-        let mut model = GlocalModel::load(&shipped(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        let model = GlocalModel::load(&shipped(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
         assert!(model.has_locgen(), "{name} ships LocGen");
         let t = model.spec.block_len;
         let dim = model.spec.layout.dim();
@@ -24,7 +25,7 @@ fn shipped_models_load_generate_and_beat_zero_velocity() {
         model.spec.sparse_norm.normalize(&mut input);
         let class = model.class_vector(0);
         let mut out = vec![0.0; t * dim];
-        model.glogen_block(&input, &class, 1.0, &mut out);
+        model.glogen().block(&mut BlockWorkspace::default(), &input, &class, 1.0, &mut out);
         assert!(out.iter().all(|v| v.is_finite()));
         assert_ne!(out, input, "{name}: GloGen returned its input");
         let record = model.spec.glogen_training.clone().expect("training record");
@@ -107,7 +108,7 @@ fn residual_glogen_starts_where_its_context_leaves_off() {
     let (absolute, residual) = (train("absolute", false), train("residual", true));
     let corpus = glocal::model::corpus::Corpus::load(Dataset::CmuExpmap, &DataRoot::resolve(None), 2, 3).unwrap();
     let first_step = |dir: &Path| -> f32 {
-        let mut model = GlocalModel::load(dir).unwrap();
+        let model = GlocalModel::load(dir).unwrap();
         let j = model.spec.layout.joints();
         let (mut gap, mut n) = (0.0, 0);
         for clip in &corpus.test {

@@ -183,7 +183,7 @@ pub struct GenerateBench {
 /// Best-of-`repeats` wall time of whole takes (GloGen + LocGen + pace + bone projection)
 /// cycling through the model's classes in 10 s segments.
 pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, foot_lock: bool) -> Result<GenerateBench> {
-    let mut model = GlocalModel::load(dir)?;
+    let model = GlocalModel::load(dir)?;
     let class_strength = class_strength.unwrap_or(model.spec.class_strength);
     let classes = model.spec.classes.clone();
     let mut runs = Vec::new();
@@ -203,7 +203,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, f
         let mut frames = 0;
         for _ in 0..repeats.max(1) {
             let start = Instant::now();
-            let take = generate(&mut model, &opts, &mut |_| true)?;
+            let take = generate(&model, &opts, &mut |_| true)?;
             best = best.min(start.elapsed().as_secs_f64() * 1e3);
             frames = take.motion.frames();
         }

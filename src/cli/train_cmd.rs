@@ -143,19 +143,11 @@ pub fn run(args: TrainArgs) -> Result<()> {
     )?;
     bar.finish();
     if cancel.load(Ordering::SeqCst) {
-        let steps = match stage {
-            Stage::Glogen => spec.glogen_training.as_ref(),
-            Stage::Locgen => spec.locgen_training.as_ref(),
-        }
-        .map_or(0, |r| r.steps);
+        let steps = stage.record(&spec).map_or(0, |r| r.steps);
         eprintln!("interrupted: checkpoint at step {steps} saved in {}; continue with --resume", opts.out.display());
         std::process::exit(130);
     }
-    let record = match stage {
-        Stage::Glogen => spec.glogen_training,
-        Stage::Locgen => spec.locgen_training,
-    };
-    if let Some(r) = record {
+    if let Some(r) = stage.record(&spec) {
         say!(
             "{} steps; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
             r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit()

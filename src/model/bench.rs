@@ -2,7 +2,8 @@
 //! shapes, loss and optimiser of `/work/shared/bench/torch_reference.py` (input 80 + 12 class,
 //! hidden 200 per direction, 10 steps, batch 64, MSE + motion-flow MSE, AdamW lr 2e-3, dropout 0.25).
 use super::adamw::AdamW as ProjectAdamW;
-use super::block::{motion_loss, BlockConfig, Seq2SeqBlock};
+use super::block::{BlockConfig, BlockWorkspace, Seq2SeqBlock};
+use super::loss::motion_loss;
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
 use serde::{Deserialize, Serialize};
@@ -174,13 +175,13 @@ pub fn bench_infer(cfg: TrainBenchConfig, batch: usize, budget: Budget) -> Resul
     let x = Tensor::randn(0f32, 1.0, (batch, t, f), &dev)?;
     let cond_t = one_hot(batch, c, &dev)?;
     let cond = if c > 0 { Some(&cond_t) } else { None };
-    let mut fz = blk.freeze()?;
+    let (fz, mut ws) = (blk.freeze()?, BlockWorkspace::default());
     let xv = x.flatten_all()?.to_vec1::<f32>()?;
     let cv = cond_t.flatten_all()?.to_vec1::<f32>()?;
     let cvo = if c > 0 { Some(cv.as_slice()) } else { None };
     let mut out = vec![0f32; batch * t * f];
     let [frozen] = timed_turns(&cfg, budget, [&mut || {
-        fz.infer(&xv, cvo, batch, t, &mut out);
+        fz.infer(&mut ws, &xv, cvo, batch, t, &mut out);
         Ok(())
     }])?;
     let [fast, slow] = timed_turns(&cfg, budget, [&mut || blk.forward(&x, cond, false).map(drop), &mut || blk.forward_with_reference_lstm(&x, cond, false).map(drop)])?;

@@ -134,25 +134,8 @@ impl Seq2SeqBlock {
             dec: self.dec.freeze()?,
             head_w: v(&self.head_w)?,
             head_b: v(&self.head_b)?,
-            scratch: Scratch::default(),
-            x_in: Vec::new(),
-            e: Vec::new(),
-            d_in: Vec::new(),
-            d: Vec::new(),
         })
     }
-}
-
-/// The joint loss of the reference: MSE of the poses + MSE of the frame-to-frame motion flow.
-pub fn motion_loss(out: &Tensor, y: &Tensor) -> Result<Tensor> {
-    let t = out.dim(1)?;
-    let mse = (out - y)?.sqr()?.mean_all()?;
-    if t < 2 {
-        return Ok(mse);
-    }
-    let fo = (out.narrow(1, 1, t - 1)? - out.narrow(1, 0, t - 1)?)?;
-    let fy = (y.narrow(1, 1, t - 1)? - y.narrow(1, 0, t - 1)?)?;
-    mse + (fo - fy)?.sqr()?.mean_all()?
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -315,8 +298,9 @@ pub fn dropout(x: &Tensor, p: f32) -> Result<Tensor> {
     x.apply_op1(DropoutOp { p, seed: next_dropout_seed(), mask: Mutex::new(None) })
 }
 
-/// A [`Seq2SeqBlock`] frozen into plain f32 buffers: no autograd, no candle tensors, reusable
-/// scratch (no allocation per call once the largest batch has been seen).
+/// A [`Seq2SeqBlock`] frozen into plain f32 buffers: no autograd, no candle tensors. Its
+/// weights are only read, so one frozen block serves any number of callers; each call brings
+/// its own [`BlockWorkspace`].
 #[derive(Clone, Debug)]
 pub struct FrozenBlock {
     pub cfg: BlockConfig,
@@ -325,11 +309,26 @@ pub struct FrozenBlock {
     /// `[out_dim, 2H]`.
     pub head_w: Vec<f32>,
     pub head_b: Vec<f32>,
+}
+
+/// What one caller of a [`FrozenBlock`] writes while it runs: the LSTMs' scratch and the
+/// block's intermediate rows. It grows to the largest batch seen and is then reused, so a
+/// rollout allocates nothing per block.
+#[derive(Clone, Debug, Default)]
+pub struct BlockWorkspace {
     scratch: Scratch,
     x_in: Vec<f32>,
     e: Vec<f32>,
     d_in: Vec<f32>,
     d: Vec<f32>,
+}
+
+impl BlockWorkspace {
+    /// The encoder outputs `[B*T*2H]` of the last [`FrozenBlock::infer`] or
+    /// [`FrozenBlock::encode_infer`] run in this workspace, for a block of `hidden` units.
+    pub fn last_encoding(&self, b: usize, t: usize, hidden: usize) -> &[f32] {
+        &self.e[..b * t * 2 * hidden]
+    }
 }
 
 fn grow(v: &mut Vec<f32>, n: usize) {
@@ -361,61 +360,58 @@ impl FrozenBlock {
         }
     }
 
-    /// Runs the encoder into `self.e` (`[B*T, 2H]`).
-    fn run_encoder(&mut self, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize) {
+    /// Runs the encoder into `ws.e` (`[B*T, 2H]`).
+    fn run_encoder(&self, ws: &mut BlockWorkspace, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize) {
         self.check(x, cond, b, t);
         let h2 = 2 * self.cfg.hidden;
-        grow(&mut self.e, b * t * h2);
-        let e = &mut self.e[..b * t * h2];
+        grow(&mut ws.e, b * t * h2);
+        let e = &mut ws.e[..b * t * h2];
         match cond {
             Some(c) => {
                 let w = self.cfg.enc_in();
-                grow(&mut self.x_in, b * t * w);
-                let xin = &mut self.x_in[..b * t * w];
+                grow(&mut ws.x_in, b * t * w);
+                let xin = &mut ws.x_in[..b * t * w];
                 concat_rows(x, self.cfg.in_dim, c, self.cfg.cond_dim, b, t, xin);
-                self.enc.infer(xin, b, t, e, &mut self.scratch);
+                self.enc.infer(xin, b, t, e, &mut ws.scratch);
             }
-            None => self.enc.infer(x, b, t, e, &mut self.scratch),
+            None => self.enc.infer(x, b, t, e, &mut ws.scratch),
         }
     }
 
     /// `x [B*T*in_dim]` (batch-major), `cond [B*cond_dim]` -> `out [B*T*out_dim]`.
-    pub fn infer(&mut self, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize, out: &mut [f32]) {
+    pub fn infer(&self, ws: &mut BlockWorkspace, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize, out: &mut [f32]) {
         let (h2, o) = (2 * self.cfg.hidden, self.cfg.out_dim);
         assert_eq!(out.len(), b * t * o, "FrozenBlock: out has the wrong size");
-        self.run_encoder(x, cond, b, t);
-        grow(&mut self.d, b * t * h2);
-        let d = &mut self.d[..b * t * h2];
+        self.run_encoder(ws, x, cond, b, t);
+        grow(&mut ws.d, b * t * h2);
+        let BlockWorkspace { scratch, e, d_in, d, .. } = ws;
+        let d = &mut d[..b * t * h2];
         match (cond, self.cfg.cond_in_decoder) {
             (Some(c), true) => {
                 let w = self.cfg.dec_in();
-                grow(&mut self.d_in, b * t * w);
-                let din = &mut self.d_in[..b * t * w];
-                concat_rows(&self.e[..b * t * h2], h2, c, self.cfg.cond_dim, b, t, din);
-                self.dec.infer(din, b, t, d, &mut self.scratch);
+                grow(d_in, b * t * w);
+                let din = &mut d_in[..b * t * w];
+                concat_rows(&e[..b * t * h2], h2, c, self.cfg.cond_dim, b, t, din);
+                self.dec.infer(din, b, t, d, scratch);
             }
-            _ => self.dec.infer(&self.e[..b * t * h2], b, t, d, &mut self.scratch),
+            _ => self.dec.infer(&e[..b * t * h2], b, t, d, scratch),
         }
         linear(d, &self.head_w, &self.head_b, out);
     }
 
-    /// The encoder outputs `[B*T*2H]` of the last `infer` or `encode_infer` call.
-    pub fn last_encoding(&self, b: usize, t: usize) -> &[f32] {
-        &self.e[..b * t * 2 * self.cfg.hidden]
-    }
-
     /// The encoder outputs `[B*T*2H]` (for embeddings).
-    pub fn encode_infer(&mut self, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize, out: &mut [f32]) {
+    pub fn encode_infer(&self, ws: &mut BlockWorkspace, x: &[f32], cond: Option<&[f32]>, b: usize, t: usize, out: &mut [f32]) {
         let h2 = 2 * self.cfg.hidden;
         assert_eq!(out.len(), b * t * h2, "FrozenBlock: out has the wrong size");
-        self.run_encoder(x, cond, b, t);
-        out.copy_from_slice(&self.e[..b * t * h2]);
+        self.run_encoder(ws, x, cond, b, t);
+        out.copy_from_slice(&ws.e[..b * t * h2]);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::loss::motion_loss;
     use candle_core::Var;
     use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarMap};
 
@@ -484,7 +480,7 @@ mod tests {
         for (cid, cd) in [(false, 5usize), (true, 5), (false, 0)] {
             let vm = VarMap::new();
             let blk = Seq2SeqBlock::new(cfg(cid, cd), VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu)).unwrap();
-            let mut fz = blk.freeze().unwrap();
+            let (fz, mut ws) = (blk.freeze().unwrap(), BlockWorkspace::default());
             for b in [1usize, 3, 12] {
                 let t = 10;
                 let x = Tensor::randn(0f32, 1.0, (b, t, 11), &Device::Cpu).unwrap();
@@ -493,12 +489,12 @@ mod tests {
                 let xv = x.flatten_all().unwrap().to_vec1::<f32>().unwrap();
                 let cv = c.as_ref().map(|c| c.flatten_all().unwrap().to_vec1::<f32>().unwrap());
                 let mut out = vec![0f32; b * t * 7];
-                fz.infer(&xv, cv.as_deref(), b, t, &mut out);
+                fz.infer(&mut ws, &xv, cv.as_deref(), b, t, &mut out);
                 let d = want.iter().zip(&out).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
                 assert!(d < 1e-5, "frozen block differs by {d}");
                 let we = blk.encode(&x, c.as_ref()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap();
                 let mut e = vec![0f32; b * t * 48];
-                fz.encode_infer(&xv, cv.as_deref(), b, t, &mut e);
+                fz.encode_infer(&mut ws, &xv, cv.as_deref(), b, t, &mut e);
                 let d = we.iter().zip(&e).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
                 assert!(d < 1e-5, "frozen encoder differs by {d}");
             }

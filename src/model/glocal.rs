@@ -4,15 +4,17 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
-use candle_core::{DType, Device, Tensor};
+use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
 use glam::Vec3;
 
-use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
+use super::block::{BlockConfig, BlockWorkspace, FrozenBlock, Seq2SeqBlock};
 use super::corpus::interpolated_window;
-use super::spec::{ModelSpec, SeamJoin, Seed};
+use super::glogen::GloGen;
+use super::rollout::{rollout, OneClass};
+use super::spec::{ModelSpec, Seed};
 use super::Error;
-use crate::data::features::{interpolate, Placement, ROOT_FEATURES};
+use crate::data::features::{interpolate, Placement};
 use crate::motion::{floor_height, Motion};
 
 pub const GLOGEN_FILE: &str = "glogen.safetensors";
@@ -26,7 +28,7 @@ pub struct GlocalModel {
     pub dir: PathBuf,
     pub spec: ModelSpec,
     pub seeds: Vec<Seed>,
-    glogen: FrozenBlock,
+    glogen: GloGen,
     locgen: Option<FrozenBlock>,
 }
 
@@ -35,7 +37,7 @@ impl GlocalModel {
     /// error that names it. A folder without LocGen still generates (plain interpolation).
     pub fn load(dir: &Path) -> Result<Self, Error> {
         let spec = ModelSpec::read_verified(dir)?;
-        let glogen = load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?;
+        let glogen = GloGen::new(load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?, &spec);
         let locgen_path = dir.join(LOCGEN_FILE);
         let locgen = if locgen_path.exists() { Some(load_block(&locgen_path, &spec.locgen.block)?.freeze()?) } else { None };
         let seeds_path = dir.join(SEEDS_FILE);
@@ -82,86 +84,29 @@ impl GlocalModel {
         v
     }
 
-    /// One GloGen block: `input` is `block_len` normalised sparse poses, `class` a class
-    /// vector (may be a blend of two). `strength` > 1 applies classifier-free guidance
-    /// (`uncond + strength * (cond - uncond)`), available when the model was trained with
-    /// class dropout. Returns the block's embedding (as [`Self::embed`]), which the encoder
-    /// computed on the way.
-    pub fn glogen_block(&mut self, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
-        let t = self.spec.block_len;
-        let cond = (self.spec.glogen.block.cond_dim > 0).then_some(class);
-        let guided = cond.is_some() && self.spec.glogen.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6;
-        if !guided {
-            self.glogen.infer(input, cond, 1, t, out);
-            self.offset_from_last(input, out);
-            return self.glogen.last_encoding(1, t).to_vec();
-        }
-        // The conditioned and unconditioned passes as one batch of two: the weights stream
-        // from memory once for both.
-        let inputs = [input, input].concat();
-        let conds = [class, &vec![0.0; class.len()]].concat();
-        let mut both = vec![0.0; 2 * out.len()];
-        self.glogen.infer(&inputs, Some(&conds), 2, t, &mut both);
-        let (conditioned, unconditioned) = both.split_at(out.len());
-        for ((o, c), u) in out.iter_mut().zip(conditioned).zip(unconditioned) {
-            *o = u + strength * (c - u);
-        }
-        self.offset_from_last(input, out);
-        self.glogen.last_encoding(2, t)[..t * 2 * self.spec.glogen.block.hidden].to_vec()
-    }
-
-    /// A residual GloGen's block is offsets from the last pose of its input.
-    fn offset_from_last(&self, input: &[f32], out: &mut [f32]) {
-        if !self.spec.glogen.residual {
-            return;
-        }
-        let dim = self.spec.layout.dim();
-        let last = &input[input.len() - dim..];
-        for pose in out.chunks_exact_mut(dim) {
-            pose.iter_mut().zip(last).for_each(|(o, l)| *o += l);
-        }
-    }
-
-    /// One step of GloGen's rollout: a block from `input` (the context as GloGen should see
-    /// it, eased towards an anchor or noised), joined onto the poses actually before it
-    /// (normalised) when `join` names them: the whole block before, which a two-sided join
-    /// may move, or only its last pose, which stays. Returns the block's embedding.
-    ///
-    /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
-    /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
-    /// inside a block). Joining shifts the block so that its first pose is one of its own
-    /// steps on from the context's last pose, and fades the shift out over the first half of
-    /// the block with a raised cosine, which keeps the block's own motion and its end where
-    /// GloGen put it; a two-sided join ([`SeamJoin`]) moves the block before by half of it.
-    pub fn rollout_block(&mut self, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
-        let embedding = self.glogen_block(input, class, strength, out);
-        if let Some(before) = join {
-            join_seam(before, out, self.spec.layout.dim(), self.spec.glogen.seam_join);
-        }
-        embedding
+    /// GloGen, frozen: blocks, their seam join and the rollout's step.
+    pub fn glogen(&self) -> &GloGen {
+        &self.glogen
     }
 
     /// GloGen's encoder states over one block, concatenated: the embedding of the t-SNE panel.
-    pub fn embed(&mut self, input: &[f32], class: &[f32]) -> Vec<f32> {
-        let t = self.spec.block_len;
-        let cond = (self.spec.glogen.block.cond_dim > 0).then_some(class);
-        let mut out = vec![0.0; t * 2 * self.spec.glogen.block.hidden];
-        self.glogen.encode_infer(input, cond, 1, t, &mut out);
-        out
+    pub fn embed(&self, input: &[f32], class: &[f32]) -> Vec<f32> {
+        self.glogen.embed(input, class)
     }
 
     /// LocGen over `windows` windows of normalised interpolated dense features, in place:
     /// LocGen predicts a residual on the interpolation. Returns false without LocGen.
-    pub fn locgen(&mut self, frames: &mut [f32], windows: usize) -> bool {
-        let Some(locgen) = self.locgen.as_mut() else { return false };
+    pub fn locgen(&self, frames: &mut [f32], windows: usize) -> bool {
+        let Some(locgen) = self.locgen.as_ref() else { return false };
         let w = self.spec.locgen.window;
         let width = w * self.spec.layout.dim();
         // Chunks of windows bound the workspace (gates and states of every window in the
         // batch) whatever the take's length.
         let mut residual = vec![0.0; LOCGEN_CHUNK.min(windows) * width];
+        let mut ws = BlockWorkspace::default();
         for chunk in frames[..windows * width].chunks_mut(LOCGEN_CHUNK * width) {
             let n = chunk.len() / width;
-            locgen.infer(chunk, None, n, w, &mut residual[..n * width]);
+            locgen.infer(&mut ws, chunk, None, n, w, &mut residual[..n * width]);
             chunk.iter_mut().zip(&residual).for_each(|(f, r)| *f += r);
         }
         true
@@ -171,9 +116,9 @@ impl GlocalModel {
 impl GlocalModel {
     /// GloGen continuing real motion: `blocks * block_len` sparse poses after frame `t0` of
     /// `m` (on the model's skeleton and frame rate), the `k`-th at frame `t0 + (k + 1) *
-    /// stride`, rolled out block by block with [`Self::rollout_block`] from the `block_len`
+    /// stride`, rolled out block by block by [`rollout`] from the `block_len`
     /// observed sparse poses ending at `t0`. Positions are in the motion's own world frame.
-    pub fn forecast(&mut self, m: &Motion, t0: usize, class: usize, blocks: usize, join_seams: bool) -> Result<Vec<Vec3>> {
+    pub fn forecast(&self, m: &Motion, t0: usize, class: usize, blocks: usize, join_seams: bool) -> Result<Vec<Vec3>> {
         let (s, t, dim) = (self.spec.stride, self.spec.block_len, self.spec.layout.dim());
         let first = t0 as isize - ((t - 1) * s) as isize;
         if first < s as isize || t0 >= m.frames() {
@@ -181,16 +126,8 @@ impl GlocalModel {
         }
         let mut sparse = self.spec.layout.encode_motion(m, first as usize, s, t);
         self.spec.sparse_norm.normalize(&mut sparse);
-        let class_vec = self.class_vector(class);
-        let mut out = vec![0.0; t * dim];
-        for b in 0..blocks {
-            let context = sparse.len() - t * dim;
-            let input = sparse[context..].to_vec();
-            // The observed poses stay where they were observed: the join sees their last alone.
-            let before = if b > 0 { context } else { sparse.len() - dim };
-            self.rollout_block(&input, &class_vec, 1.0, join_seams.then_some(&mut sparse[before..]), &mut out);
-            sparse.extend_from_slice(&out);
-        }
+        // The observed poses stay where they were observed: the join sees their last alone.
+        rollout(&self.glogen, &mut BlockWorkspace::default(), &mut sparse, blocks, join_seams, &mut OneClass(self.class_vector(class)))?;
         let mut predicted = sparse.split_off(t * dim);
         self.spec.sparse_norm.denormalize(&mut predicted);
         Ok(self.spec.layout.decode(&predicted, self.spec.layout.placement(m.frame(t0))).0)
@@ -205,7 +142,7 @@ impl GlocalModel {
     /// LocGen over whole windows of interpolated dense poses, each given with the pose just
     /// before it (which places it and starts its velocities); the refined poses, window after
     /// window. None without LocGen.
-    pub fn refine_windows(&mut self, windows: &[(&[Vec3], &[Vec3])]) -> Option<Vec<Vec3>> {
+    pub fn refine_windows(&self, windows: &[(&[Vec3], &[Vec3])]) -> Option<Vec<Vec3>> {
         if !self.has_locgen() {
             return None;
         }
@@ -224,7 +161,7 @@ impl GlocalModel {
 
     /// Dense frames between sparse poses at the model's native stride: their linear
     /// interpolation, refined by LocGen when asked and available.
-    pub fn densify(&mut self, sparse: &[Vec3], refine: bool) -> Vec<Vec3> {
+    pub fn densify(&self, sparse: &[Vec3], refine: bool) -> Vec<Vec3> {
         let spec = &self.spec;
         let j = spec.layout.joints();
         let dense = interpolate(sparse, j, spec.stride, spec.locgen.interpolation);
@@ -250,96 +187,6 @@ impl GlocalModel {
         // The first frame's features carry no displacement, so decoding starts where it stands.
         layout.decode(&feats, layout.placement(refs[0])).0
     }
-}
-
-/// See [`GlocalModel::rollout_block`]. Features 1-3 (the root's ground displacement and
-/// heading change) are velocities already (the block's first moves halfway to the
-/// context's last); the rest are positions, and the block's first pose moves to one of the
-/// block's own first steps on from the context's last pose. The shift fades out over the
-/// first half of the block with a raised cosine, so the block keeps its own motion and ends
-/// where GloGen put it. Faded over the whole block, the shifted root height and joints kept
-/// a running body off its feet for 1.5 s (Bandai floating 21% of frames against 13%; on the
-/// final tree 23% with only the root's fade that long and 25% with only the joints',
-/// against 16%). The join used to continue the context's last step instead (positions at
-/// their last velocity): a sparse step is 0.17-0.2 s, and extrapolating it carried a
-/// landing foot through the floor at every seam of a walk (Bandai's walks then floated 86%
-/// of the time over the floor those dips set); the mean of the two steps left a hitch (the
-/// seam interval 0.77x the others' speed). Measured in docs/DESIGN.md ("Seams").
-///
-/// `before` is the whole block before or only its last pose; with [`SeamJoin::TwoSided`] a
-/// whole block takes half the shift, opposite, faded in over its last half, and the new
-/// block the other half, so neither block's first half carries all of the other's pose.
-fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin) {
-    let poses = block.len() / dim;
-    if poses < 2 {
-        return;
-    }
-    let last = &before[before.len() - dim..];
-    let shift: Vec<f32> = (0..dim)
-        .map(|f| {
-            let target = if (1..ROOT_FEATURES).contains(&f) { 0.5 * (last[f] + block[dim + f]) } else { last[f] + block[dim + f] - block[f] };
-            target - block[f]
-        })
-        .collect();
-    let share = seam_share(kind, before.len() == block.len());
-    let fade = join_fade(poses);
-    for (k, w) in fade.iter().enumerate() {
-        block[k * dim..(k + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v += share * d * w);
-    }
-    if share < 1.0 {
-        for (k, w) in fade.iter().enumerate() {
-            let pose = poses - 1 - k;
-            before[pose * dim..(pose + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v -= (1.0 - share) * d * w);
-        }
-    }
-}
-
-/// The share of a seam's shift the new block takes; the block before, when it is there whole,
-/// takes the rest.
-fn seam_share(kind: SeamJoin, whole_block_before: bool) -> f32 {
-    if kind == SeamJoin::TwoSided && whole_block_before {
-        0.5
-    } else {
-        1.0
-    }
-}
-
-/// The share of a seam's shift each of a block's `poses` keeps: a raised cosine from 1 at its
-/// first pose to 0 at its middle.
-fn join_fade(poses: usize) -> Vec<f32> {
-    let span = poses / 2;
-    (0..poses).map(|k| if k < span { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) } else { 0.0 }).collect()
-}
-
-/// [`join_seam`] on a batch of blocks `[B, T, D]` onto the blocks before them `[B, T, D]`
-/// (or their last poses `[B, 1, D]`, which stay where they are), as differentiable tensor
-/// operations: what training on joined rollouts backpropagates through. Returns the joined
-/// blocks before and the joined blocks.
-pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin) -> candle_core::Result<(Tensor, Tensor)> {
-    let (_, poses, dim) = blocks.dims3()?;
-    if poses < 2 {
-        return Ok((before.clone(), blocks.clone()));
-    }
-    let device = blocks.device();
-    let last = before.narrow(1, before.dim(1)? - 1, 1)?;
-    let first = blocks.narrow(1, 0, 1)?;
-    let second = blocks.narrow(1, 1, 1)?;
-    let root: Vec<f32> = (0..dim).map(|f| if (1..ROOT_FEATURES).contains(&f) { 1.0 } else { 0.0 }).collect();
-    let root = Tensor::from_vec(root, (1, 1, dim), device)?;
-    let root_target = ((&last + &second)? * 0.5)?;
-    let pose_target = ((&last + &second)? - &first)?;
-    let target = (root_target.broadcast_mul(&root)? + pose_target.broadcast_mul(&(1.0 - &root)?)?)?;
-    let shift = (target - first)?;
-    let share = seam_share(kind, before.dim(1)? == poses) as f64;
-    let fade = join_fade(poses);
-    let head = Tensor::from_vec(fade.clone(), (1, poses, 1), device)?;
-    let joined = (blocks + shift.broadcast_mul(&head)?.affine(share, 0.0)?)?;
-    if share == 1.0 {
-        return Ok((before.clone(), joined));
-    }
-    let tail = Tensor::from_vec(fade.into_iter().rev().collect(), (1, poses, 1), device)?;
-    let before = (before - shift.broadcast_mul(&tail)?.affine(1.0 - share, 0.0)?)?;
-    Ok((before, joined))
 }
 
 /// Builds a block and fills it from a safetensors file.
@@ -379,59 +226,4 @@ pub fn load_weights(path: &Path, varmap: &VarMap) -> Result<(), Error> {
 
 fn file_error(what: String, cause: impl std::error::Error + Send + Sync + 'static) -> Error {
     Error::File { what, cause: cause.into() }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Training's tensor join is generation's join: the same poses to float rounding, for
-    /// blocks of either parity of length, one-sided onto a last pose and two-sided onto a
-    /// whole block before.
-    #[test]
-    fn tensor_join_matches_the_rollouts_join() {
-        for (poses, dim) in [(10, 7), (9, 5)] {
-            for (kind, before_poses) in [(SeamJoin::OneSided, 1), (SeamJoin::TwoSided, poses)] {
-                let value = |i: usize| ((i * 7919) % 97) as f32 / 13.0 - 3.5;
-                let blocks: Vec<f32> = (0..2 * poses * dim).map(value).collect();
-                let before: Vec<f32> = (0..2 * before_poses * dim).map(|i| value(i + 5000)).collect();
-                let tensor = |v: &[f32], p: usize| Tensor::from_vec(v.to_vec(), (2, p, dim), &Device::Cpu).unwrap();
-                let (joined_before, joined) = join_seams_tensor(&tensor(&before, before_poses), &tensor(&blocks, poses), kind).unwrap();
-                let flat = |t: Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-                let (joined_before, joined) = (flat(joined_before), flat(joined));
-                for b in 0..2 {
-                    let (width, before_width) = (poses * dim, before_poses * dim);
-                    let mut block = blocks[b * width..(b + 1) * width].to_vec();
-                    let mut prior = before[b * before_width..(b + 1) * before_width].to_vec();
-                    join_seam(&mut prior, &mut block, dim, kind);
-                    assert_ne!(block, blocks[b * width..(b + 1) * width], "the join moved nothing");
-                    assert_eq!(prior != before[b * before_width..(b + 1) * before_width], kind == SeamJoin::TwoSided, "{kind:?} moved the block before or left it");
-                    let expected = joined[b * width..(b + 1) * width].iter().chain(&joined_before[b * before_width..(b + 1) * before_width]);
-                    for (a, t) in block.iter().chain(&prior).zip(expected) {
-                        assert!((a - t).abs() < 1e-5, "{a} against {t}");
-                    }
-                }
-            }
-        }
-    }
-
-    /// A two-sided join leaves the seam's step what a one-sided join makes it: one of the
-    /// new block's own steps on from the (moved) pose before.
-    #[test]
-    fn two_sided_join_closes_the_seam_as_the_one_sided_does() {
-        let (poses, dim) = (10, 6);
-        let value = |i: usize| ((i * 104729) % 89) as f32 / 11.0 - 4.0;
-        let block: Vec<f32> = (0..poses * dim).map(value).collect();
-        let before: Vec<f32> = (0..poses * dim).map(|i| value(i + 777)).collect();
-        let mut seams = Vec::new();
-        for kind in [SeamJoin::OneSided, SeamJoin::TwoSided] {
-            let (mut prior, mut joined) = (before.clone(), block.clone());
-            join_seam(&mut prior, &mut joined, dim, kind);
-            let last = &prior[(poses - 1) * dim..];
-            seams.push((ROOT_FEATURES..dim).map(|f| joined[f] - last[f]).collect::<Vec<f32>>());
-        }
-        for (a, b) in seams[0].iter().zip(&seams[1]) {
-            assert!((a - b).abs() < 1e-5, "seam step {a} one-sided against {b} two-sided");
-        }
-    }
 }

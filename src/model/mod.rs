@@ -5,7 +5,11 @@ pub mod bench;
 pub mod adamw;
 pub mod corpus;
 pub mod glocal;
+pub mod glogen;
+pub mod loss;
 pub mod memory;
+pub mod rollout;
+pub mod seam;
 pub mod spec;
 pub mod train;
 

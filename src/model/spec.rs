@@ -47,7 +47,7 @@ pub struct GloGenSpec {
     #[serde(default)]
     pub residual: bool,
     /// Trained on its blocks joined at their seams as generation joins them
-    /// (`GlocalModel::rollout_block`): the loss sees the joined block and the rollout's next
+    /// (`GloGen::rollout_block`): the loss sees the joined block and the rollout's next
     /// block reads it.
     #[serde(default)]
     pub joined: bool,

@@ -10,11 +10,15 @@ use std::f32::consts::PI;
 use anyhow::{bail, Context, Result};
 use glam::{Quat, Vec3};
 
-use super::constraints::{Key, KeySource};
+use super::constraints::{check_keys, Key, KeySource};
 use super::init::{read_on_model_skeleton, InitPose};
+use super::options::KeyMethod;
+use super::plan::{PlannedBlock, SparseTimeline, TakeConstraint};
 use super::smoothstep;
 use crate::data::features::{wrap, FeatureLayout, Placement, ROOT_FEATURES};
+use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
+use crate::model::glogen::GloGen;
 use crate::motion::{solve_local_poses, Motion};
 
 /// Seconds before a key over which GloGen's sparse poses are warped towards it.
@@ -220,6 +224,78 @@ pub fn fix_roots(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, keys:
         pose.iter_mut().for_each(|p| *p = centre + rot * (*p - centre) + shift);
     }
     warnings
+}
+
+/// Each key on the sparse pose nearest its time after the seed block of `timeline`, with its
+/// pose.
+pub(super) fn place_keys(timeline: &SparseTimeline, model: &GlocalModel, keys: &[Key]) -> Result<Vec<PlacedKey>> {
+    let spec = &model.spec;
+    let t = spec.block_len;
+    let total = timeline.total();
+    if keys.is_empty() {
+        return Ok(Vec::new());
+    }
+    // A take no longer than its starting poses has no room for a key.
+    let seed_end = timeline.frames[(t - 1).min(total - 1)] as f32 / spec.fps;
+    check_keys(keys, timeline.frames[total - 1] as f32 / spec.fps, seed_end)?;
+    if total <= t {
+        bail!("keys need a take longer than its starting poses ({seed_end:.2} s)");
+    }
+    keys.iter()
+        .map(|key| {
+            let pose = key_pose(model, key)?;
+            let frame = (key.seconds * spec.fps).round() as usize;
+            let sparse = (t..total).min_by(|&a, &b| (timeline.frames[a] - frame as f64).abs().total_cmp(&(timeline.frames[b] - frame as f64).abs())).unwrap_or(t);
+            let mut features = spec.layout.encode(&[&pose], None);
+            spec.sparse_norm.normalize(&mut features);
+            Ok(PlacedKey { sparse, frame, pose, features, fix_root: key.fix_root })
+        })
+        .collect()
+}
+
+/// The keys of a take as a constraint: GloGen's sparse poses warped onto each key as its
+/// block comes out (and, for [`KeyMethod::RollOn`], the rest of that block rolled out again
+/// from the keyed context), the dense frames' roots and poses pulled onto them, and the
+/// residual the foot lock leaves warped away.
+pub(super) struct KeyConstraint {
+    /// Every key, placed.
+    pub keys: Vec<PlacedKey>,
+    /// Per key, seconds per sparse step at its segment's pace.
+    pub step_seconds: Vec<f32>,
+    pub method: KeyMethod,
+}
+
+impl TakeConstraint for KeyConstraint {
+    fn on_block(&self, block: &PlannedBlock<'_>, (glogen, ws): (&GloGen, &mut BlockWorkspace), sparse: &mut [f32]) {
+        let (t, dim) = (glogen.block_len(), glogen.dim());
+        let mut out = vec![0.0; t * dim];
+        for &k in &block.plan.keys {
+            let key = &self.keys[k];
+            warp_sparse(sparse, dim, key, self.step_seconds[k]);
+            // What the block held after the key was GloGen's way on without it: the rest of
+            // the block is rolled out again from the context that ends on the key.
+            let after = (key.sparse + 1) * dim;
+            if after < sparse.len() && self.method == KeyMethod::RollOn {
+                let input = sparse[after - t * dim..after].to_vec();
+                let mut key = input[(t - 1) * dim..].to_vec();
+                glogen.rollout_block(ws, &input, &block.plan.class, block.strength, block.join_seams.then_some(&mut key[..]), &mut out);
+                let rest = sparse.len() - after;
+                sparse[after..].copy_from_slice(&out[..rest]);
+            }
+        }
+    }
+
+    fn on_dense(&self, positions: &mut [Vec3], layout: &FeatureLayout, fps: f32) -> Vec<String> {
+        let warnings = fix_roots(positions, layout, fps, &self.keys);
+        for key in &self.keys {
+            warp_dense(positions, layout, fps, key);
+        }
+        warnings
+    }
+
+    fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
+        rewarp(motion, layout, &self.keys)
+    }
 }
 
 #[cfg(test)]

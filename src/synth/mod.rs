@@ -8,9 +8,11 @@ pub mod generate;
 pub mod gltf;
 pub mod init;
 pub mod keys;
+pub mod options;
 mod pace;
 pub mod preset;
 pub mod path_follow;
+mod plan;
 pub mod render;
 pub mod rig;
 mod steer;
@@ -32,7 +34,9 @@ pub(crate) fn smoothstep(x: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
-pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan, Transition, DEFAULT_TRANSITION_SECONDS};
+pub use generate::{generate, Generated};
+pub use options::{GenerateOptions, KeyMethod, Transition, DEFAULT_TRANSITION_SECONDS};
+pub use plan::SegmentSpan;
 pub use constraints::{Key, KeySource, RootPath, Waypoint};
 pub use init::InitPose;
 pub use preset::Preset;

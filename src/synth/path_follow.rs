@@ -8,6 +8,7 @@
 use glam::{Quat, Vec2, Vec3};
 
 use super::constraints::RootPath;
+use super::plan::TakeConstraint;
 use crate::data::features::{wrap, FeatureLayout};
 
 /// Radius (metres) of the arcs that round the path's corners: a walker turns a corner over
@@ -109,6 +110,18 @@ impl GroundPath {
                 p.distance(w[0] + d * t)
             })
             .fold(f32::INFINITY, f32::min)
+    }
+}
+
+/// A root path as a constraint: the paced take's locomotion laid along it.
+pub(super) struct PathConstraint {
+    pub path: GroundPath,
+    pub units_per_metre: f32,
+}
+
+impl TakeConstraint for PathConstraint {
+    fn on_dense(&self, positions: &mut [Vec3], layout: &FeatureLayout, fps: f32) -> Vec<String> {
+        follow_path(positions, layout, fps, &self.path, self.units_per_metre)
     }
 }
 

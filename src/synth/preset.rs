@@ -2,7 +2,7 @@
 //! `glocal generate --paper`, `glocal eval --paper` and the studio alike, so the three
 //! cannot disagree about what the paper's method is.
 
-use super::generate::{GenerateOptions, Transition};
+use super::options::{GenerateOptions, Transition};
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Preset {

@@ -1,13 +1,14 @@
 //! How each block of the rollout is steered: its context eased towards a real window of its
 //! class at a class change, and keep-alive's rule on the take's own motion (a stalled,
 //! rushing, slow or looping take leans on a seed window of its class and is urged on).
-//! The plan (`generate::SparseTimeline::plan`) says what each block asks for; this says what
+//! The plan (`plan::SparseTimeline::plan`) says what each block asks for; this says what
 //! the motion so far makes of it.
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::generate::{BlockPlan, GenerateOptions};
+use super::options::GenerateOptions;
+use super::plan::BlockPlan;
 use super::init::InitPose;
 use super::pace::RecentPace;
 use crate::data::features::ROOT_FEATURES;

@@ -1,0 +1,99 @@
+//! GloGen frozen for generation: one block of sparse poses at a time from the block before
+//! it, with classifier-free guidance, joined at its seam. Its weights are only read; each
+//! caller brings a [`BlockWorkspace`].
+
+use super::block::{BlockWorkspace, FrozenBlock};
+use super::seam::join_seam;
+use super::spec::{GloGenSpec, ModelSpec};
+
+#[derive(Clone, Debug)]
+pub struct GloGen {
+    block: FrozenBlock,
+    spec: GloGenSpec,
+    /// Sparse poses per block.
+    block_len: usize,
+    /// Features per pose.
+    dim: usize,
+}
+
+impl GloGen {
+    pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
+        Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim() }
+    }
+
+    pub fn block_len(&self) -> usize {
+        self.block_len
+    }
+
+    /// Features per sparse pose.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// One block: `input` is `block_len` normalised sparse poses, `class` a class vector (may
+    /// be a blend of two). `strength` > 1 applies classifier-free guidance (`uncond + strength
+    /// * (cond - uncond)`), available when the model was trained with class dropout. Returns
+    /// the block's embedding (as [`Self::embed`]), which the encoder computed on the way.
+    pub fn block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
+        let (t, hidden) = (self.block_len, self.spec.block.hidden);
+        let cond = (self.spec.block.cond_dim > 0).then_some(class);
+        let guided = cond.is_some() && self.spec.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6;
+        if !guided {
+            self.block.infer(ws, input, cond, 1, t, out);
+            self.offset_from_last(input, out);
+            return ws.last_encoding(1, t, hidden).to_vec();
+        }
+        // The conditioned and unconditioned passes as one batch of two: the weights stream
+        // from memory once for both.
+        let inputs = [input, input].concat();
+        let conds = [class, &vec![0.0; class.len()]].concat();
+        let mut both = vec![0.0; 2 * out.len()];
+        self.block.infer(ws, &inputs, Some(&conds), 2, t, &mut both);
+        let (conditioned, unconditioned) = both.split_at(out.len());
+        for ((o, c), u) in out.iter_mut().zip(conditioned).zip(unconditioned) {
+            *o = u + strength * (c - u);
+        }
+        self.offset_from_last(input, out);
+        ws.last_encoding(2, t, hidden)[..t * 2 * hidden].to_vec()
+    }
+
+    /// A residual GloGen's block is offsets from the last pose of its input.
+    fn offset_from_last(&self, input: &[f32], out: &mut [f32]) {
+        if !self.spec.residual {
+            return;
+        }
+        let last = &input[input.len() - self.dim..];
+        for pose in out.chunks_exact_mut(self.dim) {
+            pose.iter_mut().zip(last).for_each(|(o, l)| *o += l);
+        }
+    }
+
+    /// One step of the rollout: a block from `input` (the context as GloGen should see it,
+    /// eased towards an anchor or noised), joined onto the poses actually before it
+    /// (normalised) when `join` names them: the whole block before, which a two-sided join
+    /// may move, or only its last pose, which stays. Returns the block's embedding.
+    ///
+    /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
+    /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
+    /// inside a block). Joining shifts the block so that its first pose is one of its own
+    /// steps on from the context's last pose, and fades the shift out over the first half of
+    /// the block with a raised cosine, which keeps the block's own motion and its end where
+    /// GloGen put it; a two-sided join ([`super::spec::SeamJoin`]) moves the block before by
+    /// half of it.
+    pub fn rollout_block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
+        let embedding = self.block(ws, input, class, strength, out);
+        if let Some(before) = join {
+            join_seam(before, out, self.dim, self.spec.seam_join);
+        }
+        embedding
+    }
+
+    /// The encoder states over one block, concatenated: the embedding of the t-SNE panel.
+    pub fn embed(&self, input: &[f32], class: &[f32]) -> Vec<f32> {
+        let t = self.block_len;
+        let cond = (self.spec.block.cond_dim > 0).then_some(class);
+        let mut out = vec![0.0; t * 2 * self.spec.block.hidden];
+        self.block.encode_infer(&mut BlockWorkspace::default(), input, cond, 1, t, &mut out);
+        out
+    }
+}

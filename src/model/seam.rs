@@ -1,0 +1,154 @@
+//! The seam join: a GloGen block shifted onto the poses before it, so blocks do not pop
+//! where they meet; once on plain f32 buffers for generation and once as differentiable
+//! tensor operations for training on joined rollouts (tested equal).
+
+use candle_core::Tensor;
+
+use super::spec::SeamJoin;
+use crate::data::features::ROOT_FEATURES;
+
+/// Joins `block` onto the poses `before` it (see [`super::glogen::GloGen::rollout_block`]).
+/// Features 1-3 (the root's ground displacement and heading change) are velocities already
+/// (the block's first moves halfway to the context's last); the rest are positions, and the block's first pose moves to one of the
+/// block's own first steps on from the context's last pose. The shift fades out over the
+/// first half of the block with a raised cosine, so the block keeps its own motion and ends
+/// where GloGen put it. Faded over the whole block, the shifted root height and joints kept
+/// a running body off its feet for 1.5 s (Bandai floating 21% of frames against 13%; on the
+/// final tree 23% with only the root's fade that long and 25% with only the joints',
+/// against 16%). The join used to continue the context's last step instead (positions at
+/// their last velocity): a sparse step is 0.17-0.2 s, and extrapolating it carried a
+/// landing foot through the floor at every seam of a walk (Bandai's walks then floated 86%
+/// of the time over the floor those dips set); the mean of the two steps left a hitch (the
+/// seam interval 0.77x the others' speed). Measured in docs/DESIGN.md ("Seams").
+///
+/// `before` is the whole block before or only its last pose; with [`SeamJoin::TwoSided`] a
+/// whole block takes half the shift, opposite, faded in over its last half, and the new
+/// block the other half, so neither block's first half carries all of the other's pose.
+pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin) {
+    let poses = block.len() / dim;
+    if poses < 2 {
+        return;
+    }
+    let last = &before[before.len() - dim..];
+    let shift: Vec<f32> = (0..dim)
+        .map(|f| {
+            let target = if (1..ROOT_FEATURES).contains(&f) { 0.5 * (last[f] + block[dim + f]) } else { last[f] + block[dim + f] - block[f] };
+            target - block[f]
+        })
+        .collect();
+    let share = seam_share(kind, before.len() == block.len());
+    let fade = join_fade(poses);
+    for (k, w) in fade.iter().enumerate() {
+        block[k * dim..(k + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v += share * d * w);
+    }
+    if share < 1.0 {
+        for (k, w) in fade.iter().enumerate() {
+            let pose = poses - 1 - k;
+            before[pose * dim..(pose + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v -= (1.0 - share) * d * w);
+        }
+    }
+}
+
+/// The share of a seam's shift the new block takes; the block before, when it is there whole,
+/// takes the rest.
+fn seam_share(kind: SeamJoin, whole_block_before: bool) -> f32 {
+    if kind == SeamJoin::TwoSided && whole_block_before {
+        0.5
+    } else {
+        1.0
+    }
+}
+
+/// The share of a seam's shift each of a block's `poses` keeps: a raised cosine from 1 at its
+/// first pose to 0 at its middle.
+fn join_fade(poses: usize) -> Vec<f32> {
+    let span = poses / 2;
+    (0..poses).map(|k| if k < span { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) } else { 0.0 }).collect()
+}
+
+/// [`join_seam`] on a batch of blocks `[B, T, D]` onto the blocks before them `[B, T, D]`
+/// (or their last poses `[B, 1, D]`, which stay where they are), as differentiable tensor
+/// operations: what training on joined rollouts backpropagates through. Returns the joined
+/// blocks before and the joined blocks.
+pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin) -> candle_core::Result<(Tensor, Tensor)> {
+    let (_, poses, dim) = blocks.dims3()?;
+    if poses < 2 {
+        return Ok((before.clone(), blocks.clone()));
+    }
+    let device = blocks.device();
+    let last = before.narrow(1, before.dim(1)? - 1, 1)?;
+    let first = blocks.narrow(1, 0, 1)?;
+    let second = blocks.narrow(1, 1, 1)?;
+    let root: Vec<f32> = (0..dim).map(|f| if (1..ROOT_FEATURES).contains(&f) { 1.0 } else { 0.0 }).collect();
+    let root = Tensor::from_vec(root, (1, 1, dim), device)?;
+    let root_target = ((&last + &second)? * 0.5)?;
+    let pose_target = ((&last + &second)? - &first)?;
+    let target = (root_target.broadcast_mul(&root)? + pose_target.broadcast_mul(&(1.0 - &root)?)?)?;
+    let shift = (target - first)?;
+    let share = seam_share(kind, before.dim(1)? == poses) as f64;
+    let fade = join_fade(poses);
+    let head = Tensor::from_vec(fade.clone(), (1, poses, 1), device)?;
+    let joined = (blocks + shift.broadcast_mul(&head)?.affine(share, 0.0)?)?;
+    if share == 1.0 {
+        return Ok((before.clone(), joined));
+    }
+    let tail = Tensor::from_vec(fade.into_iter().rev().collect(), (1, poses, 1), device)?;
+    let before = (before - shift.broadcast_mul(&tail)?.affine(1.0 - share, 0.0)?)?;
+    Ok((before, joined))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::Device;
+
+    /// Training's tensor join is generation's join: the same poses to float rounding, for
+    /// blocks of either parity of length, one-sided onto a last pose and two-sided onto a
+    /// whole block before.
+    #[test]
+    fn tensor_join_matches_the_rollouts_join() {
+        for (poses, dim) in [(10, 7), (9, 5)] {
+            for (kind, before_poses) in [(SeamJoin::OneSided, 1), (SeamJoin::TwoSided, poses)] {
+                let value = |i: usize| ((i * 7919) % 97) as f32 / 13.0 - 3.5;
+                let blocks: Vec<f32> = (0..2 * poses * dim).map(value).collect();
+                let before: Vec<f32> = (0..2 * before_poses * dim).map(|i| value(i + 5000)).collect();
+                let tensor = |v: &[f32], p: usize| Tensor::from_vec(v.to_vec(), (2, p, dim), &Device::Cpu).unwrap();
+                let (joined_before, joined) = join_seams_tensor(&tensor(&before, before_poses), &tensor(&blocks, poses), kind).unwrap();
+                let flat = |t: Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+                let (joined_before, joined) = (flat(joined_before), flat(joined));
+                for b in 0..2 {
+                    let (width, before_width) = (poses * dim, before_poses * dim);
+                    let mut block = blocks[b * width..(b + 1) * width].to_vec();
+                    let mut prior = before[b * before_width..(b + 1) * before_width].to_vec();
+                    join_seam(&mut prior, &mut block, dim, kind);
+                    assert_ne!(block, blocks[b * width..(b + 1) * width], "the join moved nothing");
+                    assert_eq!(prior != before[b * before_width..(b + 1) * before_width], kind == SeamJoin::TwoSided, "{kind:?} moved the block before or left it");
+                    let expected = joined[b * width..(b + 1) * width].iter().chain(&joined_before[b * before_width..(b + 1) * before_width]);
+                    for (a, t) in block.iter().chain(&prior).zip(expected) {
+                        assert!((a - t).abs() < 1e-5, "{a} against {t}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// A two-sided join leaves the seam's step what a one-sided join makes it: one of the
+    /// new block's own steps on from the (moved) pose before.
+    #[test]
+    fn two_sided_join_closes_the_seam_as_the_one_sided_does() {
+        let (poses, dim) = (10, 6);
+        let value = |i: usize| ((i * 104729) % 89) as f32 / 11.0 - 4.0;
+        let block: Vec<f32> = (0..poses * dim).map(value).collect();
+        let before: Vec<f32> = (0..poses * dim).map(|i| value(i + 777)).collect();
+        let mut seams = Vec::new();
+        for kind in [SeamJoin::OneSided, SeamJoin::TwoSided] {
+            let (mut prior, mut joined) = (before.clone(), block.clone());
+            join_seam(&mut prior, &mut joined, dim, kind);
+            let last = &prior[(poses - 1) * dim..];
+            seams.push((ROOT_FEATURES..dim).map(|f| joined[f] - last[f]).collect::<Vec<f32>>());
+        }
+        for (a, b) in seams[0].iter().zip(&seams[1]) {
+            assert!((a - b).abs() < 1e-5, "seam step {a} one-sided against {b} two-sided");
+        }
+    }
+}

@@ -1,0 +1,412 @@
+//! Training GloGen and LocGen: batches of real windows, the paper's joint + motion-flow
+//! loss, validation on the held-out split, atomic and resumable checkpoints.
+//!
+//! Determinism: every random choice of step `k` comes from an RNG seeded by (seed, k), and
+//! the optimiser state is checkpointed, so a run killed and resumed follows the same path.
+
+mod checkpoint;
+mod stage;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use candle_core::{DType, Device, Tensor};
+use candle_nn::{Optimizer, ParamsAdamW, VarBuilder, VarMap};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use self::checkpoint::{checkpoint, publish, Checkpoint, Legacy};
+pub use self::checkpoint::save_weights;
+use self::stage::{stage_training, TrainingData};
+use super::adamw::AdamW;
+use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
+use super::corpus::{Corpus, Track};
+use super::glocal::{load_weights, GLOGEN_FILE, LOCGEN_FILE, SEEDS_FILE};
+use super::spec::{GloGenSpec, DEFAULT_CLASS_STRENGTH, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, FORMAT_VERSION};
+use crate::data::archive::DataRoot;
+use crate::data::features::{Interpolation, Normalizer};
+use crate::data::registry::Dataset;
+use crate::data::write::{write_atomic, FolderLock};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    Glogen,
+    Locgen,
+}
+
+/// The one place that knows which parts of a model belong to which stage.
+impl Stage {
+    /// The stage's weights in a model folder.
+    pub fn file(self) -> &'static str {
+        match self {
+            Stage::Glogen => GLOGEN_FILE,
+            Stage::Locgen => LOCGEN_FILE,
+        }
+    }
+
+    /// The record of the stage's training in `spec`.
+    pub fn record(self, spec: &ModelSpec) -> Option<&StageRecord> {
+        match self {
+            Stage::Glogen => spec.glogen_training.as_ref(),
+            Stage::Locgen => spec.locgen_training.as_ref(),
+        }
+    }
+
+    fn record_mut(self, spec: &mut ModelSpec) -> &mut Option<StageRecord> {
+        match self {
+            Stage::Glogen => &mut spec.glogen_training,
+            Stage::Locgen => &mut spec.locgen_training,
+        }
+    }
+
+    /// The stage's network and the normaliser of its features.
+    fn block_and_norm(self, spec: &ModelSpec) -> (BlockConfig, Normalizer) {
+        match self {
+            Stage::Glogen => (spec.glogen.block.clone(), spec.sparse_norm.clone()),
+            Stage::Locgen => (spec.locgen.block.clone(), spec.dense_norm.clone()),
+        }
+    }
+
+    /// Gives `spec` this run's shape of the stage.
+    fn set_shape(self, spec: &mut ModelSpec, glogen: GloGenSpec, locgen: LocGenSpec) {
+        match self {
+            Stage::Glogen => spec.glogen = glogen,
+            Stage::Locgen => spec.locgen = locgen,
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct TrainOptions {
+    pub dataset: Dataset,
+    pub data: DataRoot,
+    pub stage: Stage,
+    pub steps: usize,
+    pub out: PathBuf,
+    pub seed: u64,
+    pub resume: bool,
+    pub batch: usize,
+    pub lr: f32,
+    pub hidden: usize,
+    pub loss: LossKind,
+    pub use_class: bool,
+    pub class_in_decoder: bool,
+    pub class_dropout: f32,
+    pub rollout_blocks: usize,
+    /// GloGen predicts offsets from the last pose of its input ([`GloGenSpec::residual`]).
+    pub residual: bool,
+    /// GloGen trains on its blocks joined at their seams ([`GloGenSpec::joined`]).
+    pub joined: bool,
+    /// How GloGen's blocks are joined, in training and in generation ([`GloGenSpec::seam_join`]).
+    pub seam_join: SeamJoin,
+    pub stride: usize,
+    pub block_len: usize,
+    pub locgen_window: usize,
+    /// Classes with fewer training clips are left out.
+    pub min_clips: usize,
+    pub eval_every: usize,
+    pub checkpoint_every: usize,
+    /// Start the stage from this folder's trained weights (with a fresh optimiser) instead
+    /// of random ones: fine-tuning, e.g. after a change to the data.
+    pub init_from: Option<PathBuf>,
+    /// The interpolation a new LocGen refines.
+    pub interpolation: Interpolation,
+}
+
+impl TrainOptions {
+    pub fn new(dataset: Dataset, stage: Stage, out: PathBuf) -> Self {
+        Self {
+            dataset,
+            data: DataRoot::resolve(None),
+            stage,
+            steps: 4000,
+            out,
+            seed: 0,
+            resume: false,
+            batch: 64,
+            lr: 0.002,
+            hidden: 200,
+            loss: LossKind::JointFlow,
+            use_class: true,
+            class_in_decoder: true,
+            class_dropout: 0.1,
+            rollout_blocks: 2,
+            residual: false,
+            joined: false,
+            seam_join: SeamJoin::OneSided,
+            stride: 5,
+            block_len: 10,
+            locgen_window: 10,
+            min_clips: 3,
+            eval_every: 250,
+            checkpoint_every: 250,
+            init_from: None,
+            interpolation: Interpolation::CatmullRom,
+        }
+    }
+}
+
+impl TrainOptions {
+    /// The stage's published weights.
+    pub fn weights_path(&self) -> PathBuf {
+        self.out.join(self.stage.file())
+    }
+
+    /// The stage's training checkpoint, the one file `--resume` reads.
+    pub fn state_path(&self) -> PathBuf {
+        self.out.join(format!("{}{TRAIN_STATE_SUFFIX}", self.stage.file().trim_end_matches(".safetensors")))
+    }
+
+    /// Every option in its range before anything is loaded: each problem names its flag.
+    pub fn validate(&self) -> Result<()> {
+        let whole = |flag: &str, v: usize, lo: usize, hi: usize| -> Result<()> {
+            if !(lo..=hi).contains(&v) {
+                bail!("--{flag} must be between {lo} and {hi}, got {v}");
+            }
+            Ok(())
+        };
+        whole("steps", self.steps, 1, 100_000_000)?;
+        whole("batch", self.batch, 1, 4096)?;
+        whole("hidden", self.hidden, 1, 4096)?;
+        whole("stride", self.stride, 1, 100)?;
+        whole("rollout", self.rollout_blocks, 1, 100)?;
+        whole("eval-every", self.eval_every, 1, usize::MAX)?;
+        whole("checkpoint-every", self.checkpoint_every, 1, usize::MAX)?;
+        whole("block-len", self.block_len, 1, 1000)?;
+        whole("locgen-window", self.locgen_window, 1, 1000)?;
+        if !(self.class_dropout.is_finite() && (0.0..=1.0).contains(&self.class_dropout)) {
+            bail!("--class-dropout must be a probability between 0 and 1, got {}", self.class_dropout);
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            bail!("the learning rate must be a positive number, got {}", self.lr);
+        }
+        if self.out.is_file() {
+            bail!("--out {} is a file; training writes a model folder", self.out.display());
+        }
+        let two_sided = self.seam_join == SeamJoin::TwoSided;
+        if self.stage == Stage::Locgen && (self.residual || self.joined || two_sided) {
+            bail!("--residual, --joined and --two-sided-join shape GloGen's blocks; they do not apply to --stage locgen");
+        }
+        Ok(())
+    }
+}
+
+/// What the progress callback sees.
+#[derive(Clone, Debug)]
+pub struct Progress {
+    pub step: usize,
+    pub steps: usize,
+    pub loss: f32,
+    pub val_error: Option<f32>,
+    pub steps_per_s: f32,
+}
+
+const TRAIN_STATE_SUFFIX: &str = ".train.safetensors";
+
+/// Trains one stage into `opts.out`, creating `model.json` and the seed bank when absent.
+pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel: &AtomicBool) -> Result<ModelSpec> {
+    opts.validate()?;
+    super::memory::retain_freed_memory();
+    let (weights_path, state_path) = (opts.weights_path(), opts.state_path());
+    if opts.resume && !state_path.exists() && weights_path.exists() {
+        bail!(
+            "--resume: {} has trained {} weights but no training state ({}) to resume from; to train on from those weights with a fresh optimiser use --fine-tune",
+            opts.out.display(),
+            opts.stage.file(),
+            state_path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        );
+    }
+    let corpus = Corpus::load(opts.dataset, &opts.data, opts.stride, opts.min_clips)?;
+    if corpus.classes.is_empty() || corpus.train.is_empty() {
+        bail!("{} has no class with at least {} training clips", opts.dataset, opts.min_clips);
+    }
+    std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
+    let _lock = FolderLock::acquire(&opts.out)?;
+    let mut spec = prepare_spec(opts, &corpus)?;
+    let (cfg, norm) = opts.stage.block_and_norm(&spec);
+    let varmap = VarMap::new();
+    let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
+    seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
+    if let Some(dir) = &opts.init_from {
+        let from = dir.join(opts.stage.file());
+        load_weights(&from, &varmap).with_context(|| format!("cannot fine-tune from {}", from.display()))?;
+    }
+    let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
+    let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
+    let mut record = StageRecord { seed: opts.seed, ..Default::default() };
+    if opts.resume {
+        if state_path.exists() {
+            let previous = opts.stage.record(&spec).cloned();
+            let checkpoint = Checkpoint::read(&state_path, &varmap, Legacy { weights: &weights_path, record: previous })?;
+            opt.load_state(&checkpoint.optimiser, checkpoint.step)?;
+            record = checkpoint.record;
+            // A run killed between the checkpoint and its published copies left them a step
+            // behind; publish them again from the one consistent file.
+            publish(&varmap, &mut spec, opts, &record, &weights_path)?;
+        }
+    }
+    let frozen_spec = spec.clone();
+    let trainer = stage_training(TrainingData { opts, corpus: &corpus, spec: &frozen_spec, norm: &norm });
+    let validation = trainer.validation_windows();
+    let start = Instant::now();
+    let seconds_before = record.seconds;
+    let first = opt.step;
+    while opt.step < opts.steps && !cancel.load(Ordering::Relaxed) {
+        let step_seed = opts.seed ^ (opt.step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let mut rng = StdRng::seed_from_u64(step_seed);
+        seed_dropout(step_seed.rotate_left(17));
+        let loss = trainer.loss(&block, &mut rng)?;
+        let last_loss = loss.to_scalar::<f32>()?;
+        if !last_loss.is_finite() {
+            bail!("training diverged at step {} (loss {last_loss})", opt.step);
+        }
+        opt.backward_step(&loss)?;
+        let step = opt.step;
+        let done = step == opts.steps;
+        let mut val_error = None;
+        if step % opts.eval_every == 0 || done {
+            let (err, base) = trainer.validate(&block, &validation)?;
+            record.curve.push((step, last_loss, err));
+            record.val_error = err;
+            record.baseline_error = base;
+            val_error = Some(err);
+        }
+        let rate = (step - first) as f32 / start.elapsed().as_secs_f32().max(1e-3);
+        on_progress(&Progress { step, steps: opts.steps, loss: last_loss, val_error, steps_per_s: rate });
+        if step % opts.checkpoint_every == 0 || done {
+            record.steps = step;
+            record.seconds = seconds_before + start.elapsed().as_secs_f64();
+            checkpoint(&varmap, &opt, &mut spec, opts, &record, &weights_path, &state_path)?;
+        }
+    }
+    if cancel.load(Ordering::Relaxed) && opt.step > record.steps {
+        record.steps = opt.step;
+        record.seconds = seconds_before + start.elapsed().as_secs_f64();
+        checkpoint(&varmap, &opt, &mut spec, opts, &record, &weights_path, &state_path)?;
+    }
+    Ok(spec)
+}
+
+/// Reads `model.json` when the folder has one for this dataset, else describes a new model.
+fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
+    let dim = corpus.layout.dim();
+    let classes = corpus.classes.len();
+    let cond_dim = if opts.use_class { classes } else { 0 };
+    let glogen = GloGenSpec {
+        block: BlockConfig {
+            in_dim: dim,
+            cond_dim,
+            cond_in_decoder: opts.use_class && opts.class_in_decoder,
+            hidden: opts.hidden,
+            out_dim: dim,
+            dropout: 0.25,
+        },
+        use_class: opts.use_class,
+        class_dropout: if opts.use_class { opts.class_dropout } else { 0.0 },
+        rollout_blocks: opts.rollout_blocks.max(1),
+        loss: opts.loss,
+        residual: opts.residual,
+        joined: opts.joined,
+        seam_join: opts.seam_join,
+    };
+    let locgen = LocGenSpec {
+        block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
+        window: opts.locgen_window,
+        interpolation: opts.interpolation,
+    };
+    if opts.out.join("model.json").exists() {
+        let mut spec = ModelSpec::read(&opts.out)?;
+        if spec.dataset != opts.dataset.name() || spec.layout.dim() != dim || spec.classes != corpus.classes {
+            bail!("{} holds a model of another dataset or layout ({}); choose another --out", opts.out.display(), spec.dataset);
+        }
+        // The stage being trained takes this run's settings; the other keeps its own.
+        if !opts.resume {
+            opts.stage.set_shape(&mut spec, glogen, locgen);
+        }
+        spec.write(&opts.out)?;
+        return Ok(spec);
+    }
+    let (sparse_norm, dense_norm) = corpus.normalizers();
+    let source = (*corpus.source_skeleton).clone();
+    let spec = ModelSpec {
+        format_version: FORMAT_VERSION,
+        dataset: opts.dataset.name().to_string(),
+        split: split_description(opts.dataset).to_string(),
+        classes: corpus.classes.clone(),
+        fps: corpus.fps,
+        stride: opts.stride,
+        block_len: opts.block_len,
+        layout: corpus.layout.clone(),
+        source_skeleton: source,
+        source_joints: corpus.source_joints.clone(),
+        sparse_norm,
+        dense_norm,
+        class_speed: corpus.class_speeds(),
+        foot_lock: true,
+        carry_by_feet: false,
+        class_strength: DEFAULT_CLASS_STRENGTH,
+        glogen,
+        locgen,
+        glogen_training: None,
+        locgen_training: None,
+        weights_sha256: Default::default(),
+    };
+    spec.write(&opts.out)?;
+    write_seed_bank(&opts.out, &spec, corpus)?;
+    Ok(spec)
+}
+
+
+fn split_description(d: Dataset) -> &'static str {
+    match d {
+        Dataset::H36m => "test = subject S11; train = S1, S5, S6, S7, S8, S9",
+        Dataset::Bandai => "test = styles tired and musical; train = the other styles",
+        Dataset::CmuDance => "test = the highest-numbered clip of each class",
+        Dataset::CmuExpmap => "the archive's train and test folders",
+    }
+}
+
+/// Up to 16 seeds per class, evenly spread over the class's training frames.
+fn write_seed_bank(dir: &Path, spec: &ModelSpec, corpus: &Corpus) -> Result<()> {
+    const PER_CLASS: usize = 16;
+    let span = spec.block_len * spec.stride;
+    let mut seeds = Vec::new();
+    for class in 0..spec.classes.len() {
+        let candidates: Vec<(&Track, usize)> = corpus
+            .train
+            .iter()
+            .filter(|t| t.class == class && t.motion.frames() > span + spec.stride)
+            .flat_map(|t| (spec.stride..t.motion.frames() - span).step_by(span).map(move |f| (t, f)))
+            .collect();
+        let step = (candidates.len() / PER_CLASS).max(1);
+        for (t, frame) in candidates.into_iter().step_by(step).take(PER_CLASS) {
+            let features = spec.layout.encode_motion(&t.motion, frame, spec.stride, spec.block_len);
+            seeds.push(Seed { class, clip: t.file.clone(), frame, features });
+        }
+    }
+    write_atomic(&dir.join(SEEDS_FILE), serde_json::to_string(&seeds)?.as_bytes())
+}
+
+/// PyTorch's default recurrent/linear initialisation, uniform in ±1/sqrt(fan), from our own
+/// seed (candle's initialisers draw from an unseeded generator). `gates`: 4 for an LSTM, 3 for
+/// a GRU.
+pub fn seeded_init(varmap: &VarMap, seed: u64, gates: usize) -> Result<()> {
+    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
+    let mut names: Vec<&String> = vars.keys().collect();
+    names.sort();
+    let mut rng = StdRng::seed_from_u64(seed);
+    for name in names {
+        let var = &vars[name];
+        let dims = var.dims().to_vec();
+        // Recurrent tensors are [gates * H, *] or [gates * H]; fan = H. Linear weights
+        // [out, in]; fan = in.
+        let fan = if name.contains("_ih") || name.contains("_hh") { dims[0] / gates } else { *dims.last().unwrap_or(&1) };
+        let k = 1.0 / (fan.max(1) as f32).sqrt();
+        let values: Vec<f32> = (0..var.elem_count()).map(|_| rng.random_range(-k..k)).collect();
+        var.set(&Tensor::from_vec(values, var.shape(), &Device::Cpu)?)?;
+    }
+    Ok(())
+}
+

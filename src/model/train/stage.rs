@@ -1,0 +1,281 @@
+//! What training each stage means: the windows of real motion it learns from, its prediction
+//! and loss, and how it is validated. GloGen learns sparse blocks rolled out on its own
+//! outputs and is validated by the rollout generation uses; LocGen learns the residual on
+//! an interpolated dense window.
+
+use anyhow::{Context, Result};
+use candle_core::{Device, Tensor};
+use glam::Vec3;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use super::{Stage, TrainOptions};
+use crate::data::features::{FeatureLayout, Normalizer, Placement};
+use crate::model::block::{BlockWorkspace, Seq2SeqBlock};
+use crate::model::corpus::{interpolated_window, sample_window, Corpus, Track};
+use crate::model::glogen::GloGen;
+use crate::model::loss::joint_flow_loss;
+use crate::model::rollout::{rollout, OneClass};
+use crate::model::seam::join_seams_tensor;
+use crate::model::spec::{LossKind, ModelSpec};
+
+/// Held-out windows a validation scores.
+const VALIDATION_WINDOWS: usize = 256;
+
+/// A held-out window: inputs, targets and where it starts, all fixed for the whole run.
+pub(super) struct ValWindow {
+    input: Vec<f32>,
+    class: usize,
+    target_positions: Vec<Vec3>,
+    start: Placement,
+    /// GloGen: the last input pose repeated (zero-velocity); LocGen: the interpolation.
+    baseline_positions: Vec<Vec3>,
+}
+
+/// One stage's training.
+pub(super) trait StageTraining {
+    /// The loss of one batch of windows drawn with `rng`.
+    fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor>;
+
+    /// The held-out windows of the run (the same at every validation).
+    fn validation_windows(&self) -> Vec<ValWindow>;
+
+    /// Mean joint position error (skeleton units) of the block's prediction and of the
+    /// stage's baseline over `windows`.
+    fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)>;
+}
+
+/// What both stages train from.
+pub(super) struct TrainingData<'a> {
+    pub opts: &'a TrainOptions,
+    pub corpus: &'a Corpus,
+    pub spec: &'a ModelSpec,
+    pub norm: &'a Normalizer,
+}
+
+/// The training of `data.opts.stage`.
+pub(super) fn stage_training<'a>(data: TrainingData<'a>) -> Box<dyn StageTraining + 'a> {
+    match data.opts.stage {
+        Stage::Glogen => Box::new(GloGenTraining(data)),
+        Stage::Locgen => Box::new(LocGenTraining(data)),
+    }
+}
+
+impl TrainingData<'_> {
+    fn layout(&self) -> &FeatureLayout {
+        &self.spec.layout
+    }
+
+    /// A batch of windows of `span` frames (after a frame before each): inputs `[B, T, D]`,
+    /// targets `[B, T * target_blocks, D]` as `window` makes them from a track and its first
+    /// frame, and class vectors (zeroed with the class-dropout probability) when the block
+    /// has any.
+    fn batch(&self, block: &Seq2SeqBlock, span: usize, target_blocks: usize, rng: &mut StdRng, window: impl Fn(&Track, usize) -> (Vec<f32>, Vec<f32>)) -> Result<(Tensor, Tensor, Option<Tensor>)> {
+        let (dim, b, cond_dim) = (self.layout().dim(), self.opts.batch, block.cfg.cond_dim);
+        let (mut xs, mut ys, mut conds) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..b {
+            let (track, start) = sample_window(&self.corpus.train, self.corpus.classes.len(), span + self.spec.stride, rng).context("no training clip is long enough")?;
+            let (x, y) = window(track, start + self.spec.stride);
+            xs.extend(x);
+            ys.extend(y);
+            let mut c = vec![0f32; cond_dim];
+            if cond_dim > 0 && rng.random::<f32>() >= self.spec.glogen.class_dropout {
+                c[track.class] = 1.0;
+            }
+            conds.extend(c);
+        }
+        let steps_in = xs.len() / b / dim;
+        let x = Tensor::from_vec(xs, (b, steps_in, dim), &Device::Cpu)?;
+        let y = Tensor::from_vec(ys, (b, steps_in * target_blocks, dim), &Device::Cpu)?;
+        let cond = (cond_dim > 0).then(|| Tensor::from_vec(conds, (b, cond_dim), &Device::Cpu)).transpose()?;
+        Ok((x, y, cond))
+    }
+
+    /// Held-out windows of `span` frames (after a frame before each) from the test split (the
+    /// training split when there is none), as `window` makes them from a track and its
+    /// first frame; the same at every call.
+    fn held_out(&self, span: usize, window: impl Fn(&Track, usize) -> ValWindow) -> Vec<ValWindow> {
+        let mut rng = StdRng::seed_from_u64(1234);
+        let tracks = if self.corpus.test.is_empty() { &self.corpus.train } else { &self.corpus.test };
+        let mut out = Vec::new();
+        for _ in 0..VALIDATION_WINDOWS {
+            let Some((track, start)) = sample_window(tracks, self.corpus.classes.len(), span + self.spec.stride, &mut rng) else { break };
+            out.push(window(track, start + self.spec.stride));
+        }
+        out
+    }
+}
+
+/// Mean distances of predicted poses (`predictions`, one normalised window each) and of the
+/// baselines to the real poses.
+fn position_errors<'a>(norm: &Normalizer, layout: &FeatureLayout, windows: &[ValWindow], predictions: impl Iterator<Item = &'a [f32]>) -> (f32, f32) {
+    let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
+    for (w, p) in windows.iter().zip(predictions) {
+        let mut p = p.to_vec();
+        norm.denormalize(&mut p);
+        let (positions, _) = layout.decode(&p, w.start);
+        for ((a, b), c) in positions.iter().zip(&w.target_positions).zip(&w.baseline_positions) {
+            err += a.distance(*b) as f64;
+            base += c.distance(*b) as f64;
+            count += 1;
+        }
+    }
+    if count == 0 {
+        return (f32::NAN, f32::NAN);
+    }
+    ((err / count as f64) as f32, (base / count as f64) as f32)
+}
+
+/// GloGen: blocks of sparse poses, rolled out on its own outputs for `rollout_blocks` blocks.
+struct GloGenTraining<'a>(TrainingData<'a>);
+
+impl GloGenTraining<'_> {
+    /// `1 + blocks` blocks of sparse poses from `frame`: (the first block, the rest), normalised.
+    fn window(&self, track: &Track, frame: usize, blocks: usize) -> (Vec<f32>, Vec<f32>) {
+        let data = &self.0;
+        let t = data.spec.block_len;
+        let mut all = data.layout().encode_motion(&track.motion, frame, data.spec.stride, t * (1 + blocks));
+        data.norm.normalize(&mut all);
+        let split = t * data.layout().dim();
+        (all[..split].to_vec(), all[split..].to_vec())
+    }
+
+    /// A block from `input` `[B, T, dim]`: a residual GloGen's is an offset from the input's
+    /// last pose.
+    fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>) -> Result<Tensor> {
+        let pred = block.forward(input, cond, true)?;
+        let last = input.narrow(1, input.dim(1)? - 1, 1)?;
+        Ok(if self.0.spec.glogen.residual { pred.broadcast_add(&last)? } else { pred })
+    }
+}
+
+impl StageTraining for GloGenTraining<'_> {
+    fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
+        let spec = &self.0.spec.glogen;
+        let blocks = spec.rollout_blocks;
+        let span = self.0.spec.stride * self.0.spec.block_len * (1 + blocks);
+        let (x, y, cond) = self.0.batch(block, span, blocks, rng, |track, frame| self.window(track, frame, blocks))?;
+        let steps_in = x.dim(1)?;
+        // Every block of the rollout, as generation leaves it: joined onto the block before,
+        // which a two-sided join moves in turn (the observed context stays). This is the
+        // rollout of `model::rollout` as differentiable tensor operations.
+        let mut preds: Vec<Tensor> = Vec::with_capacity(blocks);
+        let mut input = x.clone();
+        for _ in 0..blocks {
+            let mut pred = self.predict(block, &input, cond.as_ref())?;
+            if spec.joined {
+                let before = match preds.last() {
+                    Some(previous) => previous.clone(),
+                    None => input.narrow(1, steps_in - 1, 1)?,
+                };
+                let (before, joined) = join_seams_tensor(&before, &pred, spec.seam_join)?;
+                if let Some(previous) = preds.last_mut() {
+                    *previous = before;
+                }
+                pred = joined;
+            }
+            input = pred.clone();
+            preds.push(pred);
+        }
+        let mut total: Option<Tensor> = None;
+        for (r, pred) in preds.iter().enumerate() {
+            let target = y.narrow(1, r * steps_in, steps_in)?;
+            let last = if r == 0 { x.narrow(1, steps_in - 1, 1)? } else { preds[r - 1].narrow(1, steps_in - 1, 1)? };
+            let l = joint_flow_loss(pred, &target, Some(&last), spec.loss)?;
+            total = Some(match total {
+                Some(t) => (t + l)?,
+                None => l,
+            });
+        }
+        Ok((total.expect("at least one block") / blocks as f64)?)
+    }
+
+    fn validation_windows(&self) -> Vec<ValWindow> {
+        let data = &self.0;
+        let (s, t) = (data.spec.stride, data.spec.block_len);
+        data.held_out(s * 2 * t, |track, frame| {
+            let m = &track.motion;
+            let (input, _) = self.window(track, frame, 1);
+            let first_out = frame + t * s;
+            let last_in = m.frame(first_out - s);
+            let target_positions = (0..t).flat_map(|k| m.frame(first_out + k * s).to_vec()).collect();
+            let baseline_positions = (0..t).flat_map(|_| last_in.to_vec()).collect();
+            ValWindow { input, class: track.class, target_positions, start: data.layout().placement(last_in), baseline_positions }
+        })
+    }
+
+    /// One block rolled out from each window by generation's own rollout, on the block's
+    /// weights as they are now.
+    fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)> {
+        let data = &self.0;
+        let glogen = GloGen::new(block.freeze()?, data.spec);
+        let mut ws = BlockWorkspace::default();
+        let mut predictions = Vec::with_capacity(windows.len());
+        for w in windows {
+            let mut sparse = w.input.clone();
+            let mut class = vec![0.0; block.cfg.cond_dim];
+            if let Some(c) = class.get_mut(w.class) {
+                *c = 1.0;
+            }
+            rollout(&glogen, &mut ws, &mut sparse, 1, data.spec.glogen.joined, &mut OneClass(class))?;
+            predictions.push(sparse.split_off(w.input.len()));
+        }
+        Ok(position_errors(data.norm, data.layout(), windows, predictions.iter().map(Vec::as_slice)))
+    }
+}
+
+/// LocGen: the residual on a dense window interpolated between the sparse poses.
+struct LocGenTraining<'a>(TrainingData<'a>);
+
+impl LocGenTraining<'_> {
+    /// The interpolated window from `frame` and the real one, normalised.
+    fn window(&self, track: &Track, frame: usize) -> (Vec<f32>, Vec<f32>) {
+        let data = &self.0;
+        let (m, s, w) = (&track.motion, data.spec.stride, data.spec.locgen.window);
+        let interp = interpolated_window(m, frame, w, s, data.spec.locgen.interpolation);
+        let frames: Vec<&[Vec3]> = interp.chunks_exact(m.joints()).collect();
+        let mut input = data.layout().encode(&frames, Some(m.frame(frame - 1)));
+        let mut target = data.layout().encode_motion(m, frame, 1, w);
+        data.norm.normalize(&mut input);
+        data.norm.normalize(&mut target);
+        (input, target)
+    }
+
+    /// The refined window: LocGen predicts a residual on its interpolated input.
+    fn predict(block: &Seq2SeqBlock, input: &Tensor, train: bool) -> Result<Tensor> {
+        Ok((block.forward(input, None, train)? + input)?)
+    }
+}
+
+impl StageTraining for LocGenTraining<'_> {
+    fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
+        let span = self.0.spec.locgen.window + 1;
+        let (x, y, _) = self.0.batch(block, span, 1, rng, |track, frame| self.window(track, frame))?;
+        let pred = Self::predict(block, &x, true)?;
+        let last = x.narrow(1, x.dim(1)? - 1, 1)?;
+        Ok(joint_flow_loss(&pred, &y, Some(&last), LossKind::JointFlow)?)
+    }
+
+    fn validation_windows(&self) -> Vec<ValWindow> {
+        let data = &self.0;
+        let (s, w) = (data.spec.stride, data.spec.locgen.window);
+        data.held_out(w + 1, |track, frame| {
+            let m = &track.motion;
+            let (input, _) = self.window(track, frame);
+            let target_positions = (0..w).flat_map(|k| m.frame(frame + k).to_vec()).collect();
+            let baseline_positions = interpolated_window(m, frame, w, s, data.spec.locgen.interpolation);
+            ValWindow { input, class: track.class, target_positions, start: data.layout().placement(m.frame(frame - 1)), baseline_positions }
+        })
+    }
+
+    fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)> {
+        let Some(first) = windows.first() else { return Ok((f32::NAN, f32::NAN)) };
+        let data = &self.0;
+        let dim = data.layout().dim();
+        let steps = first.input.len() / dim;
+        let x: Vec<f32> = windows.iter().flat_map(|w| w.input.iter().copied()).collect();
+        let x = Tensor::from_vec(x, (windows.len(), steps, dim), &Device::Cpu)?;
+        let pred = Self::predict(block, &x, false)?.flatten_all()?.to_vec1::<f32>()?;
+        Ok(position_errors(data.norm, data.layout(), windows, pred.chunks_exact(steps * dim)))
+    }
+}

@@ -1,0 +1,181 @@
+//! The plan of a take: where its segments, transitions and keys fall among GloGen's sparse
+//! poses, what each block is asked for ([`BlockPlan`]), and the constraints applied to the
+//! take stage by stage ([`TakeConstraint`]).
+
+use anyhow::Result;
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use super::options::{GenerateOptions, Transition};
+use super::smoothstep;
+use crate::data::features::FeatureLayout;
+use crate::model::block::BlockWorkspace;
+use crate::model::glocal::GlocalModel;
+use crate::model::glogen::GloGen;
+use crate::motion::Motion;
+
+/// A segment's place in the generated take.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SegmentSpan {
+    pub class: usize,
+    pub name: String,
+    pub start_frame: usize,
+    pub end_frame: usize,
+}
+
+/// What one GloGen block is asked for, decided from the timeline before the rollout.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlockPlan {
+    /// The class vector: one class, or a blend of two inside a transition.
+    pub class: Vec<f32>,
+    /// The class the block belongs to (the heavier of a blend): anchoring and keep-alive aim
+    /// at it.
+    pub target: usize,
+    /// Blocks over which a change into `target` eases the context (0: no anchoring).
+    pub ease_blocks: usize,
+    /// The keys whose sparse pose this block produces (indices into the placed keys).
+    pub keys: Vec<usize>,
+}
+
+/// The sparse poses of each segment and where its boundaries fall.
+pub(super) struct SparseTimeline {
+    /// Segment index of each sparse pose (the seed block belongs to the first segment).
+    pub(super) segment_of: Vec<usize>,
+    /// Per segment: sparse poses and class.
+    pub(super) counts: Vec<usize>,
+    pub(super) classes: Vec<usize>,
+    /// Per segment: the length of the transition into it in sparse steps (for the first
+    /// segment, from the initial poses' class).
+    pub(super) transition_steps: Vec<f32>,
+    /// Frame of each sparse pose in the paced take.
+    pub(super) frames: Vec<f64>,
+    /// Seconds per sparse step at each segment's pace.
+    pub(super) step_seconds: Vec<f32>,
+}
+
+impl SparseTimeline {
+    pub(super) fn new(model: &GlocalModel, opts: &GenerateOptions) -> Result<Self> {
+        let spec = &model.spec;
+        let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
+        crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
+        let step_of = |pace: f32| spec.stride as f32 * pace / spec.fps;
+        let segments = &opts.timeline.segments;
+        let paces: Vec<f32> = segments.iter().map(|s| s.pace.unwrap_or(opts.pace)).collect();
+        // Sparse poses per segment: its duration over the time one sparse step takes at its pace.
+        let counts: Vec<usize> = segments.iter().zip(&paces).map(|(s, &p)| ((s.seconds / step_of(p)).round() as usize).max(1)).collect();
+        let segment_of: Vec<usize> = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
+        let transition_steps = segments
+            .iter()
+            .zip(&paces)
+            .map(|(s, &p)| if opts.transition == Transition::Cut { 0.0 } else { s.transition.unwrap_or(opts.transition_seconds) / step_of(p) })
+            .collect();
+        let step_seconds = paces.iter().map(|&p| step_of(p)).collect();
+        let mut frames = vec![0.0f64];
+        for (i, &k) in segment_of.iter().enumerate() {
+            frames.push(frames[i] + spec.stride as f64 * paces[k] as f64);
+        }
+        Ok(Self { segment_of, counts, classes, transition_steps, frames, step_seconds })
+    }
+
+    /// Sparse poses of the take, the seed's last pose included.
+    pub(super) fn total(&self) -> usize {
+        self.counts.iter().sum::<usize>() + 1
+    }
+
+    pub(super) fn segment_at(&self, i: usize) -> usize {
+        self.segment_of[i.min(self.segment_of.len() - 1)]
+    }
+
+    /// Sparse index at which segment `k` begins.
+    fn boundary(&self, k: usize) -> usize {
+        self.counts[..k].iter().sum()
+    }
+
+    /// The boundary whose transition covers sparse pose `i`, and how far through it `i` is
+    /// (0 at its start, 1 at its end).
+    fn transition_at(&self, i: usize) -> Option<(usize, f32)> {
+        (1..self.counts.len()).find_map(|k| {
+            let len = self.transition_steps[k];
+            let through = (i as f32 - self.boundary(k) as f32) / len + 0.5;
+            (len > 0.0 && (0.0..1.0).contains(&through)).then_some((k, through))
+        })
+    }
+
+    /// The per-block plan: each block's class vector is the mean of its poses' class mixes,
+    /// a pose inside a transition mixing the two classes by a smoothstep over it; the keys a
+    /// block produces are those whose sparse pose (`key_poses`, by key) falls in it.
+    pub(super) fn plan(&self, model: &GlocalModel, anchored: bool, key_poses: &[usize]) -> Vec<BlockPlan> {
+        let t = model.spec.block_len;
+        let blocks = self.total().saturating_sub(t).div_ceil(t);
+        let ease_of = |k: usize| if anchored && self.transition_steps[k] > 0.0 { 1 + (self.transition_steps[k] / t as f32).ceil() as usize } else { 0 };
+        (0..blocks)
+            .map(|b| {
+                let mut class = vec![0.0; model.class_vector(0).len()];
+                for i in t + b * t..t + (b + 1) * t {
+                    let mix = match self.transition_at(i) {
+                        Some((k, through)) => {
+                            let s = smoothstep(through);
+                            vec![(self.classes[k - 1], 1.0 - s), (self.classes[k], s)]
+                        }
+                        None => vec![(self.classes[self.segment_at(i)], 1.0)],
+                    };
+                    for (c, w) in mix {
+                        if let Some(v) = class.get_mut(c) {
+                            *v += w / t as f32;
+                        }
+                    }
+                }
+                let segment = self.segment_at(t + b * t + t / 2);
+                let target = self.classes[segment];
+                let ease_blocks = ease_of(segment);
+                let produced = t + b * t..t + (b + 1) * t;
+                let keys = (0..key_poses.len()).filter(|&k| produced.contains(&key_poses[k])).collect();
+                BlockPlan { class, target, ease_blocks, keys }
+            })
+            .collect()
+    }
+
+    /// Where each segment falls in the paced take.
+    pub(super) fn segment_spans(&self, names: &[String], interval_starts: &[usize], frames: usize) -> Vec<SegmentSpan> {
+        let mut segments = Vec::new();
+        let mut first_sparse = 0;
+        let last = interval_starts.len() - 1;
+        for (k, &n) in self.counts.iter().enumerate() {
+            let start_frame = interval_starts[first_sparse.min(last)];
+            let end_frame = if k + 1 == self.counts.len() { frames } else { interval_starts[(first_sparse + n).min(last)] };
+            let class = self.classes[k];
+            segments.push(SegmentSpan { class, name: names[class].clone(), start_frame, end_frame });
+            first_sparse += n;
+        }
+        segments
+    }
+}
+
+/// A constraint on the take besides its classes, applied where generation can meet it: on
+/// GloGen's sparse poses as each block comes out (the blocks the plan gives it), on the dense
+/// positions of the paced take, and on the finished motion after the foot lock. Transitions,
+/// anchoring and keep-alive act on each block's context instead ([`BlockPlan`],
+/// `synth::steer`). Keys and a root path are constraints; features that pin more add theirs.
+pub(super) trait TakeConstraint {
+    /// Block `b` of `plans` has just been appended to `sparse` (normalised), made with
+    /// `strength`; `glogen` and `ws` roll it on again where the constraint needs it.
+    fn on_block(&self, _block: &PlannedBlock<'_>, _rollout: (&GloGen, &mut BlockWorkspace), _sparse: &mut [f32]) {}
+
+    /// The paced take's positions (model units); returns what it could not do as asked.
+    fn on_dense(&self, _positions: &mut [Vec3], _layout: &FeatureLayout, _fps: f32) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// The finished take, after the foot lock.
+    fn on_finished(&self, motion: Motion, _layout: &FeatureLayout) -> Motion {
+        motion
+    }
+}
+
+/// A block of the rollout as the constraints see it: its plan, the guidance it was made with
+/// and whether seams are joined.
+pub(super) struct PlannedBlock<'a> {
+    pub plan: &'a BlockPlan,
+    pub strength: f32,
+    pub join_seams: bool,
+}
