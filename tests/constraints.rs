@@ -47,14 +47,14 @@ fn takes_pass_through_their_keys() {
         let mut frames = Vec::new();
         for key in &keys {
             let frame = (key.seconds * m.spec.fps).round() as usize;
-            let (body, root) = key_errors(&take, &m.spec.layout, frame, &key_pose(&m, key).unwrap());
+            let (body, root) = key_errors(&take, &m.spec.layout, frame, &key_pose(&m, key, &opts.init).unwrap());
             println!("{name} key at {} s: body {:.2} cm, root {:.2} cm", key.seconds, 100.0 * body, 100.0 * root);
             assert!(body < 0.02, "{name}: a joint is {:.1} cm off the key at {} s", 100.0 * body, key.seconds);
             if key.fix_root {
                 assert!(root < 0.05, "{name}: the root is {:.1} cm off the key at {} s", 100.0 * root, key.seconds);
             }
             // The free take is far from each key: in its body pose, or where the root stands.
-            let (body, root) = key_errors(&free, &m.spec.layout, frame, &key_pose(&m, key).unwrap());
+            let (body, root) = key_errors(&free, &m.spec.layout, frame, &key_pose(&m, key, &opts.init).unwrap());
             let unkeyed = if key.fix_root { root } else { body };
             assert!(unkeyed > 0.05, "{name}: the free take already holds the key at {} s ({:.1} cm)", key.seconds, 100.0 * unkeyed);
             frames.push(frame);
@@ -139,10 +139,10 @@ fn a_key_from_a_file_frame_is_reached() {
             let opts = GenerateOptions { timeline: format!("{}:10", walking(&m)).parse().unwrap(), keys: vec![key.clone()], ..Default::default() };
             let take = generate(&mut m, &opts, &mut |_| true).unwrap().motion;
             let frame = (key.seconds * m.spec.fps).round() as usize;
-            let (body, _) = key_errors(&take, &m.spec.layout, frame, &key_pose(&m, &key).unwrap());
+            let (body, _) = key_errors(&take, &m.spec.layout, frame, &key_pose(&m, &key, &opts.init).unwrap());
             assert!(body < 0.02, "{name} {ext}: a joint is {:.1} cm off the file's pose", 100.0 * body);
             // The file's pose is the source take's frame (up to the export's precision).
-            let (same, _) = key_errors(&source.motion, &m.spec.layout, 120, &key_pose(&m, &key).unwrap());
+            let (same, _) = key_errors(&source.motion, &m.spec.layout, 120, &key_pose(&m, &key, &opts.init).unwrap());
             assert!(same < 0.01, "{name} {ext}: the key is {:.1} cm off the file's frame", 100.0 * same);
         }
     }

@@ -58,6 +58,10 @@ pub struct TrainArgs {
     /// before (in generation, and in training with --joined).
     #[arg(long)]
     two_sided_join: bool,
+    /// GloGen also reads the next key it must reach (its pose, where it stands, the steps
+    /// left), trained with targets drawn from the clip ahead: keys it arrives at.
+    #[arg(long)]
+    target: bool,
     /// Dense frames between sparse poses (the paper's M + 1).
     #[arg(long, default_value_t = 5)]
     stride: usize,
@@ -102,13 +106,14 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.residual = args.residual;
     opts.joined = args.joined;
     opts.seam_join = if args.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
+    opts.target = args.target;
     opts.stride = args.stride;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
     if args.paper {
-        if args.residual || args.joined || args.two_sided_join {
-            bail!("--paper trains the paper's GloGen, which has neither --residual, --joined nor --two-sided-join");
+        if args.residual || args.joined || args.two_sided_join || args.target {
+            bail!("--paper trains the paper's GloGen, which has neither --residual, --joined, --two-sided-join nor --target");
         }
         opts.class_in_decoder = false;
         opts.class_dropout = 0.0;

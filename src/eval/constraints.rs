@@ -236,7 +236,7 @@ fn key_rows(model: &mut GlocalModel, clf: &Classifier, roles: &JointRoles) -> Re
             let free = generate(model, &base, &mut |_| true)?.motion;
             let keys = two_keys(model, class, variant, &free);
             let frames: Vec<usize> = keys.iter().map(|k| (k.seconds * model.spec.fps).round() as usize).collect();
-            let poses = keys.iter().map(|k| key_pose(model, k)).collect::<Result<Vec<_>>>()?;
+            let poses = keys.iter().map(|k| key_pose(model, k, &InitPose::default())).collect::<Result<Vec<_>>>()?;
             for ((_, method), (_, row)) in methods.iter().zip(rows.iter_mut()) {
                 let take = match method {
                     None => free.clone(),

@@ -6,6 +6,7 @@
 pub mod baselines;
 pub mod classifier;
 pub mod constraints;
+pub mod inbetween;
 pub mod metrics;
 pub mod motion;
 pub mod suites;

@@ -37,10 +37,11 @@ pub enum Suite {
     LongTerm,
     Motion,
     Constraints,
+    Inbetween,
 }
 
 impl Suite {
-    pub const ALL: [Suite; 8] = [Suite::CmuEuclid, Suite::H36mMmd, Suite::H36m, Suite::Bandai, Suite::Locgen, Suite::LongTerm, Suite::Motion, Suite::Constraints];
+    pub const ALL: [Suite; 9] = [Suite::CmuEuclid, Suite::H36mMmd, Suite::H36m, Suite::Bandai, Suite::Locgen, Suite::LongTerm, Suite::Motion, Suite::Constraints, Suite::Inbetween];
 
     /// The name on the command line, in the report and in the JSON.
     pub fn name(self) -> &'static str {
@@ -53,6 +54,7 @@ impl Suite {
             Suite::LongTerm => "long-term",
             Suite::Motion => "motion",
             Suite::Constraints => "constraints",
+            Suite::Inbetween => "inbetween",
         }
     }
 }
@@ -127,12 +129,23 @@ pub fn run_suite(suite: Suite, opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -
         Suite::LongTerm => long_term(opts, log)?,
         Suite::Motion => motion_suite(opts, &if opts.quick { MotionSuiteConfig::quick() } else { MotionSuiteConfig::full() }, log)?,
         Suite::Constraints => super::constraints::constraints_suite(opts, log)?,
+        Suite::Inbetween => inbetween(opts, log)?,
     };
     let (markdown, tables) = markdown.into_parts();
     json["suite"] = json!(suite.name());
     json["seconds"] = json!(start.elapsed().as_secs_f64());
     json["rendered_tables"] = tables.iter().map(Table::json).collect();
     Ok(SuiteReport { suite, markdown, json })
+}
+
+/// The in-betweening suite on each model.
+fn inbetween(opts: &SuiteOptions, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let mut md = Markdown::new(super::inbetween::DEFINITIONS);
+    let mut models = Vec::new();
+    for dataset in suite_datasets(opts)? {
+        models.push(super::inbetween::inbetween_suite(&model_dir(opts, dataset), &opts.data, &opts.cache, opts.quick, &mut md, log)?);
+    }
+    Ok((md, json!({"models": models})))
 }
 
 pub(crate) fn model_dir(opts: &SuiteOptions, dataset: Dataset) -> PathBuf {

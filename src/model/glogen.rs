@@ -14,11 +14,15 @@ pub struct GloGen {
     block_len: usize,
     /// Features per pose.
     dim: usize,
+    /// The class part of the conditioning vector, which guidance drops in its
+    /// unconditioned pass (a target stays).
+    class_len: usize,
 }
 
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
-        Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim() }
+        let class_len = spec.glogen.class_len(spec.classes.len());
+        Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len }
     }
 
     pub fn block_len(&self) -> usize {
@@ -30,10 +34,17 @@ impl GloGen {
         self.dim
     }
 
-    /// One block: `input` is `block_len` normalised sparse poses, `class` a class vector (may
-    /// be a blend of two). `strength` > 1 applies classifier-free guidance (`uncond + strength
-    /// * (cond - uncond)`), available when the model was trained with class dropout. Returns
-    /// the block's embedding (as [`Self::embed`]), which the encoder computed on the way.
+    /// Whether blocks read a target ([`super::target`]) after the class.
+    pub fn reads_target(&self) -> bool {
+        self.spec.target
+    }
+
+    /// One block: `input` is `block_len` normalised sparse poses, `cond` the conditioning: a
+    /// class vector (may be a blend of two), then the target for a target-conditioned GloGen.
+    /// `strength` > 1 applies classifier-free guidance to the class (`uncond + strength *
+    /// (cond - uncond)`, the unconditioned pass without the class but with the target),
+    /// available when the model was trained with class dropout. Returns the block's embedding
+    /// (as [`Self::embed`]), which the encoder computed on the way.
     pub fn block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
         let (t, hidden) = (self.block_len, self.spec.block.hidden);
         let cond = (self.spec.block.cond_dim > 0).then_some(class);
@@ -46,7 +57,9 @@ impl GloGen {
         // The conditioned and unconditioned passes as one batch of two: the weights stream
         // from memory once for both.
         let inputs = [input, input].concat();
-        let conds = [class, &vec![0.0; class.len()]].concat();
+        let mut unconditioned = class.to_vec();
+        unconditioned[..self.class_len].fill(0.0);
+        let conds = [class, &unconditioned].concat();
         let mut both = vec![0.0; 2 * out.len()];
         self.block.infer(ws, &inputs, Some(&conds), 2, t, &mut both);
         let (conditioned, unconditioned) = both.split_at(out.len());

@@ -11,6 +11,7 @@ pub mod memory;
 pub mod rollout;
 pub mod seam;
 pub mod spec;
+pub mod target;
 pub mod train;
 
 use std::path::PathBuf;

@@ -55,6 +55,26 @@ pub struct GloGenSpec {
     /// choice: one-sided).
     #[serde(default)]
     pub seam_join: SeamJoin,
+    /// Each block also reads the next key it must reach ([`super::target`]): its pose, where
+    /// it stands and the steps left to it (models saved before the choice: class only).
+    #[serde(default)]
+    pub target: bool,
+}
+
+impl GloGenSpec {
+    /// The class part of the conditioning vector (0 without the class prior).
+    pub fn class_len(&self, classes: usize) -> usize {
+        if self.use_class {
+            classes
+        } else {
+            0
+        }
+    }
+
+    /// The whole conditioning vector: the class, then the target when the block reads one.
+    pub fn cond_len(&self, classes: usize, pose_dim: usize) -> usize {
+        self.class_len(classes) + if self.target { super::target::target_len(pose_dim) } else { 0 }
+    }
 }
 
 /// Where a seam's shift goes when a GloGen block is joined onto the block before it.
@@ -303,8 +323,7 @@ impl ModelSpec {
         if let Some(k) = self.class_speed.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             return Err(E::field(&format!("class_speed[{k}]"), format!("is {}; it must be a finite speed of 0 or more", self.class_speed[k])));
         }
-        let cond = if self.glogen.use_class { self.classes.len() } else { 0 };
-        validate_block("glogen.block", &self.glogen.block, dim, cond)?;
+        validate_block("glogen.block", &self.glogen.block, dim, self.glogen.cond_len(self.classes.len(), dim))?;
         in_range("glogen.class_dropout", self.glogen.class_dropout, 0.0, 1.0)?;
         in_range("class_strength", self.class_strength, 0.0, MAX_CLASS_STRENGTH)?;
         whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;

@@ -9,7 +9,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::foot_lock::{foot_lock, FootLocked, Travel};
-use super::init::initial_features;
+use super::init::{given_frames, initial_features, GivenStart};
 use super::keys::{place_keys, KeyConstraint, PlacedKey};
 use super::options::{GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
@@ -17,9 +17,11 @@ use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeCons
 use super::steer::Steering;
 use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
+use crate::data::features::Placement;
 use crate::model::glogen::GloGen;
 use crate::model::rollout::{rollout, RolloutSteps};
 use crate::model::spec::MAX_CLASS_STRENGTH;
+use crate::model::target::{target_condition, Target};
 use crate::motion::contacts::FootContacts;
 use crate::motion::{solve_local_poses, Motion};
 
@@ -46,10 +48,12 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
         bail!("class strength must be between 0 and {MAX_CLASS_STRENGTH}, got {class_strength}");
     }
     let (dim, total) = (spec.layout.dim(), timeline.total());
-    let keys = place_keys(&timeline, model, &opts.keys)?;
+    let keys = place_keys(&timeline, model, &opts.keys, &opts.init)?;
     // GloGen's own poses are warped onto keys unless the ablation warps the dense frames alone.
     let key_poses: Vec<usize> = if opts.key_method == KeyMethod::DenseWarp { Vec::new() } else { keys.iter().map(|k| k.sparse).collect() };
     let plans = timeline.plan(model, opts.transition == Transition::Anchor, &key_poses);
+    let mut targets = if model.glogen().reads_target() { keys.clone() } else { Vec::new() };
+    targets.sort_by_key(|k| k.sparse);
     let constraints = take_constraints(model, opts, &timeline, keys)?;
 
     let (mut sparse, start) = initial_features(model, &opts.init)?;
@@ -58,6 +62,9 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
         model,
         opts,
         plans: &plans,
+        targets,
+        start,
+        cond: Vec::new(),
         steering: Steering::new(model, opts),
         noise: StdRng::seed_from_u64(opts.seed),
         constraints: &constraints,
@@ -93,8 +100,8 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
     Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts, warnings })
 }
 
-/// The take's constraints in the order they apply: the root path lays the take out, then the
-/// keys pin it.
+/// The take's constraints in the order they apply: the root path lays the take out, the keys
+/// pin it, and a file start's given frames are put back as given.
 fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>) -> Result<Vec<Box<dyn TakeConstraint>>> {
     let spec = &model.spec;
     let mut constraints: Vec<Box<dyn TakeConstraint>> = Vec::new();
@@ -103,9 +110,15 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
         let units_per_metre = 1.0 / spec.layout.skeleton.meters_per_unit();
         constraints.push(Box::new(PathConstraint { path: GroundPath::new(path, units_per_metre), units_per_metre }));
     }
+    let first_key = keys.iter().map(|k| k.frame).min();
     if !keys.is_empty() {
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
         constraints.push(Box::new(KeyConstraint { keys, step_seconds, method: opts.key_method }));
+    }
+    // The given frames of a file start keep their own timing only at pace 1.
+    let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);
+    if let Some(frames) = given_frames(model, &opts.init)?.filter(|_| first_pace == 1.0) {
+        constraints.push(Box::new(GivenStart { frames, until: first_key.unwrap_or(usize::MAX) }));
     }
     Ok(constraints)
 }
@@ -116,6 +129,12 @@ struct TakeSteps<'a> {
     model: &'a GlocalModel,
     opts: &'a GenerateOptions,
     plans: &'a [BlockPlan],
+    /// The keys a target-conditioned GloGen aims at, in time order.
+    targets: Vec<PlacedKey>,
+    /// Where the take starts (the sparse poses are steps from it).
+    start: Placement,
+    /// The conditioning of the block under way: its plan's class, then its target.
+    cond: Vec<f32>,
     steering: Steering,
     noise: StdRng,
     constraints: &'a [Box<dyn TakeConstraint>],
@@ -124,12 +143,33 @@ struct TakeSteps<'a> {
     progress: &'a mut dyn FnMut(f32) -> bool,
 }
 
+impl TakeSteps<'_> {
+    /// A target-conditioned GloGen's block aims at the next key within the reach it was
+    /// trained on: the conditioning's target part, after the class.
+    fn aim(&mut self, sparse: &[f32]) {
+        let spec = &self.model.spec;
+        let (dim, t) = (spec.layout.dim(), spec.block_len);
+        let last = sparse.len() / dim - 1;
+        let reach = (spec.glogen.rollout_blocks + 1) * t;
+        let Some(key) = self.targets.iter().find(|k| k.sparse > last && k.sparse - last <= reach) else { return };
+        let mut raw = sparse.to_vec();
+        spec.sparse_norm.denormalize(&mut raw);
+        let from = spec.layout.decode(&raw, self.start).1;
+        let target = Target { pose: &key.pose, steps: (key.sparse - last) as f32, fix_root: key.fix_root };
+        let condition = target_condition(&spec.layout, &spec.sparse_norm, t, from, Some(target));
+        let class_len = spec.glogen.class_len(spec.classes.len());
+        self.cond[class_len..].copy_from_slice(&condition);
+    }
+}
+
 impl RolloutSteps for TakeSteps<'_> {
-    fn class(&self, b: usize) -> &[f32] {
-        &self.plans[b].class
+    fn class(&self, _b: usize) -> &[f32] {
+        &self.cond
     }
 
     fn ask(&mut self, b: usize, input: &mut [f32], sparse: &[f32]) -> f32 {
+        self.cond = self.plans[b].class.clone();
+        self.aim(sparse);
         self.strength = self.steering.block(&self.plans[b], input, sparse);
         if self.opts.variation > 0.0 && self.opts.seed != 0 {
             input.iter_mut().for_each(|v| *v += self.opts.variation * self.noise.random_range(-1.0f32..1.0));

@@ -8,15 +8,17 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use glam::Vec3;
 
+use super::plan::TakeConstraint;
+use super::raised_cosine;
 use super::rig::onto_model;
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
-use crate::data::features::Placement;
+use crate::data::features::{FeatureLayout, Placement};
 use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::npy::{motion_from_npy, read_npy};
 use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
-use crate::motion::{Motion, Skeleton};
+use crate::motion::{solve_local_poses, Motion, Skeleton};
 use super::export::in_units;
 
 /// Where the first sparse poses come from.
@@ -59,12 +61,86 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
                     path.display(), motion.frames(), spec.fps, spec.stride * spec.block_len + 1, spec.block_len, spec.stride
                 );
             }
-            // Onto the model's floor: an exported take stands at 0, Human3.6M's world lower.
-            let used = motion.slice(*frame, needed + 1);
-            let motion = motion.translated(Vec3::new(0.0, model.floor_height() - used.floor_height(), 0.0));
+            let motion = motion.translated(Vec3::new(0.0, FileStart::of(model, &motion, *frame).lift, 0.0));
             let start = frame + spec.stride;
             Ok((spec.layout.encode_motion(&motion, start, spec.stride, spec.block_len), Placement::default()))
         }
+    }
+}
+
+/// The dense frames a take from a motion file starts with, in the take's world: the file's
+/// frames over the starting poses, from the first to the last ([`initial_features`] takes
+/// every `stride`-th of them). None for a seed-bank start, which has only its sparse poses.
+pub fn given_frames(model: &GlocalModel, init: &InitPose) -> Result<Option<Vec<Vec3>>> {
+    let InitPose::File { path, frame } = init else { return Ok(None) };
+    let spec = &model.spec;
+    let motion = read_on_model_skeleton(model, path)?;
+    let start = FileStart::of(model, &motion, *frame);
+    let frames = frame + spec.stride..=frame + spec.stride * spec.block_len;
+    Ok(Some(frames.filter(|&f| f < motion.frames()).flat_map(|f| start.apply(motion.frame(f))).collect()))
+}
+
+/// Seconds over which the difference between a given start and the generated take fades
+/// out after the start's last frame.
+const GIVEN_BLEND_SECONDS: f32 = 0.5;
+
+/// The given frames of a file start as a constraint: the finished take shows them as given
+/// (after the foot lock and the other constraints), and the difference they make at their
+/// last frame fades out over the frames after it, ending before `until` (the first key).
+pub(super) struct GivenStart {
+    pub frames: Vec<Vec3>,
+    pub until: usize,
+}
+
+impl TakeConstraint for GivenStart {
+    fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
+        let (j, frames) = (layout.joints(), motion.frames());
+        let given = self.frames.len() / j;
+        if given == 0 || frames <= given {
+            return motion;
+        }
+        let mut positions = motion.positions().to_vec();
+        let last = given - 1;
+        let residual: Vec<Vec3> = (0..j).map(|k| self.frames[last * j + k] - positions[last * j + k]).collect();
+        positions[..given * j].copy_from_slice(&self.frames);
+        let blend = ((GIVEN_BLEND_SECONDS * motion.fps).round() as usize).min(self.until.saturating_sub(given));
+        let end = frames.min(given + blend);
+        for f in given..end {
+            let w = raised_cosine((f - last) as f32 / (blend + 1) as f32);
+            positions[f * j..(f + 1) * j].iter_mut().zip(&residual).for_each(|(p, r)| *p += w * *r);
+        }
+        let skeleton = motion.skeleton.clone();
+        let Some(mut poses) = motion.local_poses else { return Motion::from_positions(skeleton, motion.fps, positions) };
+        poses.splice(0..end, solve_local_poses(&skeleton, &positions[..end * j]));
+        Motion::from_local_poses(skeleton, motion.fps, poses)
+    }
+}
+
+/// Where a take started from frame `frame` of a motion file puts the file's world: that
+/// frame's root on the origin, facing +z (the take's first features are its steps from it),
+/// and the frames the start uses on the model's floor (an exported take stands at 0,
+/// Human3.6M's world lower). A key from the same file lands where this puts it.
+#[derive(Clone, Copy, Debug)]
+pub struct FileStart {
+    /// Where the file's start frame stands in the file's world.
+    pub place: Placement,
+    /// The height added to every position.
+    pub lift: f32,
+}
+
+impl FileStart {
+    /// The start of a take from `frame` of `motion` (on the model's skeleton and frame rate).
+    pub fn of(model: &GlocalModel, motion: &Motion, frame: usize) -> Self {
+        let spec = &model.spec;
+        let used = motion.slice(frame, (frame + spec.stride * spec.block_len + 1).min(motion.frames()));
+        Self { place: spec.layout.placement(motion.frame(frame)), lift: model.floor_height() - used.floor_height() }
+    }
+
+    /// A frame of the file in the take's world.
+    pub fn apply(&self, frame: &[Vec3]) -> Vec<Vec3> {
+        let turn = glam::Quat::from_rotation_y(-self.place.heading);
+        let origin = Vec3::new(self.place.x, -self.lift, self.place.z);
+        frame.iter().map(|p| turn * (*p - origin)).collect()
     }
 }
 

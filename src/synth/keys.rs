@@ -5,16 +5,14 @@
 //! residual LocGen and the foot lock leave, over half a second either side. The ablation in
 //! docs/RESULTS.md (`glocal eval --suite constraints`) compares the ways of doing it.
 
-use std::f32::consts::PI;
-
 use anyhow::{bail, Context, Result};
 use glam::{Quat, Vec3};
 
 use super::constraints::{check_keys, Key, KeySource};
-use super::init::{read_on_model_skeleton, InitPose};
+use super::init::{read_on_model_skeleton, FileStart, InitPose};
 use super::options::KeyMethod;
 use super::plan::{PlannedBlock, SparseTimeline, TakeConstraint};
-use super::smoothstep;
+use super::{raised_cosine, smoothstep};
 use crate::data::features::{wrap, FeatureLayout, Placement, ROOT_FEATURES};
 use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
@@ -43,11 +41,17 @@ pub struct PlacedKey {
     /// The pose as one normalised sparse feature vector.
     pub features: Vec<f32>,
     pub fix_root: bool,
+    /// The last sparse pose and the last frame of the take's starting poses, which reaching
+    /// the key leaves as they are.
+    pub given_sparse: usize,
+    pub given_frame: usize,
 }
 
 /// The key's pose as world positions on the model's skeleton, its bones set to the model's
-/// lengths (a pose from another subject or file is reachable exactly).
-pub fn key_pose(model: &GlocalModel, key: &Key) -> Result<Vec<Vec3>> {
+/// lengths (a pose from another subject or file is reachable exactly), in the world of a take
+/// started from `init`: a frame of the file the take starts from stands where that file
+/// puts it relative to the start ([`FileStart`]).
+pub fn key_pose(model: &GlocalModel, key: &Key, init: &InitPose) -> Result<Vec<Vec3>> {
     let spec = &model.spec;
     let joints = spec.layout.joints();
     let pose = match &key.source {
@@ -71,9 +75,14 @@ pub fn key_pose(model: &GlocalModel, key: &Key) -> Result<Vec<Vec3>> {
             if *frame >= motion.frames() {
                 bail!("{}: key frame {frame} is past the file's {} frames", path.display(), motion.frames());
             }
-            // On the model's floor, as a starting clip is.
-            let lift = model.floor_height() - motion.floor_height();
-            motion.frame(*frame).iter().map(|p| *p + Vec3::Y * lift).collect()
+            match init {
+                InitPose::File { path: start_file, frame: start } if start_file == path && *start < motion.frames() => FileStart::of(model, &motion, *start).apply(motion.frame(*frame)),
+                _ => {
+                    // On the model's floor, as a starting clip is.
+                    let lift = model.floor_height() - motion.floor_height();
+                    motion.frame(*frame).iter().map(|p| *p + Vec3::Y * lift).collect()
+                }
+            }
         }
     };
     let skeleton = spec.layout.skeleton.clone();
@@ -95,21 +104,14 @@ fn keyed(d: usize) -> bool {
 /// as far after it as poses exist.
 pub fn warp_sparse(sparse: &mut [f32], dim: usize, key: &PlacedKey, step_seconds: f32) {
     let reach = (SPARSE_REACH_SECONDS / step_seconds).ceil().max(1.0) as usize;
+    // The share falls to nothing by the last starting pose.
+    let before = reach.min(key.sparse - key.given_sparse);
     let at = &sparse[key.sparse * dim..(key.sparse + 1) * dim];
     let delta: Vec<f32> = at.iter().zip(&key.features).enumerate().map(|(d, (v, k))| if keyed(d) { k - v } else { 0.0 }).collect();
     let poses = sparse.len() / dim;
-    for i in key.sparse.saturating_sub(reach - 1)..poses.min(key.sparse + reach) {
-        let w = raised_cosine(i.abs_diff(key.sparse) as f32 / reach as f32);
+    for i in key.sparse + 1 - before..poses.min(key.sparse + reach) {
+        let w = raised_cosine(i.abs_diff(key.sparse) as f32 / if i < key.sparse { before } else { reach } as f32);
         sparse[i * dim..(i + 1) * dim].iter_mut().zip(&delta).for_each(|(v, d)| *v += w * d);
-    }
-}
-
-/// 1 at 0, falling smoothly (zero slope at both ends) to 0 at 1.
-fn raised_cosine(x: f32) -> f32 {
-    if x >= 1.0 {
-        0.0
-    } else {
-        0.5 * (1.0 + (PI * x).cos())
     }
 }
 
@@ -135,9 +137,11 @@ pub fn warp_dense(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, key:
         })
         .collect();
     let reach = (DENSE_REACH_SECONDS * fps).round().max(1.0) as usize;
-    let touched = key.frame.saturating_sub(reach - 1)..frames.min(key.frame + reach);
+    // The residual falls to nothing by the last frame of the starting poses.
+    let before = reach.min(key.frame.saturating_sub(key.given_frame)).max(1);
+    let touched = key.frame + 1 - before..frames.min(key.frame + reach);
     for f in touched.clone() {
-        let w = raised_cosine(f.abs_diff(key.frame) as f32 / reach as f32);
+        let w = raised_cosine(f.abs_diff(key.frame) as f32 / if f < key.frame { before } else { reach } as f32);
         let pose = &mut positions[f * j..(f + 1) * j];
         let turn = Quat::from_rotation_y(layout.heading(pose));
         for (p, r) in pose.iter_mut().zip(&residual) {
@@ -198,7 +202,9 @@ pub fn fix_roots(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, keys:
         .collect();
     targets.sort_by_key(|t| t.0);
     let Some(&(last_frame, last_shift, last_turn)) = targets.last() else { return Vec::new() };
-    let start = (0usize, Vec3::ZERO, 0.0f32);
+    // The starting poses stay where they were given; the offsets grow after them.
+    let given = keys[0].given_frame;
+    let start = (given, Vec3::ZERO, 0.0f32);
     let metres = layout.skeleton.meters_per_unit();
     let mut warnings = Vec::new();
     for (&(pf, pd, _), &(kf, d, _)) in std::iter::once(&start).chain(&targets).zip(&targets) {
@@ -209,7 +215,7 @@ pub fn fix_roots(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, keys:
         }
     }
     let pivot = positions[last_frame * j];
-    for f in 0..frames {
+    for f in given..frames {
         let (shift, turn, about_own_root) = match targets.iter().position(|t| t.0 >= f) {
             Some(i) => {
                 let ((pf, pd, ph), (kf, d, h)) = (if i == 0 { start } else { targets[i - 1] }, targets[i]);
@@ -228,7 +234,7 @@ pub fn fix_roots(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, keys:
 
 /// Each key on the sparse pose nearest its time after the seed block of `timeline`, with its
 /// pose.
-pub(super) fn place_keys(timeline: &SparseTimeline, model: &GlocalModel, keys: &[Key]) -> Result<Vec<PlacedKey>> {
+pub(super) fn place_keys(timeline: &SparseTimeline, model: &GlocalModel, keys: &[Key], init: &InitPose) -> Result<Vec<PlacedKey>> {
     let spec = &model.spec;
     let t = spec.block_len;
     let total = timeline.total();
@@ -243,12 +249,14 @@ pub(super) fn place_keys(timeline: &SparseTimeline, model: &GlocalModel, keys: &
     }
     keys.iter()
         .map(|key| {
-            let pose = key_pose(model, key)?;
+            let pose = key_pose(model, key, init)?;
             let frame = (key.seconds * spec.fps).round() as usize;
             let sparse = (t..total).min_by(|&a, &b| (timeline.frames[a] - frame as f64).abs().total_cmp(&(timeline.frames[b] - frame as f64).abs())).unwrap_or(t);
             let mut features = spec.layout.encode(&[&pose], None);
             spec.sparse_norm.normalize(&mut features);
-            Ok(PlacedKey { sparse, frame, pose, features, fix_root: key.fix_root })
+            // The starting poses end at the seed's last pose.
+            let given_frame = timeline.frames[t - 1].round() as usize;
+            Ok(PlacedKey { sparse, frame, pose, features, fix_root: key.fix_root, given_sparse: t - 1, given_frame })
         })
         .collect()
 }

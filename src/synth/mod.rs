@@ -34,6 +34,16 @@ pub(crate) fn smoothstep(x: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// 1 at 0, falling smoothly (zero slope at both ends) to 0 at 1: the fade of a key's warp
+/// and of a given start's join.
+pub(crate) fn raised_cosine(x: f32) -> f32 {
+    if x >= 1.0 {
+        0.0
+    } else {
+        0.5 * (1.0 + (std::f32::consts::PI * x).cos())
+    }
+}
+
 pub use generate::{generate, Generated};
 pub use options::{GenerateOptions, KeyMethod, Transition, DEFAULT_TRANSITION_SECONDS};
 pub use plan::SegmentSpan;

@@ -101,6 +101,8 @@ pub struct TrainOptions {
     pub joined: bool,
     /// How GloGen's blocks are joined, in training and in generation ([`GloGenSpec::seam_join`]).
     pub seam_join: SeamJoin,
+    /// GloGen reads the next key it must reach ([`GloGenSpec::target`]).
+    pub target: bool,
     pub stride: usize,
     pub block_len: usize,
     pub locgen_window: usize,
@@ -136,6 +138,7 @@ impl TrainOptions {
             residual: false,
             joined: false,
             seam_join: SeamJoin::OneSided,
+            target: false,
             stride: 5,
             block_len: 10,
             locgen_window: 10,
@@ -186,8 +189,8 @@ impl TrainOptions {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
         let two_sided = self.seam_join == SeamJoin::TwoSided;
-        if self.stage == Stage::Locgen && (self.residual || self.joined || two_sided) {
-            bail!("--residual, --joined and --two-sided-join shape GloGen's blocks; they do not apply to --stage locgen");
+        if self.stage == Stage::Locgen && (self.residual || self.joined || two_sided || self.target) {
+            bail!("--residual, --joined, --two-sided-join and --target shape GloGen's blocks; they do not apply to --stage locgen");
         }
         Ok(())
     }
@@ -231,7 +234,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
     if let Some(dir) = &opts.init_from {
         let from = dir.join(opts.stage.file());
-        load_weights(&from, &varmap).with_context(|| format!("cannot fine-tune from {}", from.display()))?;
+        load_widened(&from, &varmap).with_context(|| format!("cannot fine-tune from {}", from.display()))?;
     }
     let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
     let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
@@ -289,15 +292,44 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     Ok(spec)
 }
 
+/// Fills `varmap` from a stage's trained weights for fine-tuning, where the new block may
+/// read more conditioning than the trained one (a target after the class): the input
+/// weights of the new inputs start at zero, so training starts from the trained block's
+/// very motion. Every other tensor must match as [`load_weights`] checks it.
+fn load_widened(path: &Path, varmap: &VarMap) -> Result<()> {
+    let name = path.display();
+    let trained = candle_core::safetensors::load(path, &Device::Cpu).with_context(|| format!("cannot read {name}"))?;
+    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
+    if vars.iter().all(|(k, v)| trained.get(k).is_some_and(|t| t.dims() == v.dims())) {
+        drop(vars);
+        return Ok(load_weights(path, varmap)?);
+    }
+    for (var_name, var) in vars.iter() {
+        let t = trained.get(var_name).with_context(|| format!("{name} has no tensor '{var_name}'"))?;
+        let (&[rows, new_in], &[trained_rows, trained_in]) = (var.dims(), t.dims()) else {
+            if t.dims() != var.dims() {
+                bail!("{name}: tensor '{var_name}' has shape {:?}, the model needs {:?}", t.dims(), var.dims());
+            }
+            var.set(t)?;
+            continue;
+        };
+        if rows != trained_rows || trained_in > new_in || (trained_in < new_in && !var_name.contains("weight_ih")) {
+            bail!("{name}: tensor '{var_name}' has shape {:?}, the model needs {:?}", t.dims(), var.dims());
+        }
+        let zeros = Tensor::zeros((rows, new_in - trained_in), DType::F32, &Device::Cpu)?;
+        var.set(&Tensor::cat(&[t, &zeros], 1)?)?;
+    }
+    Ok(())
+}
+
 /// Reads `model.json` when the folder has one for this dataset, else describes a new model.
 fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
     let dim = corpus.layout.dim();
     let classes = corpus.classes.len();
-    let cond_dim = if opts.use_class { classes } else { 0 };
-    let glogen = GloGenSpec {
+    let mut glogen = GloGenSpec {
         block: BlockConfig {
             in_dim: dim,
-            cond_dim,
+            cond_dim: 0,
             cond_in_decoder: opts.use_class && opts.class_in_decoder,
             hidden: opts.hidden,
             out_dim: dim,
@@ -310,7 +342,9 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         residual: opts.residual,
         joined: opts.joined,
         seam_join: opts.seam_join,
+        target: opts.target,
     };
+    glogen.block.cond_dim = glogen.cond_len(classes, dim);
     let locgen = LocGenSpec {
         block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
         window: opts.locgen_window,

@@ -18,6 +18,7 @@ use crate::model::loss::joint_flow_loss;
 use crate::model::rollout::{rollout, OneClass};
 use crate::model::seam::join_seams_tensor;
 use crate::model::spec::{LossKind, ModelSpec};
+use crate::model::target::{target_condition, target_len, Target};
 
 /// Held-out windows a validation scores.
 const VALIDATION_WINDOWS: usize = 256;
@@ -68,11 +69,11 @@ impl TrainingData<'_> {
 
     /// A batch of windows of `span` frames (after a frame before each): inputs `[B, T, D]`,
     /// targets `[B, T * target_blocks, D]` as `window` makes them from a track and its first
-    /// frame, and class vectors (zeroed with the class-dropout probability) when the block
-    /// has any.
-    fn batch(&self, block: &Seq2SeqBlock, span: usize, target_blocks: usize, rng: &mut StdRng, window: impl Fn(&Track, usize) -> (Vec<f32>, Vec<f32>)) -> Result<(Tensor, Tensor, Option<Tensor>)> {
+    /// frame, and each window's class vector (zeroed with the class-dropout probability, then
+    /// zeros for the rest of the block's conditioning) and where it was drawn from.
+    fn batch<'t>(&'t self, block: &Seq2SeqBlock, span: usize, target_blocks: usize, rng: &mut StdRng, window: impl Fn(&Track, usize) -> (Vec<f32>, Vec<f32>)) -> Result<Batch<'t>> {
         let (dim, b, cond_dim) = (self.layout().dim(), self.opts.batch, block.cfg.cond_dim);
-        let (mut xs, mut ys, mut conds) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut xs, mut ys, mut conds, mut drawn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..b {
             let (track, start) = sample_window(&self.corpus.train, self.corpus.classes.len(), span + self.spec.stride, rng).context("no training clip is long enough")?;
             let (x, y) = window(track, start + self.spec.stride);
@@ -83,12 +84,12 @@ impl TrainingData<'_> {
                 c[track.class] = 1.0;
             }
             conds.extend(c);
+            drawn.push((track, start + self.spec.stride));
         }
         let steps_in = xs.len() / b / dim;
         let x = Tensor::from_vec(xs, (b, steps_in, dim), &Device::Cpu)?;
         let y = Tensor::from_vec(ys, (b, steps_in * target_blocks, dim), &Device::Cpu)?;
-        let cond = (cond_dim > 0).then(|| Tensor::from_vec(conds, (b, cond_dim), &Device::Cpu)).transpose()?;
-        Ok((x, y, cond))
+        Ok(Batch { x, y, conds, drawn })
     }
 
     /// Held-out windows of `span` frames (after a frame before each) from the test split (the
@@ -105,6 +106,28 @@ impl TrainingData<'_> {
         out
     }
 }
+
+/// A training batch: inputs, targets, the conditioning rows `[B * cond_dim]` and each
+/// window's track and first frame.
+struct Batch<'t> {
+    x: Tensor,
+    y: Tensor,
+    conds: Vec<f32>,
+    drawn: Vec<(&'t Track, usize)>,
+}
+
+impl Batch<'_> {
+    /// The conditioning as a tensor `[B, cond_dim]`, none for a block without any.
+    fn cond(&self, rows: &[f32]) -> Result<Option<Tensor>> {
+        let b = self.drawn.len();
+        Ok((!rows.is_empty()).then(|| Tensor::from_vec(rows.to_vec(), (b, rows.len() / b), &Device::Cpu)).transpose()?)
+    }
+}
+
+/// The share of GloGen's training windows that aim at a target, and of those whose target
+/// pins its root too: the rest teach the block to move freely, as between far keys.
+const TARGET_SHARE: f32 = 0.6;
+const ROOT_TARGET_SHARE: f32 = 0.5;
 
 /// Mean distances of predicted poses (`predictions`, one normalised window each) and of the
 /// baselines to the real poses.
@@ -140,6 +163,38 @@ impl GloGenTraining<'_> {
         (all[..split].to_vec(), all[split..].to_vec())
     }
 
+    /// The conditioning of each of the rollout's `blocks` blocks: the window's class, and for
+    /// a target-conditioned GloGen a real pose of the clip ahead as its target, for every
+    /// block until the one that reaches it (a share of windows has none).
+    fn block_conds(&self, batch: &Batch<'_>, blocks: usize, rng: &mut StdRng) -> Result<Vec<Option<Tensor>>> {
+        let data = &self.0;
+        if !data.spec.glogen.target {
+            let cond = batch.cond(&batch.conds)?;
+            return Ok(vec![cond; blocks]);
+        }
+        let (t, s, dim) = (data.spec.block_len, data.spec.stride, data.layout().dim());
+        let cond_dim = batch.conds.len() / batch.drawn.len();
+        let class_len = cond_dim - target_len(dim);
+        let mut rows = vec![batch.conds.clone(); blocks];
+        for (i, &(track, frame)) in batch.drawn.iter().enumerate() {
+            if rng.random::<f32>() >= TARGET_SHARE {
+                continue;
+            }
+            // The target's index among the poses after the context, and whether it pins its root.
+            let k = rng.random_range(0..(blocks + 1) * t);
+            let fix_root = rng.random::<f32>() < ROOT_TARGET_SHARE;
+            let pose = track.motion.frame(frame + (t + k) * s);
+            for (r, row) in rows.iter_mut().enumerate() {
+                let Some(steps) = (k + 1).checked_sub(r * t).filter(|&n| n > 0) else { continue };
+                let from = data.layout().placement(track.motion.frame(frame + (t + r * t - 1) * s));
+                let target = Target { pose, steps: steps as f32, fix_root };
+                let condition = target_condition(data.layout(), data.norm, t, from, Some(target));
+                row[i * cond_dim + class_len..(i + 1) * cond_dim].copy_from_slice(&condition);
+            }
+        }
+        rows.iter().map(|row| batch.cond(row)).collect()
+    }
+
     /// A block from `input` `[B, T, dim]`: a residual GloGen's is an offset from the input's
     /// last pose.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>) -> Result<Tensor> {
@@ -152,16 +207,20 @@ impl GloGenTraining<'_> {
 impl StageTraining for GloGenTraining<'_> {
     fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
         let spec = &self.0.spec.glogen;
-        let blocks = spec.rollout_blocks;
-        let span = self.0.spec.stride * self.0.spec.block_len * (1 + blocks);
-        let (x, y, cond) = self.0.batch(block, span, blocks, rng, |track, frame| self.window(track, frame, blocks))?;
-        let steps_in = x.dim(1)?;
+        let (blocks, t) = (spec.rollout_blocks, self.0.spec.block_len);
+        // A target-conditioned GloGen's targets may lie a block past the rollout.
+        let ahead = blocks + usize::from(spec.target);
+        let span = self.0.spec.stride * t * (1 + ahead);
+        let batch = self.0.batch(block, span, ahead, rng, |track, frame| self.window(track, frame, ahead))?;
+        let (x, steps_in) = (&batch.x, batch.x.dim(1)?);
+        let y = batch.y.narrow(1, 0, blocks * steps_in)?;
+        let conds = self.block_conds(&batch, blocks, rng)?;
         // Every block of the rollout, as generation leaves it: joined onto the block before,
         // which a two-sided join moves in turn (the observed context stays). This is the
         // rollout of `model::rollout` as differentiable tensor operations.
         let mut preds: Vec<Tensor> = Vec::with_capacity(blocks);
         let mut input = x.clone();
-        for _ in 0..blocks {
+        for cond in &conds {
             let mut pred = self.predict(block, &input, cond.as_ref())?;
             if spec.joined {
                 let before = match preds.last() {
@@ -214,8 +273,8 @@ impl StageTraining for GloGenTraining<'_> {
         for w in windows {
             let mut sparse = w.input.clone();
             let mut class = vec![0.0; block.cfg.cond_dim];
-            if let Some(c) = class.get_mut(w.class) {
-                *c = 1.0;
+            if w.class < data.spec.glogen.class_len(data.spec.classes.len()) {
+                class[w.class] = 1.0;
             }
             rollout(&glogen, &mut ws, &mut sparse, 1, data.spec.glogen.joined, &mut OneClass(class))?;
             predictions.push(sparse.split_off(w.input.len()));
@@ -250,10 +309,10 @@ impl LocGenTraining<'_> {
 impl StageTraining for LocGenTraining<'_> {
     fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
         let span = self.0.spec.locgen.window + 1;
-        let (x, y, _) = self.0.batch(block, span, 1, rng, |track, frame| self.window(track, frame))?;
-        let pred = Self::predict(block, &x, true)?;
-        let last = x.narrow(1, x.dim(1)? - 1, 1)?;
-        Ok(joint_flow_loss(&pred, &y, Some(&last), LossKind::JointFlow)?)
+        let batch = self.0.batch(block, span, 1, rng, |track, frame| self.window(track, frame))?;
+        let pred = Self::predict(block, &batch.x, true)?;
+        let last = batch.x.narrow(1, batch.x.dim(1)? - 1, 1)?;
+        Ok(joint_flow_loss(&pred, &batch.y, Some(&last), LossKind::JointFlow)?)
     }
 
     fn validation_windows(&self) -> Vec<ValWindow> {
