@@ -10,13 +10,11 @@ use glam::Vec3;
 
 use super::block::{BlockConfig, FrozenBlock, Seq2SeqBlock};
 use super::corpus::interpolated_window;
-use super::spec::{ModelSpec, SeamJoin, Seed};
+use super::spec::{ModelSpec, SeamJoin, Seed, GLOGEN_FILE, LOCGEN_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement, ROOT_FEATURES};
 use crate::motion::{floor_height, Motion};
 
-pub const GLOGEN_FILE: &str = "glogen.safetensors";
-pub const LOCGEN_FILE: &str = "locgen.safetensors";
 pub const SEEDS_FILE: &str = "seeds.json";
 
 /// LocGen windows per batch: 256 windows (102 s at 25 fps) keep its workspace near 20 MB.
