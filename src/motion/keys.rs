@@ -140,6 +140,13 @@ impl KeyJoints {
     pub fn mapped(&self) -> impl Iterator<Item = (Key, usize)> + '_ {
         Key::ALL.into_iter().filter_map(|k| self.get(k).map(|j| (k, j)))
     }
+
+    /// Fills the keys not set yet (a user's mapping sets some first) from the name table and
+    /// the hierarchy.
+    pub fn fill_by_names(&mut self, skeleton: &Skeleton) {
+        let finder = Finder { skeleton, parsed: skeleton.names().iter().map(|n| JointName::parse(n)).collect() };
+        finder.fill(self);
+    }
 }
 
 /// What the name table and the hierarchy find in `skeleton`, missing keys left empty (the
@@ -148,15 +155,6 @@ pub fn guess_key_joints(skeleton: &Skeleton) -> KeyJoints {
     let mut keys = KeyJoints::default();
     keys.fill_by_names(skeleton);
     keys
-}
-
-impl KeyJoints {
-    /// Fills the keys not set yet (a user's mapping sets some first) from the name table and
-    /// the hierarchy.
-    pub fn fill_by_names(&mut self, skeleton: &Skeleton) {
-        let finder = Finder { skeleton, parsed: skeleton.names().iter().map(|n| JointName::parse(n)).collect() };
-        finder.fill(self);
-    }
 }
 
 struct Finder<'a> {
