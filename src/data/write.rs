@@ -85,6 +85,15 @@ pub fn write_atomic_with(path: &Path, fill: impl FnOnce(&mut dyn Write) -> std::
     file.commit()
 }
 
+/// Moves the file `path` to `kept`, a new name in the same folder (a file that could not be
+/// read, kept for the user instead of being overwritten by the next write), and fsyncs the
+/// folder so the move survives a power cut. A file already at `kept` is replaced.
+pub fn move_aside(path: &Path, kept: &Path) -> Result<()> {
+    std::fs::rename(path, kept).with_context(|| format!("cannot move {} aside", path.display()))?;
+    sync_folder(folder_of(kept));
+    Ok(())
+}
+
 /// Refuses an output that is not a regular file (a folder, a FIFO, a device) and one that
 /// is the same file as any of `inputs`. A symbolic link is written through to the file it
 /// points at. Returns the path that will be replaced.
@@ -204,5 +213,22 @@ impl FolderLock {
             Err(std::fs::TryLockError::WouldBlock) => bail!("{} is in use by another glocal process (training into the same folder?)", dir.display()),
             Err(std::fs::TryLockError::Error(e)) => Err(e).with_context(|| format!("cannot lock {}", path.display())),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_moved_aside_keeps_its_bytes_and_frees_its_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, kept) = (dir.path().join("autosave.json"), dir.path().join("autosave.broken-1.json"));
+        std::fs::write(&path, b"{broken").unwrap();
+        move_aside(&path, &kept).unwrap();
+        assert!(!path.exists());
+        assert_eq!(std::fs::read(&kept).unwrap(), b"{broken");
+        let e = move_aside(&path, &kept).unwrap_err();
+        assert!(format!("{e:#}").starts_with(&format!("cannot move {} aside", path.display())), "{e:#}");
     }
 }

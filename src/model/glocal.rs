@@ -12,13 +12,11 @@ use super::block::{BlockConfig, BlockWorkspace, FrozenBlock, Seq2SeqBlock};
 use super::corpus::interpolated_window;
 use super::glogen::GloGen;
 use super::rollout::{rollout, OneClass};
-use super::spec::{ModelSpec, Seed};
+use super::spec::{ModelSpec, Seed, GLOGEN_FILE, LOCGEN_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement};
 use crate::motion::{floor_height, Motion};
 
-pub const GLOGEN_FILE: &str = "glogen.safetensors";
-pub const LOCGEN_FILE: &str = "locgen.safetensors";
 pub const SEEDS_FILE: &str = "seeds.json";
 
 /// LocGen windows per batch: 256 windows (102 s at 25 fps) keep its workspace near 20 MB.

@@ -10,7 +10,6 @@ use serde::{Deserialize, Serialize};
 
 use super::block::BlockConfig;
 use super::Error;
-use super::glocal::{GLOGEN_FILE, LOCGEN_FILE};
 use crate::data::features::{FeatureLayout, Interpolation, Normalizer};
 use crate::data::input::{read_bytes, read_text};
 use crate::data::registry::Dataset;
@@ -18,6 +17,10 @@ use crate::data::write::write_atomic;
 use crate::motion::{clipped, Skeleton};
 
 pub const FORMAT_VERSION: u32 = 1;
+
+/// The weight files of a model folder, beside its model.json (whose checksums name them).
+pub const GLOGEN_FILE: &str = "glogen.safetensors";
+pub const LOCGEN_FILE: &str = "locgen.safetensors";
 
 /// Which terms the training loss has (the paper's ablations).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -4,7 +4,9 @@
 
 pub mod contacts;
 pub mod ik;
+mod keys;
 mod kinematics;
+mod names;
 mod retarget;
 mod roles;
 mod rotation;
@@ -13,8 +15,10 @@ mod solve;
 mod take;
 
 pub use kinematics::{forward_kinematics, LocalPose};
-pub use retarget::{mapped_bones, Key, KeyJoints, RestPose, Retarget, RetargetError};
-pub use roles::{words, JointRoles, Leg, RolesError, Side};
+pub use keys::{guess_key_joints, Key, KeyJoints};
+pub use names::Side;
+pub use retarget::{mapped_bones, RestPose, Retarget, RetargetError};
+pub use roles::{JointRoles, Leg, RolesError};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError};
 pub use solve::solve_local_poses;

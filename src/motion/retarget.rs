@@ -2,7 +2,7 @@
 //! bone lengths, joint counts and rest pose.
 //!
 //! Both skeletons name the same twenty key joints ([`Key`]: hips, chest, neck, head, collars,
-//! arms, forearms, hands, thighs, shins, feet, toes; `data::joint_map` finds them by name).
+//! arms, forearms, hands, thighs, shins, feet, toes; [`super::guess_key_joints`] finds them).
 //! The key joints that both skeletons have form a small tree (each one's parent is its nearest
 //! mapped ancestor). Each frame, every bone of that tree points on the target where the same
 //! bone points on the source, at the target's own rest length; the hips follow the source's
@@ -23,123 +23,8 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
+use super::keys::{Key, KeyJoints};
 use super::{solve_local_poses, LocalPose, Motion, Skeleton};
-
-/// The joints a humanoid is mapped by, named as Mixamo (and Human3.6M) name them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Key {
-    Hips,
-    Chest,
-    Neck,
-    Head,
-    LeftShoulder,
-    LeftArm,
-    LeftForeArm,
-    LeftHand,
-    RightShoulder,
-    RightArm,
-    RightForeArm,
-    RightHand,
-    LeftUpLeg,
-    LeftLeg,
-    LeftFoot,
-    LeftToeBase,
-    RightUpLeg,
-    RightLeg,
-    RightFoot,
-    RightToeBase,
-}
-
-impl Key {
-    pub const ALL: [Key; 20] = [
-        Key::Hips,
-        Key::Chest,
-        Key::Neck,
-        Key::Head,
-        Key::LeftShoulder,
-        Key::LeftArm,
-        Key::LeftForeArm,
-        Key::LeftHand,
-        Key::RightShoulder,
-        Key::RightArm,
-        Key::RightForeArm,
-        Key::RightHand,
-        Key::LeftUpLeg,
-        Key::LeftLeg,
-        Key::LeftFoot,
-        Key::LeftToeBase,
-        Key::RightUpLeg,
-        Key::RightLeg,
-        Key::RightFoot,
-        Key::RightToeBase,
-    ];
-
-    /// Without these a body cannot be posed: the trunk, both arms and both legs down to the
-    /// hands and feet. Neck, collars and toes are used when both skeletons have them.
-    pub fn is_required(self) -> bool {
-        !matches!(self, Key::Neck | Key::LeftShoulder | Key::RightShoulder | Key::LeftToeBase | Key::RightToeBase)
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Key::Hips => "Hips",
-            Key::Chest => "Chest",
-            Key::Neck => "Neck",
-            Key::Head => "Head",
-            Key::LeftShoulder => "LeftShoulder",
-            Key::LeftArm => "LeftArm",
-            Key::LeftForeArm => "LeftForeArm",
-            Key::LeftHand => "LeftHand",
-            Key::RightShoulder => "RightShoulder",
-            Key::RightArm => "RightArm",
-            Key::RightForeArm => "RightForeArm",
-            Key::RightHand => "RightHand",
-            Key::LeftUpLeg => "LeftUpLeg",
-            Key::LeftLeg => "LeftLeg",
-            Key::LeftFoot => "LeftFoot",
-            Key::LeftToeBase => "LeftToeBase",
-            Key::RightUpLeg => "RightUpLeg",
-            Key::RightLeg => "RightLeg",
-            Key::RightFoot => "RightFoot",
-            Key::RightToeBase => "RightToeBase",
-        }
-    }
-
-    /// The key of a name as [`Key::name`] spells it (case-insensitive).
-    pub fn from_name(name: &str) -> Option<Key> {
-        Key::ALL.into_iter().find(|k| k.name().eq_ignore_ascii_case(name))
-    }
-
-    fn index(self) -> usize {
-        self as usize
-    }
-}
-
-/// Which joint of one skeleton plays each key joint.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct KeyJoints {
-    joints: [Option<usize>; 20],
-}
-
-impl KeyJoints {
-    pub fn get(&self, key: Key) -> Option<usize> {
-        self.joints[key.index()]
-    }
-
-    pub fn set(&mut self, key: Key, joint: Option<usize>) {
-        self.joints[key.index()] = joint;
-    }
-
-    /// The required keys ([`Key::is_required`]) that have no joint.
-    pub fn missing_required(&self) -> Vec<Key> {
-        Key::ALL.into_iter().filter(|k| k.is_required() && self.get(*k).is_none()).collect()
-    }
-
-    /// (key, joint) for every mapped key.
-    pub fn mapped(&self) -> impl Iterator<Item = (Key, usize)> + '_ {
-        Key::ALL.into_iter().filter_map(|k| self.get(k).map(|j| (k, j)))
-    }
-}
 
 /// What a skeleton's rest pose (all rotations identity) looks like, judged from the angle
 /// between the upper arms and the body's up direction (hips to head), with the legs hanging
@@ -240,7 +125,7 @@ impl Retarget {
         let target_rest = target.rest_positions();
         let mut links: Vec<Link> = Vec::with_capacity(pairs.len());
         for (t, s, key) in pairs {
-            let parent = nearest_ancestor(&target, t, |a| links.iter().position(|l| l.target == a));
+            let parent = target.ancestors(t).find_map(|a| links.iter().position(|l| l.target == a));
             if parent.is_none() && key != Key::Hips {
                 return Err(RetargetError::NotBelowHips { side: "target", key: key.name() });
             }
@@ -251,12 +136,7 @@ impl Retarget {
         let mut aims = vec![None; target.len()];
         for (i, link) in links.iter().enumerate() {
             let Some(parent) = link.parent.map(|p| links[p].target) else { continue };
-            let mut first = None;
-            let mut j = link.target;
-            while let Some(p) = target.parents()[j].filter(|&p| p != parent) {
-                first = Some(p);
-                j = p;
-            }
+            let first = target.child_towards(parent, link.target).filter(|&c| c != link.target);
             if let Some(f) = first.filter(|&f| aims[f].is_none()) {
                 aims[f] = Some(i);
             }
@@ -326,7 +206,7 @@ impl Retarget {
                 Some(_) => skeleton.offsets()[j],
                 // A root above the hips does not rotate: place it so the hips land right.
                 None if j == hips => goals[0],
-                None if is_ancestor(skeleton, j, hips) => goals[0] - (rest[hips] - rest[j]),
+                None if skeleton.is_ancestor(j, hips) => goals[0] - (rest[hips] - rest[j]),
                 None => skeleton.offsets()[j],
             })
             .collect();
@@ -364,22 +244,6 @@ fn turn_towards(base: Quat, rest: Vec3, wanted: Vec3) -> Quat {
     (Quat::from_rotation_arc(from, to) * base).normalize()
 }
 
-/// The nearest strict ancestor of `joint` for which `pick` gives something.
-fn nearest_ancestor<T>(skeleton: &Skeleton, joint: usize, pick: impl Fn(usize) -> Option<T>) -> Option<T> {
-    let mut a = skeleton.parents()[joint];
-    while let Some(j) = a {
-        if let Some(found) = pick(j) {
-            return Some(found);
-        }
-        a = skeleton.parents()[j];
-    }
-    None
-}
-
-fn is_ancestor(skeleton: &Skeleton, ancestor: usize, joint: usize) -> bool {
-    nearest_ancestor(skeleton, joint, |a| (a == ancestor).then_some(())).is_some()
-}
-
 /// Mean rest length of the two legs, hip to knee to ankle.
 fn leg_length(skeleton: &Skeleton, keys: &KeyJoints) -> f32 {
     let rest = skeleton.rest_positions();
@@ -401,7 +265,7 @@ pub fn mapped_bones(a: &KeyJoints, a_skeleton: &Skeleton, b: &KeyJoints, b_skele
     };
     both.iter()
         .filter_map(|&(key, joint)| {
-            let parent = nearest_ancestor(a_skeleton, joint, |p| both.iter().find(|(_, j)| *j == p).map(|(k, _)| *k))?;
+            let parent = a_skeleton.ancestors(joint).find_map(|p| both.iter().find(|(_, j)| *j == p).map(|(k, _)| *k))?;
             Some((key, parent))
         })
         .filter(|&(key, parent)| has_length(&rest_a, a, a_skeleton, key, parent) && has_length(&rest_b, b, b_skeleton, key, parent))

@@ -6,41 +6,12 @@
 
 use glam::Vec3;
 
+use super::names::{words, JointName, Side};
 use super::Skeleton;
-
-/// Words naming each limb joint in the common rig conventions (h36m, Bandai, CMU, Mixamo,
-/// Unreal, ...), lower-case: the one vocabulary of the roles here and of the retargeting key
-/// joints (`data::joint_map`), which parses names into words and lets the hierarchy choose.
-pub mod words {
-    pub const UPPER_ARM: &[&str] = &["arm", "upperarm", "armupper", "shldr", "shoulder", "humerus", "uparm"];
-    pub const FOREARM: &[&str] = &["forearm", "lowerarm", "armlower", "elbow", "radius", "lowarm"];
-    pub const HAND: &[&str] = &["hand", "wrist"];
-    pub const THIGH: &[&str] = &["upleg", "upperleg", "legupper", "thigh", "femur", "hip"];
-    pub const SHIN: &[&str] = &["leg", "lowerleg", "leglower", "knee", "shin", "calf", "tibia", "lowleg"];
-    pub const ANKLE: &[&str] = &["foot", "ankle"];
-    pub const TOES: &[&str] = &["toebase", "toe", "toes", "ball", "foot", "toe0"];
-}
 
 /// Bones shorter than this fraction of the longest bone are duplicates or collapsed end
 /// sites, and do not count as a segment of a limb.
 const MIN_SEGMENT_FRACTION: f32 = 0.02;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Side {
-    Left,
-    Right,
-}
-
-impl Side {
-    pub const BOTH: [Side; 2] = [Side::Left, Side::Right];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Side::Left => "left",
-            Side::Right => "right",
-        }
-    }
-}
 
 /// One leg, from the hip joint (where the thigh turns) down to the toe.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -141,7 +112,7 @@ impl Partial {
             out.hands[k] = named(s, Some(side), words::HAND, None);
         }
         if let [Some(PartialLeg { hip: Some(l), .. }), Some(PartialLeg { hip: Some(r), .. })] = out.legs {
-            out.body_root = common_ancestor(s, l, r);
+            out.body_root = Some(s.common_ancestor(l, r));
         }
         out.head = named(s, None, &["head"], None);
         out.head_end = out.head.and_then(|h| farthest_child(s, h));
@@ -166,13 +137,13 @@ impl Partial {
         let [a, b] = legs;
         let (left, right) = if left_first { (a, b) } else { (b, a) };
         out.legs = [Some(left.into()), Some(right.into())];
-        let in_legs = |j: usize| is_ancestor(s, left.hip, j) || is_ancestor(s, right.hip, j) || is_ancestor(s, j, root);
+        let in_legs = |j: usize| s.is_ancestor(left.hip, j) || s.is_ancestor(right.hip, j) || s.is_ancestor(j, root);
         let upper: Vec<usize> = leaves.iter().copied().filter(|&j| !in_legs(j)).collect();
         let reach = path_lengths(s);
         if let Some((hands, branch)) = arm_pair(s, &upper, &reach, &rest, left_dir) {
             out.hands = [Some(hands[0]), Some(hands[1])];
-            let arm_tops: Vec<usize> = s.children(branch).filter(|&c| hands.iter().any(|&h| is_ancestor(s, c, h))).collect();
-            let in_arms = |j: usize| arm_tops.iter().any(|&a| is_ancestor(s, a, j));
+            let arm_tops: Vec<usize> = s.children(branch).filter(|&c| hands.iter().any(|&h| s.is_ancestor(c, h))).collect();
+            let in_arms = |j: usize| arm_tops.iter().any(|&a| s.is_ancestor(a, j));
             out.head = (0..s.len()).filter(|&j| !in_legs(j) && !in_arms(j)).max_by(|&a, &b| rest[a].y.total_cmp(&rest[b].y));
         }
         out
@@ -221,11 +192,11 @@ impl Partial {
         for side in Side::BOTH {
             let l = roles.leg(side);
             let chain: Vec<usize> = [Some(roles.body_root), Some(l.hip), Some(l.knee), Some(l.ankle), l.toe, l.toe_end].into_iter().flatten().collect();
-            if chain.windows(2).any(|w| w[0] == w[1] || !is_ancestor(s, w[0], w[1])) {
+            if chain.windows(2).any(|w| w[0] == w[1] || !s.is_ancestor(w[0], w[1])) {
                 bad.push(format!("{} leg as one chain from the body root", side.name()));
             }
         }
-        if is_ancestor(s, roles.left.hip, roles.right.hip) || is_ancestor(s, roles.right.hip, roles.left.hip) {
+        if s.is_ancestor(roles.left.hip, roles.right.hip) || s.is_ancestor(roles.right.hip, roles.left.hip) {
             bad.push("separate left and right legs".into());
         }
         if roles.left_hand == roles.right_hand {
@@ -245,38 +216,19 @@ impl From<Leg> for PartialLeg {
     }
 }
 
-/// Which side a joint's name says it is on: `Left`/`Right` anywhere, `L`/`R` as a prefix
-/// before a capital (`lThigh`, `RHand`), or `_L`/`.L`/`L_` affixes.
-fn side_of(name: &str) -> Option<Side> {
-    let base = name.rsplit(':').next().unwrap_or(name);
-    let lower = base.to_lowercase();
-    let initial_before_capital = |c: char| {
-        let mut chars = base.chars();
-        chars.next().is_some_and(|f| f.eq_ignore_ascii_case(&c)) && chars.next().is_some_and(|n| n.is_ascii_uppercase())
-    };
-    let affix = |c: &str| lower.ends_with(&format!("_{c}")) || lower.ends_with(&format!(".{c}")) || lower.starts_with(&format!("{c}_"));
-    if lower.contains("left") || initial_before_capital('l') || affix("l") {
-        Some(Side::Left)
-    } else if lower.contains("right") || initial_before_capital('r') || affix("r") {
-        Some(Side::Right)
-    } else {
-        None
-    }
-}
-
-/// The first joint (by keyword priority, then index) on `side` whose name holds a keyword,
-/// is no end site, and lies strictly below `below` when given.
+/// The first joint (by keyword priority, then index) on `side` whose name's words hold a
+/// keyword, is no end site, and lies strictly below `below` when given.
 fn named(s: &Skeleton, side: Option<Side>, keywords: &[&str], below: Option<usize>) -> Option<usize> {
-    let end_site = |l: &str| ["end", "site", "top", "nub"].iter().any(|e| l.contains(e));
+    let parsed: Vec<JointName> = s.names().iter().map(|n| JointName::parse(n)).collect();
     keywords.iter().find_map(|k| {
         (0..s.len()).find(|&j| {
-            let lower = s.names()[j].to_lowercase();
-            lower.contains(k)
-                && !end_site(&lower)
-                && side.is_none_or(|sd| side_of(&s.names()[j]) == Some(sd))
-                && below.is_none_or(|b| b != j && is_ancestor(s, b, j))
+            let name = &parsed[j];
+            name.part.contains(k)
+                && !name.is_end_site()
+                && side.is_none_or(|sd| name.side == Some(sd))
+                && below.is_none_or(|b| b != j && s.is_ancestor(b, j))
                 // `leg` names the shin only when it is not the thigh (`UpLeg`, `UpperLeg`).
-                && !(*k == "leg" && lower.contains("up"))
+                && !(*k == "leg" && name.part.contains("up"))
         })
     })
 }
@@ -285,33 +237,6 @@ fn named(s: &Skeleton, side: Option<Side>, keywords: &[&str], below: Option<usiz
 fn farthest_child(s: &Skeleton, joint: usize) -> Option<usize> {
     let rest = s.rest_positions();
     s.children(joint).max_by(|&a, &b| rest[a].distance(rest[joint]).total_cmp(&rest[b].distance(rest[joint])))
-}
-
-fn is_ancestor(s: &Skeleton, ancestor: usize, mut joint: usize) -> bool {
-    loop {
-        if joint == ancestor {
-            return true;
-        }
-        match s.parents()[joint] {
-            Some(p) => joint = p,
-            None => return false,
-        }
-    }
-}
-
-fn chain_from_root(s: &Skeleton, mut joint: usize) -> Vec<usize> {
-    let mut out = vec![joint];
-    while let Some(p) = s.parents()[joint] {
-        out.push(p);
-        joint = p;
-    }
-    out.reverse();
-    out
-}
-
-fn common_ancestor(s: &Skeleton, a: usize, b: usize) -> Option<usize> {
-    let (ca, cb) = (chain_from_root(s, a), chain_from_root(s, b));
-    ca.iter().zip(&cb).take_while(|(x, y)| x == y).last().map(|(x, _)| *x)
 }
 
 /// Summed rest bone length from the root to each joint.
@@ -333,7 +258,7 @@ fn flat(v: Vec3) -> Vec3 {
 fn segments(s: &Skeleton, from: usize, leaf: usize) -> Vec<usize> {
     let bones = s.rest_bone_lengths();
     let min = bones.iter().fold(0.0f32, |m, b| m.max(*b)) * MIN_SEGMENT_FRACTION;
-    let chain = chain_from_root(s, leaf);
+    let chain = s.chain_from_root(leaf);
     let start = chain.iter().position(|&j| j == from).map_or(chain.len(), |i| i + 1);
     chain[start..].iter().copied().filter(|&j| bones[j] >= min).collect()
 }
@@ -355,7 +280,7 @@ fn lowest_leg_pair(s: &Skeleton, low: &[usize]) -> Option<(usize, [Leg; 2])> {
     };
     let first = *low.first()?;
     low[1..].iter().find_map(|&other| {
-        let root = common_ancestor(s, first, other)?;
+        let root = s.common_ancestor(first, other);
         Some((root, [leg(root, first)?, leg(root, other)?]))
     })
 }
@@ -367,7 +292,7 @@ fn arm_pair(s: &Skeleton, upper: &[usize], reach: &[f32], rest: &[Vec3], left_di
     far.sort_by(|&a, &b| reach[b].total_cmp(&reach[a]));
     let first = *far.first()?;
     far[1..].iter().find_map(|&other| {
-        let branch = common_ancestor(s, first, other)?;
+        let branch = s.common_ancestor(first, other);
         if branch == first || branch == other {
             return None;
         }
@@ -380,26 +305,4 @@ fn arm_pair(s: &Skeleton, upper: &[usize], reach: &[f32], rest: &[Vec3], left_di
         }
         Some((if da > db { [hand_a, hand_b] } else { [hand_b, hand_a] }, branch))
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sides_from_common_conventions() {
-        for (name, side) in [
-            ("LeftUpLeg", Some(Side::Left)),
-            ("RightToeBase", Some(Side::Right)),
-            ("lThigh", Some(Side::Left)),
-            ("rShin", Some(Side::Right)),
-            ("UpperLeg_L", Some(Side::Left)),
-            ("LowerArm_R", Some(Side::Right)),
-            ("mixamorig:LeftHand", Some(Side::Left)),
-            ("Hips", None),
-            ("LowerBack", None),
-        ] {
-            assert_eq!(side_of(name), side, "{name}");
-        }
-    }
 }

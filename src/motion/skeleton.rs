@@ -151,6 +151,40 @@ impl Skeleton {
         self.parents.iter().enumerate().filter(move |(_, p)| **p == Some(joint)).map(|(c, _)| c)
     }
 
+    /// The joints above `joint`, nearest first: its parent, its parent's parent, ... the root.
+    pub fn ancestors(&self, joint: usize) -> impl Iterator<Item = usize> + '_ {
+        std::iter::successors(self.parents[joint], |&j| self.parents[j])
+    }
+
+    /// Whether `joint` is `ancestor` or hangs below it.
+    pub fn is_ancestor(&self, ancestor: usize, joint: usize) -> bool {
+        self.depth_below(joint, ancestor).is_some()
+    }
+
+    /// How many bones `joint` is below `ancestor` (0 for the joint itself; None when it is
+    /// not below it).
+    pub fn depth_below(&self, joint: usize, ancestor: usize) -> Option<usize> {
+        std::iter::once(joint).chain(self.ancestors(joint)).position(|j| j == ancestor)
+    }
+
+    /// The joints from the root down to `joint`, both included.
+    pub fn chain_from_root(&self, joint: usize) -> Vec<usize> {
+        let mut chain: Vec<usize> = std::iter::once(joint).chain(self.ancestors(joint)).collect();
+        chain.reverse();
+        chain
+    }
+
+    /// The lowest joint that both `a` and `b` are (or hang below); the root at the latest.
+    pub fn common_ancestor(&self, a: usize, b: usize) -> usize {
+        std::iter::once(a).chain(self.ancestors(a)).find(|&j| self.is_ancestor(j, b)).expect("a skeleton has one root, above every joint")
+    }
+
+    /// The child of `ancestor` on the way down to `joint` (None when `joint` is not strictly
+    /// below it).
+    pub fn child_towards(&self, ancestor: usize, joint: usize) -> Option<usize> {
+        std::iter::once(joint).chain(self.ancestors(joint)).find(|&j| self.parents[j] == Some(ancestor))
+    }
+
     /// Joints worth modelling: the root plus every joint whose rest bone is at least `min_bone`
     /// long. Zero-length bones (duplicate joints, collapsed end sites) only repeat their parent.
     pub fn informative_joints(&self, min_bone: f32) -> Vec<usize> {
@@ -169,13 +203,7 @@ impl Skeleton {
         let mut parents = Vec::with_capacity(keep.len());
         let mut offsets = Vec::with_capacity(keep.len());
         for &j in keep {
-            let mut p = self.parents[j];
-            while let Some(pj) = p {
-                if new_index(pj).is_some() {
-                    break;
-                }
-                p = self.parents[pj];
-            }
+            let p = self.ancestors(j).find(|&a| new_index(a).is_some());
             parents.push(p.and_then(new_index));
             offsets.push(match p {
                 Some(pj) => rest[j] - rest[pj],
