@@ -1,7 +1,8 @@
 //! The evaluation suite: the paper's measures (MMD, Euclidean distance per frame), the
 //! Action2Motion measures (FID, accuracy, diversity, multimodality) through an action
-//! classifier trained here, baselines trained by this crate on the same splits, and the
-//! suites that print the paper's tables (`glocal eval --suite NAME`).
+//! classifier trained here, the motion-quality and constraint measures, baselines trained by
+//! this crate on the same splits, and the suites that print the paper's tables
+//! (`glocal eval --suite NAME`).
 
 pub mod baselines;
 pub mod classifier;
@@ -11,4 +12,5 @@ pub mod motion;
 pub mod suites;
 pub mod table;
 
-pub use suites::{run_suite, Suite, SuiteOptions, SuiteReport};
+pub use suites::context::{SuiteContext, SuiteOptions};
+pub use suites::{run_suite, Suite, SuiteReport};
