@@ -10,7 +10,7 @@ pub mod context;
 mod h36m_mmd;
 mod locgen;
 mod long_term;
-pub mod motion;
+mod motion;
 
 use std::str::FromStr;
 use std::time::Instant;
@@ -74,6 +74,8 @@ pub struct SuiteReport {
     pub json: Value,
 }
 
+/// Runs `suite` with the run's context; its JSON also holds its name, its seconds and its
+/// printed tables.
 pub fn run_suite(suite: Suite, ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<SuiteReport> {
     let start = Instant::now();
     let (markdown, mut json) = match suite {
