@@ -159,7 +159,8 @@ fn a_small_classifier_beats_chance_on_the_h36m_test_split() {
 /// differ. The paper's mechanism alone (`Transition::Cut`) fails the first of these (26%).
 #[test]
 fn class_control_holds_on_h36m() {
-    let report = glocal::eval::run_suite(glocal::eval::Suite::H36m, &glocal::eval::SuiteOptions::default(), &mut |m| eprintln!("{m}")).expect("the h36m suite runs");
+    let ctx = glocal::eval::SuiteContext::new(glocal::eval::SuiteOptions::default()).expect("the shipped models are readable");
+    let report = glocal::eval::run_suite(glocal::eval::Suite::H36m, &ctx, &mut |m| eprintln!("{m}")).expect("the h36m suite runs");
     let j = &report.json;
     let real_accuracy = j["real_test"]["accuracy"].as_f64().unwrap();
     let real_fid = j["real_test"]["fid"].as_f64().unwrap();

@@ -8,7 +8,7 @@ use glam::Vec3;
 use glocal::data::archive::DataRoot;
 use glocal::data::bvh::read_bvh;
 use glocal::data::registry::{expmap_format, Dataset};
-use glocal::eval::motion::{longest_repeat, real_pools, BlockGrid, COMMON_FPS};
+use glocal::eval::motion::{longest_repeat, real_pools, BlockGrid, Measure, COMMON_FPS};
 use glocal::model::corpus::Corpus;
 use glocal::model::glocal::GlocalModel;
 use glocal::motion::contacts::{foot_contacts, runs, ContactConfig};
@@ -171,7 +171,7 @@ fn foot_lock_plants_generated_walking() {
         let slide = |m: &Motion| {
             let mut pool = glocal::eval::motion::Pool::default();
             pool.add_take(&m.resample(COMMON_FPS), &roles, None);
-            pool.summary()["support_speed_median_cm_s"]
+            pool.summary()[Measure::SupportSpeedMedian]
         };
         let (before, after) = (slide(&unlocked.motion), slide(motion));
         assert!(after < 0.5 * before, "{name}: support point {after:.1} cm/s with the lock, {before:.1} without");
@@ -186,20 +186,20 @@ fn suite_measures_reproduce_real_figures() {
     let corpus = Corpus::load(Dataset::Bandai, &data(), 3, 3).unwrap();
     let roles = JointRoles::new(&corpus.layout.skeleton).unwrap();
     let pools = real_pools(&corpus, &roles, BlockGrid::new(10, 3, 30.0), 10.0);
-    let at = |class: &str, key: &str| pools[corpus.classes.iter().position(|c| c == class).unwrap()].summary()[key];
+    let at = |class: &str, m: Measure| pools[corpus.classes.iter().position(|c| c == class).unwrap()].summary()[m];
     for class in ["walk", "bow", "bye", "guide"] {
-        assert!(at(class, "contact_fraction") > 0.95, "{class}: contact {}", at(class, "contact_fraction"));
-        assert!(at(class, "floating") < 0.05, "{class}: floating {}", at(class, "floating"));
-        assert!((0.8..1.25).contains(&at(class, "seam_ratio")), "{class}: seam ratio {}", at(class, "seam_ratio"));
-        assert_eq!(at(class, "longest_repeat_s"), 0.0, "{class}: real motion repeats");
+        assert!(at(class, Measure::ContactFraction) > 0.95, "{class}: contact {}", at(class, Measure::ContactFraction));
+        assert!(at(class, Measure::Floating) < 0.05, "{class}: floating {}", at(class, Measure::Floating));
+        assert!((0.8..1.25).contains(&at(class, Measure::SeamRatio)), "{class}: seam ratio {}", at(class, Measure::SeamRatio));
+        assert_eq!(at(class, Measure::LongestRepeat), 0.0, "{class}: real motion repeats");
     }
     for class in ["bow", "bye", "guide"] {
-        assert!(at(class, "support_speed_median_cm_s") < 2.0, "{class}: a standing support point moves {} cm/s", at(class, "support_speed_median_cm_s"));
-        assert!(at(class, "skating_ratio") < 0.15, "{class}: skating {}", at(class, "skating_ratio"));
+        assert!(at(class, Measure::SupportSpeedMedian) < 2.0, "{class}: a standing support point moves {} cm/s", at(class, Measure::SupportSpeedMedian));
+        assert!(at(class, Measure::SkatingRatio) < 0.15, "{class}: skating {}", at(class, Measure::SkatingRatio));
     }
-    let walk = at("walk", "skating_ratio");
+    let walk = at("walk", Measure::SkatingRatio);
     assert!((0.05..0.5).contains(&walk), "walk: skating {walk}");
-    assert!((0.8..1.6).contains(&at("walk", "joint_speed")), "walk: joint speed {}", at("walk", "joint_speed"));
+    assert!((0.8..1.6).contains(&at("walk", Measure::JointSpeed)), "walk: joint speed {}", at("walk", Measure::JointSpeed));
 
     let clip = corpus.test.iter().find(|t| corpus.classes[t.class] == "bow").unwrap().motion.resample(COMMON_FPS);
     let twice: Vec<Vec3> = clip.positions().iter().chain(clip.positions()).copied().collect();

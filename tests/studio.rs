@@ -358,7 +358,7 @@ fn the_foot_lock_toggle_and_its_contacts() {
     let slide = |m: &glocal::motion::Motion| {
         let mut pool = glocal::eval::motion::Pool::default();
         pool.add_take(&m.resample(glocal::eval::motion::COMMON_FPS), &roles, None);
-        pool.summary()["support_speed_median_cm_s"]
+        pool.summary()[glocal::eval::motion::Measure::SupportSpeedMedian]
     };
     let (with, without) = (slide(&locked.0), slide(&unlocked));
     assert!(with < 0.5 * without, "support point {with:.1} cm/s with the lock, {without:.1} without");

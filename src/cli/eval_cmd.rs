@@ -8,8 +8,8 @@ use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::data::write::write_atomic;
-use crate::eval::suites::CLASS_CONTROL_TAKES;
-use crate::eval::{run_suite, Suite, SuiteOptions};
+use crate::eval::suites::context::CLASS_CONTROL_TAKES;
+use crate::eval::{run_suite, Suite, SuiteContext, SuiteOptions};
 use crate::synth::Preset;
 use super::args::TransitionArg;
 
@@ -85,9 +85,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(c) = args.cache {
         opts.cache = c;
     }
+    let ctx = SuiteContext::new(opts)?;
     let suites = &args.suite.0;
     for &suite in suites {
-        let report = run_suite(suite, &opts, &mut |m| eprintln!("{m}"))?;
+        let report = run_suite(suite, &ctx, &mut |m| eprintln!("{m}"))?;
         say!("## {suite}\n\n{}", report.markdown);
         say!("(suite took {:.0} s)\n", report.json["seconds"].as_f64().unwrap_or(0.0));
         if let Some(path) = &args.json {

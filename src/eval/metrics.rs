@@ -11,6 +11,9 @@
 //!   features; the matrix square root comes from a Jacobi eigen-decomposition.
 //! - **Diversity** and **multimodality** (Action2Motion, Guo et al. 2020): mean distance
 //!   between features of random pairs of samples, over all samples and within each class.
+//!
+//! And the plain statistics the motion and constraint measures share: mean, standard
+//! deviation, quantile.
 
 use glam::Vec3;
 use rand::rngs::StdRng;
@@ -269,6 +272,31 @@ pub fn multimodality(features: &[Vec<f32>], labels: &[usize], classes: usize, pa
 /// Fraction of predictions equal to their labels.
 pub fn accuracy(predicted: &[usize], labels: &[usize]) -> f64 {
     predicted.iter().zip(labels).filter(|(p, l)| p == l).count() as f64 / labels.len().max(1) as f64
+}
+
+/// The mean of `v`, NaN when it is empty.
+pub fn mean(v: &[f32]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64
+    }
+}
+
+/// The population standard deviation of `v`.
+pub fn std_dev(v: &[f32]) -> f32 {
+    let m = mean(v);
+    (v.iter().map(|x| (*x as f64 - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt() as f32
+}
+
+/// The `q` quantile of `v` (the nearest rank), NaN when it is empty.
+pub fn quantile(v: &[f32], q: f32) -> f32 {
+    if v.is_empty() {
+        return f32::NAN;
+    }
+    let mut s = v.to_vec();
+    let k = ((s.len() - 1) as f32 * q).round() as usize;
+    *s.select_nth_unstable_by(k, f32::total_cmp).1
 }
 
 /// Long-take statistics of one window.

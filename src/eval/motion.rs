@@ -1,21 +1,18 @@
-//! `glocal eval --suite motion`: how usable the motion is as it comes out, measured the same
-//! way on the real test split and on generated takes, per class and class-balanced, for each
-//! shipped model, everything resampled to [`COMMON_FPS`] and measured in metres.
-//! The definitions are in [`DEFINITIONS`], printed next to the table.
+//! The motion-quality measures of `glocal eval --suite motion` (and of the constraints
+//! suite's takes): how usable a take is as it comes out, measured the same way on real and
+//! generated motion, everything resampled to [`COMMON_FPS`] and measured in metres, pooled
+//! per class in a [`Pool`] and read as typed [`Measure`]s. The definitions are in
+//! [`DEFINITIONS`], printed next to the suite's table.
 
 use std::collections::{BTreeMap, HashMap};
+use std::ops::Index;
 
-use anyhow::{bail, Result};
 use glam::Vec3;
-use serde_json::{json, Value};
+use serde::{Serialize, Serializer};
 
-use super::suites::{model_dir, SuiteOptions};
-use super::table::{fixed_or, Markdown, Table};
-use crate::data::registry::Dataset;
+use super::metrics::{mean, quantile, std_dev};
 use crate::model::corpus::{Corpus, Track};
-use crate::model::glocal::GlocalModel;
 use crate::motion::{JointRoles, Motion, Side};
-use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
 
 /// Every take, real or generated, is resampled to this rate before it is measured.
 pub const COMMON_FPS: f32 = 30.0;
@@ -47,35 +44,6 @@ pub const DEFINITIONS: &str = "Definitions (all at 30 fps, metres; the floor of 
 - **joint speed**: mean speed of all joints (m/s); the ratio is generated over real, per class.
 - **exact repeat**: in one long single-class take per class, the longest stretch (s) of poses whose pairwise joint distances (heading-invariant) all match those at some lag >= 1 s within 5 mm, counted when longer than 1 s; real: each whole test clip.";
 
-/// How many takes the suite generates, and how long.
-#[derive(Clone, Debug)]
-pub struct MotionSuiteConfig {
-    /// Seed-bank windows per class, each with every noise seed; `None` is every window of the
-    /// class's bank. The bank is in clip order, which for Bandai is its styles in alphabetical
-    /// order: the first three byebye windows are all the style "active", which waves at 0.66
-    /// m/s against a training median of 0.11, so a few first windows are not a fair sample.
-    pub variants: Option<usize>,
-    pub seeds: Vec<u64>,
-    /// Seconds of each scored single-class take (after the seed).
-    pub take_seconds: f32,
-    /// Seconds of each of the two segments of a transition take.
-    pub segment_seconds: f32,
-    /// Transition takes per class (each to a different next class).
-    pub transitions: usize,
-    /// Seconds of the long take per class searched for exact repeats.
-    pub long_seconds: f32,
-}
-
-impl MotionSuiteConfig {
-    pub fn full() -> Self {
-        Self { variants: None, seeds: vec![1], take_seconds: 10.0, segment_seconds: 5.0, transitions: 2, long_seconds: 120.0 }
-    }
-
-    /// A reduced setting for tests and a quick look.
-    pub fn quick() -> Self {
-        Self { variants: Some(1), seeds: vec![1], take_seconds: 6.0, segment_seconds: 4.0, transitions: 1, long_seconds: 20.0 }
-    }
-}
 
 /// A GloGen block's grid at [`COMMON_FPS`]: frames per block and per sparse interval.
 #[derive(Clone, Copy, Debug)]
@@ -237,36 +205,148 @@ impl Pool {
         }
     }
 
-    /// The pooled measures by name (see [`DEFINITIONS`]); NaN where a take kind was absent.
-    pub fn summary(&self) -> BTreeMap<&'static str, f64> {
+    /// The pooled measures (see [`DEFINITIONS`]).
+    pub fn summary(&self) -> Summary {
+        Summary::from_fn(|m| self.measure(m))
+    }
+
+    /// One pooled measure; NaN where a take kind was absent.
+    fn measure(&self, m: Measure) -> f64 {
         let ratio = |a: usize, b: usize| if b == 0 { f64::NAN } else { a as f64 / b as f64 };
-        let mut out = BTreeMap::new();
-        out.insert("skating_ratio", ratio(self.skate_steps, self.steps));
-        out.insert("contact_fraction", ratio(self.contact_steps, self.steps));
-        out.insert("support_speed_mean_cm_s", mean(&self.support_speeds) * 100.0);
-        out.insert("support_speed_median_cm_s", quantile(&self.support_speeds, 0.5) as f64 * 100.0);
-        out.insert("floating", ratio(self.floating, self.frames));
-        out.insert("ground_drift_cm", mean(&self.drifts) * 100.0);
-        out.insert("jerk_mean", mean(&self.jerks));
-        out.insert("jerk_median", quantile(&self.jerks, 0.5) as f64);
-        out.insert("jerk_p95", quantile(&self.jerks, 0.95) as f64);
-        out.insert("frame_jerk_mean", mean(&self.frame_jerks));
-        out.insert("window_peak_p95", quantile(&self.window_peaks, 0.95) as f64);
-        out.insert("joint_speed", if self.speed_count == 0 { f64::NAN } else { self.speed_sum / self.speed_count as f64 });
-        let seams = self.seam.as_ref().map(SeamProfile::ratios).unwrap_or([f64::NAN; 3]);
-        out.insert("seam_ratio", seams[0]);
-        out.insert("seam_accel_ratio", seams[1]);
-        out.insert("sparse_accel_ratio", seams[2]);
-        out.insert("transition_peak", mean(&self.transition_peaks));
-        out.insert("elsewhere_peak", mean(&self.elsewhere_peaks));
-        out.insert("longest_repeat_s", self.longest_repeat.map_or(f64::NAN, |r| r.0 as f64));
-        out.insert("repeat_lag_s", self.longest_repeat.map_or(f64::NAN, |r| r.1 as f64));
-        out
+        let seam = |i: usize| self.seam.as_ref().map_or(f64::NAN, |s| s.ratios()[i]);
+        match m {
+            Measure::SkatingRatio => ratio(self.skate_steps, self.steps),
+            Measure::ContactFraction => ratio(self.contact_steps, self.steps),
+            Measure::SupportSpeedMean => mean(&self.support_speeds) * 100.0,
+            Measure::SupportSpeedMedian => quantile(&self.support_speeds, 0.5) as f64 * 100.0,
+            Measure::Floating => ratio(self.floating, self.frames),
+            Measure::GroundDrift => mean(&self.drifts) * 100.0,
+            Measure::JerkMean => mean(&self.jerks),
+            Measure::JerkMedian => quantile(&self.jerks, 0.5) as f64,
+            Measure::JerkP95 => quantile(&self.jerks, 0.95) as f64,
+            Measure::FrameJerkMean => mean(&self.frame_jerks),
+            Measure::WindowPeakP95 => quantile(&self.window_peaks, 0.95) as f64,
+            Measure::JointSpeed => if self.speed_count == 0 { f64::NAN } else { self.speed_sum / self.speed_count as f64 },
+            Measure::SeamRatio => seam(0),
+            Measure::SeamAccelRatio => seam(1),
+            Measure::SparseAccelRatio => seam(2),
+            Measure::TransitionPeak => mean(&self.transition_peaks),
+            Measure::ElsewherePeak => mean(&self.elsewhere_peaks),
+            Measure::LongestRepeat => self.longest_repeat.map_or(f64::NAN, |r| r.0 as f64),
+            Measure::RepeatLag => self.longest_repeat.map_or(f64::NAN, |r| r.1 as f64),
+        }
     }
 
     /// Mean pose speed in each sparse interval of a block, over the block's mean.
-    fn interval_profile(&self) -> Vec<f64> {
+    pub fn interval_profile(&self) -> Vec<f64> {
         self.seam.as_ref().map(SeamProfile::intervals).unwrap_or_default()
+    }
+}
+
+/// One measure of a [`Pool`] (see [`DEFINITIONS`]): a cell of the motion suite's tables, and a
+/// named number of its JSON.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Measure {
+    SkatingRatio,
+    ContactFraction,
+    /// cm/s.
+    SupportSpeedMean,
+    /// cm/s.
+    SupportSpeedMedian,
+    Floating,
+    /// cm.
+    GroundDrift,
+    /// m/s^3, as every jerk below.
+    JerkMean,
+    JerkMedian,
+    JerkP95,
+    FrameJerkMean,
+    WindowPeakP95,
+    /// m/s.
+    JointSpeed,
+    SeamRatio,
+    SeamAccelRatio,
+    SparseAccelRatio,
+    TransitionPeak,
+    ElsewherePeak,
+    /// Seconds.
+    LongestRepeat,
+    /// Seconds.
+    RepeatLag,
+}
+
+impl Measure {
+    pub const ALL: [Measure; 19] = [
+        Measure::SkatingRatio,
+        Measure::ContactFraction,
+        Measure::SupportSpeedMean,
+        Measure::SupportSpeedMedian,
+        Measure::Floating,
+        Measure::GroundDrift,
+        Measure::JerkMean,
+        Measure::JerkMedian,
+        Measure::JerkP95,
+        Measure::FrameJerkMean,
+        Measure::WindowPeakP95,
+        Measure::JointSpeed,
+        Measure::SeamRatio,
+        Measure::SeamAccelRatio,
+        Measure::SparseAccelRatio,
+        Measure::TransitionPeak,
+        Measure::ElsewherePeak,
+        Measure::LongestRepeat,
+        Measure::RepeatLag,
+    ];
+
+    /// Its name in the JSON.
+    pub fn key(self) -> &'static str {
+        match self {
+            Measure::SkatingRatio => "skating_ratio",
+            Measure::ContactFraction => "contact_fraction",
+            Measure::SupportSpeedMean => "support_speed_mean_cm_s",
+            Measure::SupportSpeedMedian => "support_speed_median_cm_s",
+            Measure::Floating => "floating",
+            Measure::GroundDrift => "ground_drift_cm",
+            Measure::JerkMean => "jerk_mean",
+            Measure::JerkMedian => "jerk_median",
+            Measure::JerkP95 => "jerk_p95",
+            Measure::FrameJerkMean => "frame_jerk_mean",
+            Measure::WindowPeakP95 => "window_peak_p95",
+            Measure::JointSpeed => "joint_speed",
+            Measure::SeamRatio => "seam_ratio",
+            Measure::SeamAccelRatio => "seam_accel_ratio",
+            Measure::SparseAccelRatio => "sparse_accel_ratio",
+            Measure::TransitionPeak => "transition_peak",
+            Measure::ElsewherePeak => "elsewhere_peak",
+            Measure::LongestRepeat => "longest_repeat_s",
+            Measure::RepeatLag => "repeat_lag_s",
+        }
+    }
+}
+
+/// Every [`Measure`] of one pool (or their class-balanced means), serialised as a map from
+/// each measure's [`Measure::key`].
+#[derive(Clone, Copy, Debug)]
+pub struct Summary([f64; Measure::ALL.len()]);
+
+impl Summary {
+    /// Each measure's value given by `value`.
+    pub fn from_fn(value: impl FnMut(Measure) -> f64) -> Self {
+        Self(Measure::ALL.map(value))
+    }
+}
+
+impl Index<Measure> for Summary {
+    type Output = f64;
+
+    fn index(&self, m: Measure) -> &f64 {
+        &self.0[m as usize]
+    }
+}
+
+impl Serialize for Summary {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_map(Measure::ALL.iter().map(|&m| (m.key(), self[m])))
     }
 }
 
@@ -308,28 +388,6 @@ fn metres(m: &Motion) -> Vec<Vec3> {
     m.positions().iter().map(|p| *p * unit).collect()
 }
 
-/// The mean of `v`, NaN when it is empty.
-pub(crate) fn mean(v: &[f32]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64
-    }
-}
-
-fn std_dev(v: &[f32]) -> f32 {
-    let m = mean(v);
-    (v.iter().map(|x| (*x as f64 - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt() as f32
-}
-
-fn quantile(v: &[f32], q: f32) -> f32 {
-    if v.is_empty() {
-        return f32::NAN;
-    }
-    let mut s = v.to_vec();
-    let k = ((s.len() - 1) as f32 * q).round() as usize;
-    *s.select_nth_unstable_by(k, f32::total_cmp).1
-}
 
 /// The peak of each whole 2 s window of `per_frame` in `[start, end)` that overlaps none of
 /// the `excluded` ranges.
@@ -448,60 +506,9 @@ pub fn real_pools(corpus: &Corpus, roles: &JointRoles, grid: Option<BlockGrid>, 
     pools
 }
 
-/// Generated takes of every class under `base`'s options (with `foot_lock` as given), pooled per
-/// class; the seed block is cut off every take.
-pub fn generated_pools(model: &mut GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, foot_lock: bool) -> Result<Vec<Pool>> {
-    let spec = model.spec.clone();
-    let roles = JointRoles::new(&spec.layout.skeleton)?;
-    let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
-    let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
-    let k = spec.classes.len();
-    let mut pools: Vec<Pool> = (0..k).map(|_| Pool::default()).collect();
-    let take = |model: &mut GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
-        let segments = segments.into_iter().map(|(c, s)| Segment { class: spec.classes[c].clone(), seconds: s, pace: None, transition: None }).collect();
-        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..base.clone() }.varied(seed);
-        let g = generate(model, &opts, &mut |_| true)?;
-        let seed_frames = spec.block_len * spec.stride;
-        let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
-        let to_common = |f: usize| ((f.saturating_sub(seed_frames)) as f32 * COMMON_FPS / spec.fps).round() as usize;
-        Ok((m, g.segments.iter().skip(1).map(|s| to_common(s.start_frame)).collect()))
-    };
-    for class in 0..k {
-        let bank = model.seeds.iter().filter(|s| s.class == class).count();
-        for variant in 0..cfg.variants.unwrap_or(bank) {
-            for &seed in &cfg.seeds {
-                let (m, _) = take(model, vec![(class, seed_s + cfg.take_seconds)], class, variant, seed)?;
-                pools[class].add_take(&m, &roles, grid);
-            }
-        }
-        for v in 0..cfg.transitions.min(k - 1) {
-            let next = (class + 1 + v) % k;
-            let (m, boundaries) = take(model, vec![(class, seed_s + cfg.segment_seconds), (next, cfg.segment_seconds)], class, v, 1 + v as u64)?;
-            pools[class].add_transitions(&m, &boundaries);
-        }
-        let (m, _) = take(model, vec![(class, seed_s + cfg.long_seconds)], class, 0, 1)?;
-        pools[class].add_repeats(&m);
-    }
-    Ok(pools)
-}
-
-/// One model's three sources: real, generated without and with the foot lock.
-struct ModelResult {
-    dataset: Dataset,
-    dir: String,
-    classes: Vec<String>,
-    sources: [(&'static str, Vec<BTreeMap<&'static str, f64>>, Vec<Vec<f64>>); 3],
-    /// Mean joint speed per class on the training split, which the model learnt from: where a
-    /// class moves differently in the test split's styles, the two bounds differ.
-    train_speed: Vec<f64>,
-    /// Per class, the mean joint speed of each style (Bandai) or subject (Human3.6M), training
-    /// split and test split, slowest first.
-    tag_speeds: Vec<[Vec<(String, f64)>; 2]>,
-}
-
 /// Per class, the sum of every joint's speed and how many speeds it sums ([`joint_speed_sum`])
 /// over each tag's tracks of `tracks`.
-fn joint_speed_sums(tracks: &[Track], classes: usize) -> Vec<BTreeMap<&str, (f64, usize)>> {
+pub fn joint_speed_sums(tracks: &[Track], classes: usize) -> Vec<BTreeMap<&str, (f64, usize)>> {
     let mut sums: Vec<BTreeMap<&str, (f64, usize)>> = vec![BTreeMap::new(); classes];
     for track in tracks {
         let m = track.motion.resample(COMMON_FPS);
@@ -514,7 +521,7 @@ fn joint_speed_sums(tracks: &[Track], classes: usize) -> Vec<BTreeMap<&str, (f64
 }
 
 /// Mean joint speed (m/s, at [`COMMON_FPS`]) per class, all its tags together.
-fn joint_speed_per_class(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<f64> {
+pub fn joint_speed_per_class(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<f64> {
     sums.iter()
         .map(|tags| {
             let (sum, count) = tags.values().fold((0.0, 0), |(s, c), &(ts, tc)| (s + ts, c + tc));
@@ -524,7 +531,7 @@ fn joint_speed_per_class(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<f64> {
 }
 
 /// Mean joint speed (m/s) of each tag, per class, slowest first.
-fn joint_speed_per_tag(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<Vec<(String, f64)>> {
+pub fn joint_speed_per_tag(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<Vec<(String, f64)>> {
     sums.iter()
         .map(|tags| {
             let mut speeds: Vec<(String, f64)> = tags.iter().map(|(tag, &(s, c))| (tag.to_string(), s / c.max(1) as f64)).collect();
@@ -534,168 +541,18 @@ fn joint_speed_per_tag(sums: &[BTreeMap<&str, (f64, usize)>]) -> Vec<Vec<(String
         .collect()
 }
 
-/// Rows of the main table: (key, label, digits).
-const ROWS: [(&str, &str, usize); 19] = [
-    ("skating_ratio", "skating ratio", 3),
-    ("contact_fraction", "contact fraction", 3),
-    ("support_speed_mean_cm_s", "support speed mean (cm/s)", 1),
-    ("support_speed_median_cm_s", "support speed median (cm/s)", 1),
-    ("floating", "floating (lowest foot > 5 cm)", 3),
-    ("ground_drift_cm", "ground drift (cm)", 2),
-    ("jerk_mean", "jerk mean (m/s^3)", 1),
-    ("jerk_median", "jerk median (m/s^3)", 1),
-    ("jerk_p95", "jerk p95 (m/s^3)", 1),
-    ("frame_jerk_mean", "per-frame jerk, FlowMDM (m/s^3)", 1),
-    ("window_peak_p95", "2 s window peak jerk p95 (m/s^3)", 1),
-    ("seam_ratio", "seam ratio", 2),
-    ("seam_accel_ratio", "acceleration at the seam / block mean", 2),
-    ("sparse_accel_ratio", "acceleration at sparse poses / block mean", 2),
-    ("transition_peak", "transition peak jerk, within 1 s (m/s^3)", 1),
-    ("elsewhere_peak", "2 s window peak jerk elsewhere (m/s^3)", 1),
-    ("joint_speed", "mean joint speed (m/s)", 3),
-    ("longest_repeat_s", "longest exact repeat (s)", 1),
-    ("repeat_lag_s", "its lag (s)", 1),
-];
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// The class-balanced value: the mean over classes that have one.
-fn balanced(per_class: &[BTreeMap<&'static str, f64>], key: &str) -> f64 {
-    let v: Vec<f64> = per_class.iter().filter_map(|s| s.get(key).copied()).filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
+    /// A summary is indexed by the measure's place in its declaration, which `ALL` follows;
+    /// every measure has its own JSON name.
+    #[test]
+    fn measures_are_listed_in_declaration_order_with_distinct_keys() {
+        for (i, m) in Measure::ALL.into_iter().enumerate() {
+            assert_eq!(m as usize, i, "{m:?}");
+        }
+        let keys: std::collections::BTreeSet<&str> = Measure::ALL.iter().map(|m| m.key()).collect();
+        assert_eq!(keys.len(), Measure::ALL.len());
     }
-}
-
-fn cell(v: f64, digits: usize) -> String {
-    fixed_or(v, digits, "-")
-}
-
-pub fn motion_suite(opts: &SuiteOptions, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
-    let mut results = Vec::new();
-    for dataset in super::suites::suite_datasets(opts)? {
-        results.push(model_result(dataset, opts, cfg, log)?);
-    }
-    let mut md = Markdown::new(format!("{DEFINITIONS}\n\nGenerated: the shipped defaults (anchored transitions, class strength, keep-alive, LocGen, bone projection) from {} with noise seeds {:?}, {} s scored after the seed block per take; {} two-class takes per class ({} s + {} s); one {} s take per class for repeats. \"no lock\" is the same takes with `foot_lock` off.\n", cfg.variants.map_or("every window of each class's seed bank (up to 16, spread over the class's training clips)".to_string(), |v| format!("each class's first {v} seed-bank windows")), cfg.seeds, cfg.take_seconds, cfg.transitions, cfg.segment_seconds, cfg.segment_seconds, cfg.long_seconds));
-    for r in &results {
-        model_markdown(r, &mut md);
-    }
-    let json = json!({
-        "fps": COMMON_FPS,
-        "config": {"variants": cfg.variants, "seeds": cfg.seeds, "take_seconds": cfg.take_seconds, "segment_seconds": cfg.segment_seconds, "transitions": cfg.transitions, "long_seconds": cfg.long_seconds},
-        "models": results.iter().map(model_json).collect::<Vec<_>>(),
-    });
-    Ok((md, json))
-}
-
-fn model_result(dataset: Dataset, opts: &SuiteOptions, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<ModelResult> {
-    let dir = model_dir(opts, dataset);
-    let mut model = GlocalModel::load(&dir)?;
-    let spec = model.spec.clone();
-    log(&format!("motion: {dataset} real test split"));
-    let corpus = Corpus::load(dataset, &opts.data, spec.stride, 3)?;
-    if corpus.classes != spec.classes {
-        bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
-    }
-    let roles = JointRoles::new(&corpus.layout.skeleton)?;
-    let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
-    let real = real_pools(&corpus, &roles, grid, cfg.take_seconds);
-    log(&format!("motion: {dataset} generated, no foot lock"));
-    let base = opts.generate_options();
-    let unlocked = generated_pools(&mut model, cfg, &base, false)?;
-    log(&format!("motion: {dataset} generated, shipped"));
-    let shipped = generated_pools(&mut model, cfg, &base, true)?;
-    let classes = spec.classes.len();
-    let train_sums = joint_speed_sums(&corpus.train, classes);
-    let summarise = |pools: &[Pool]| (pools.iter().map(Pool::summary).collect(), pools.iter().map(Pool::interval_profile).collect());
-    let (r, u, s) = (summarise(&real), summarise(&unlocked), summarise(&shipped));
-    Ok(ModelResult {
-        dataset,
-        dir: dir.display().to_string(),
-        classes: spec.classes.clone(),
-        sources: [("real", r.0, r.1), ("no lock", u.0, u.1), ("generated", s.0, s.1)],
-        train_speed: joint_speed_per_class(&train_sums),
-        tag_speeds: joint_speed_per_tag(&train_sums).into_iter().zip(joint_speed_per_tag(&joint_speed_sums(&corpus.test, classes))).map(|(a, b)| [a, b]).collect(),
-    })
-}
-
-fn model_markdown(r: &ModelResult, md: &mut Markdown) {
-    let [(_, real, real_prof), (_, unlocked, _), (_, shipped, shipped_prof)] = &r.sources;
-    md.text(&format!("\n**{} ({})**, class-balanced (mean over the {} classes)\n\n", r.dataset, r.dir, r.classes.len()));
-    let mut balanced_table = Table::new(["measure", "real test", "no lock", "generated", "no lock / real", "generated / real"]);
-    for (key, label, digits) in ROWS {
-        let (a, b, c) = (balanced(real, key), balanced(unlocked, key), balanced(shipped, key));
-        balanced_table.row([label.to_string(), cell(a, digits), cell(b, digits), cell(c, digits), cell(b / a, 2), cell(c / a, 2)]);
-    }
-    let real_p95 = balanced(real, "window_peak_p95");
-    balanced_table.row([
-        "transition peak / real window peak p95".to_string(),
-        String::new(),
-        cell(balanced(unlocked, "transition_peak") / real_p95, 2),
-        cell(balanced(shipped, "transition_peak") / real_p95, 2),
-    ]);
-    md.table(balanced_table);
-    let profile = |p: &[Vec<f64>]| -> String {
-        let k = p.first().map_or(0, Vec::len);
-        (0..k).map(|i| cell(p.iter().map(|c| c[i]).sum::<f64>() / p.len() as f64, 2)).collect::<Vec<_>>().join(" ")
-    };
-    md.text(&format!("\nPose speed per sparse interval of a block, over the block's mean (class-balanced; the last interval crosses the seam): real {}; generated {}.\n", profile(real_prof), profile(shipped_prof)));
-    md.text("\nPer class (generated = shipped defaults, foot lock on):\n\n");
-    let mut per_class = Table::new([
-        "class",
-        "joint speed real (m/s)",
-        "generated / real",
-        "no lock / real",
-        "joint speed train (m/s)",
-        "generated / train",
-        "support speed real / no lock / generated (cm/s)",
-        "skating real / no lock / generated",
-        "contact real / no lock / generated",
-        "floating real / no lock / generated",
-        "jerk mean generated / real",
-    ]);
-    for (c, name) in r.classes.iter().enumerate() {
-        let v = |s: &[BTreeMap<&str, f64>], key: &str| s[c].get(key).copied().unwrap_or(f64::NAN);
-        let three = |key: &str, d: usize| format!("{} / {} / {}", cell(v(real, key), d), cell(v(unlocked, key), d), cell(v(shipped, key), d));
-        per_class.row([
-            name.clone(),
-            cell(v(real, "joint_speed"), 3),
-            cell(v(shipped, "joint_speed") / v(real, "joint_speed"), 2),
-            cell(v(unlocked, "joint_speed") / v(real, "joint_speed"), 2),
-            cell(r.train_speed[c], 3),
-            cell(v(shipped, "joint_speed") / r.train_speed[c], 2),
-            three("support_speed_median_cm_s", 1),
-            three("skating_ratio", 3),
-            three("contact_fraction", 2),
-            three("floating", 2),
-            cell(v(shipped, "jerk_mean") / v(real, "jerk_mean"), 2),
-        ]);
-    }
-    md.table(per_class);
-    tag_markdown(r, md);
-}
-
-/// Each class's joint speed by style or subject: how far the test split's own spread sits
-/// from the training split's, which bounds how near any model of the training split can come.
-fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
-    let tag = if r.dataset == Dataset::Bandai { "style" } else { "subject" };
-    md.text(&format!("\nJoint speed per {tag} (m/s, each {tag}'s clips of the class):\n\n"));
-    let mut table = Table::new(["class".to_string(), format!("training split: slowest / median / fastest {tag}"), format!("test split, each {tag}")]);
-    let named = |(name, speed): &(String, f64)| format!("{} {name}", cell(*speed, 3));
-    for (name, [train, test]) in r.classes.iter().zip(&r.tag_speeds) {
-        let spread = match (train.first(), train.get(train.len() / 2), train.last()) {
-            (Some(a), Some(m), Some(b)) => format!("{} / {} / {}", named(a), named(m), named(b)),
-            _ => "-".to_string(),
-        };
-        table.row([name.clone(), spread, test.iter().map(named).collect::<Vec<_>>().join(", ")]);
-    }
-    md.table(table);
-}
-
-fn model_json(r: &ModelResult) -> Value {
-    let source = |(name, per_class, profile): &(&str, Vec<BTreeMap<&'static str, f64>>, Vec<Vec<f64>>)| {
-        let balanced: BTreeMap<&str, f64> = ROWS.iter().map(|(k, _, _)| (*k, balanced(per_class, k))).collect();
-        json!({"source": name, "balanced": balanced, "per_class": per_class, "interval_profile": profile})
-    };
-    json!({"dataset": r.dataset.name(), "model": r.dir, "classes": r.classes, "sources": r.sources.iter().map(source).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
 }

@@ -10,8 +10,8 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 use serde_json::{json, Value};
 
-use super::table::{fixed, Markdown, Table};
-use crate::data::archive::DataRoot;
+use super::context::SuiteContext;
+use crate::eval::table::{fixed, Markdown, Table};
 use crate::data::npy::motion_to_npy;
 use crate::data::write::write_atomic;
 use crate::model::corpus::{Corpus, Track};
@@ -19,7 +19,7 @@ use crate::model::glocal::GlocalModel;
 use crate::synth::init::FileStart;
 use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, Segment, Timeline};
 
-pub const DEFINITIONS: &str = "Per model, takes started from held-out clips (h36m: subject S11; Bandai: styles tired and musical), written as NPY files on the model's skeleton: `--init clip:FILE@F`, and a root-fixing key from the same file `GAP` after the last starting pose (`--key T=clip:FILE@K,root`), the take's class the clip's. **L2P**: mean joint distance to the real frames over the gap (the frames between the last starting pose and the key), in the take's world and relative to the root; **NPSS**: the normalised power spectrum similarity of the root-relative joints over the gap (0 = the real rhythm); against linear interpolation of every joint from the last starting pose to the key's real pose and zero-velocity (the last starting pose held). **Key error**: the take's frame at the key against the real frame, mean joint distance per case; **given poses**: the largest joint distance of the take's frames over the starting poses from the real ones, per case.\n";
+const DEFINITIONS: &str = "Per model, takes started from held-out clips (h36m: subject S11; Bandai: styles tired and musical), written as NPY files on the model's skeleton: `--init clip:FILE@F`, and a root-fixing key from the same file `GAP` after the last starting pose (`--key T=clip:FILE@K,root`), the take's class the clip's. **L2P**: mean joint distance to the real frames over the gap (the frames between the last starting pose and the key), in the take's world and relative to the root; **NPSS**: the normalised power spectrum similarity of the root-relative joints over the gap (0 = the real rhythm); against linear interpolation of every joint from the last starting pose to the key's real pose and zero-velocity (the last starting pose held). **Key error**: the take's frame at the key against the real frame, mean joint distance per case; **given poses**: the largest joint distance of the take's frames over the starting poses from the real ones, per case.\n";
 
 /// The gaps between the last given pose and the key: LaFAN1's shortest and two longer ones.
 const GAPS: [Gap; 3] = [Gap::Frames(6), Gap::Seconds(1.0), Gap::Seconds(2.0)];
@@ -119,16 +119,25 @@ struct GapRow {
     context: Spread,
 }
 
-/// `glocal eval --suite inbetween` on the model in `model_dir`; `scratch` holds the clips
-/// written as files for the takes to start from.
-pub fn inbetween_suite(model_dir: &Path, data: &DataRoot, scratch: &Path, quick: bool, md: &mut Markdown, log: &mut dyn FnMut(&str)) -> Result<Value> {
+pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let mut md = Markdown::new(DEFINITIONS);
+    let mut models = Vec::new();
+    for &dataset in &ctx.datasets {
+        models.push(one_model(&ctx.model_dir(dataset), ctx, &mut md, log)?);
+    }
+    Ok((md, json!({"models": models})))
+}
+
+/// The suite on the model in `model_dir`; the evaluation cache holds the clips written as
+/// files for the takes to start from.
+fn one_model(model_dir: &Path, ctx: &SuiteContext, md: &mut Markdown, log: &mut dyn FnMut(&str)) -> Result<Value> {
     let model = GlocalModel::load(model_dir)?;
     let dataset = model.spec.dataset.parse()?;
     log(&format!("inbetween: {dataset} held-out clips"));
-    let corpus = Corpus::load(dataset, data, model.spec.stride, 3)?;
-    let dir = scratch.join(format!("inbetween-{dataset}"));
+    let corpus = Corpus::load(dataset, &ctx.options.data, model.spec.stride, 3)?;
+    let dir = ctx.options.cache.join(format!("inbetween-{dataset}"));
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let cases = cases(&model, &corpus.test, if quick { QUICK_CASES } else { CASES });
+    let cases = cases(&model, &corpus.test, if ctx.options.quick { QUICK_CASES } else { CASES });
     let mut rows: Vec<GapRow> = GAPS.iter().map(|_| GapRow::default()).collect();
     for (k, &(track, first)) in cases.iter().enumerate() {
         let file = clip_file(&dir, &corpus.test[track], track)?;

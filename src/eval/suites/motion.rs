@@ -1,0 +1,279 @@
+//! `glocal eval --suite motion`: the motion-quality measures of [`crate::eval::motion`] on the
+//! real test split and on generated takes (without and with the foot lock), per class and
+//! class-balanced, for each shipped model.
+
+use anyhow::{bail, Result};
+use serde_json::{json, Value};
+
+use super::context::SuiteContext;
+use crate::data::registry::Dataset;
+use crate::eval::motion::{joint_speed_per_class, joint_speed_per_tag, joint_speed_sums, real_pools, BlockGrid, Measure, Pool, Summary, COMMON_FPS, DEFINITIONS};
+use crate::eval::table::{fixed_or, Markdown, Table};
+use crate::model::corpus::Corpus;
+use crate::model::glocal::GlocalModel;
+use crate::motion::{JointRoles, Motion};
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
+
+/// How many takes the suite generates, and how long.
+#[derive(Clone, Debug)]
+struct MotionSuiteConfig {
+    /// Seed-bank windows per class, each with every noise seed; `None` is every window of the
+    /// class's bank. The bank is in clip order, which for Bandai is its styles in alphabetical
+    /// order: the first three byebye windows are all the style "active", which waves at 0.66
+    /// m/s against a training median of 0.11, so a few first windows are not a fair sample.
+    variants: Option<usize>,
+    seeds: Vec<u64>,
+    /// Seconds of each scored single-class take (after the seed).
+    take_seconds: f32,
+    /// Seconds of each of the two segments of a transition take.
+    segment_seconds: f32,
+    /// Transition takes per class (each to a different next class).
+    transitions: usize,
+    /// Seconds of the long take per class searched for exact repeats.
+    long_seconds: f32,
+}
+
+impl MotionSuiteConfig {
+    fn full() -> Self {
+        Self { variants: None, seeds: vec![1], take_seconds: 10.0, segment_seconds: 5.0, transitions: 2, long_seconds: 120.0 }
+    }
+
+    /// A reduced setting for a quick look (`--quick`).
+    fn quick() -> Self {
+        Self { variants: Some(1), seeds: vec![1], take_seconds: 6.0, segment_seconds: 4.0, transitions: 1, long_seconds: 20.0 }
+    }
+}
+
+/// Generated takes of every class under `base`'s options (with `foot_lock` as given), pooled per
+/// class; the seed block is cut off every take.
+fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, foot_lock: bool) -> Result<Vec<Pool>> {
+    let spec = model.spec.clone();
+    let roles = JointRoles::new(&spec.layout.skeleton)?;
+    let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
+    let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
+    let k = spec.classes.len();
+    let mut pools: Vec<Pool> = (0..k).map(|_| Pool::default()).collect();
+    let take = |model: &GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
+        let segments = segments.into_iter().map(|(c, s)| Segment { class: spec.classes[c].clone(), seconds: s, pace: None, transition: None }).collect();
+        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..base.clone() }.varied(seed);
+        let g = generate(model, &opts, &mut |_| true)?;
+        let seed_frames = spec.block_len * spec.stride;
+        let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
+        let to_common = |f: usize| ((f.saturating_sub(seed_frames)) as f32 * COMMON_FPS / spec.fps).round() as usize;
+        Ok((m, g.segments.iter().skip(1).map(|s| to_common(s.start_frame)).collect()))
+    };
+    for class in 0..k {
+        let bank = model.seeds.iter().filter(|s| s.class == class).count();
+        for variant in 0..cfg.variants.unwrap_or(bank) {
+            for &seed in &cfg.seeds {
+                let (m, _) = take(model, vec![(class, seed_s + cfg.take_seconds)], class, variant, seed)?;
+                pools[class].add_take(&m, &roles, grid);
+            }
+        }
+        for v in 0..cfg.transitions.min(k - 1) {
+            let next = (class + 1 + v) % k;
+            let (m, boundaries) = take(model, vec![(class, seed_s + cfg.segment_seconds), (next, cfg.segment_seconds)], class, v, 1 + v as u64)?;
+            pools[class].add_transitions(&m, &boundaries);
+        }
+        let (m, _) = take(model, vec![(class, seed_s + cfg.long_seconds)], class, 0, 1)?;
+        pools[class].add_repeats(&m);
+    }
+    Ok(pools)
+}
+
+/// The measures of one source of takes (real, or generated one way) of one model.
+struct Source {
+    name: &'static str,
+    per_class: Vec<Summary>,
+    /// The class-balanced value of each measure: the mean over classes that have one.
+    balanced: Summary,
+    /// Per class, [`Pool::interval_profile`].
+    profile: Vec<Vec<f64>>,
+}
+
+impl Source {
+    fn new(name: &'static str, pools: &[Pool]) -> Self {
+        let per_class: Vec<Summary> = pools.iter().map(Pool::summary).collect();
+        let balanced = Summary::from_fn(|m| balanced(&per_class, m));
+        Self { name, per_class, balanced, profile: pools.iter().map(Pool::interval_profile).collect() }
+    }
+
+    fn json(&self) -> Value {
+        json!({"source": self.name, "balanced": self.balanced, "per_class": self.per_class, "interval_profile": self.profile})
+    }
+}
+
+/// One model's three sources: real, generated without and with the foot lock.
+struct ModelResult {
+    dataset: Dataset,
+    dir: String,
+    classes: Vec<String>,
+    sources: [Source; 3],
+    /// Mean joint speed per class on the training split, which the model learnt from: where a
+    /// class moves differently in the test split's styles, the two bounds differ.
+    train_speed: Vec<f64>,
+    /// Per class, the mean joint speed of each style (Bandai) or subject (Human3.6M), training
+    /// split and test split, slowest first.
+    tag_speeds: Vec<[Vec<(String, f64)>; 2]>,
+}
+
+/// Rows of the class-balanced table: (measure, label, digits).
+const ROWS: [(Measure, &str, usize); 19] = [
+    (Measure::SkatingRatio, "skating ratio", 3),
+    (Measure::ContactFraction, "contact fraction", 3),
+    (Measure::SupportSpeedMean, "support speed mean (cm/s)", 1),
+    (Measure::SupportSpeedMedian, "support speed median (cm/s)", 1),
+    (Measure::Floating, "floating (lowest foot > 5 cm)", 3),
+    (Measure::GroundDrift, "ground drift (cm)", 2),
+    (Measure::JerkMean, "jerk mean (m/s^3)", 1),
+    (Measure::JerkMedian, "jerk median (m/s^3)", 1),
+    (Measure::JerkP95, "jerk p95 (m/s^3)", 1),
+    (Measure::FrameJerkMean, "per-frame jerk, FlowMDM (m/s^3)", 1),
+    (Measure::WindowPeakP95, "2 s window peak jerk p95 (m/s^3)", 1),
+    (Measure::SeamRatio, "seam ratio", 2),
+    (Measure::SeamAccelRatio, "acceleration at the seam / block mean", 2),
+    (Measure::SparseAccelRatio, "acceleration at sparse poses / block mean", 2),
+    (Measure::TransitionPeak, "transition peak jerk, within 1 s (m/s^3)", 1),
+    (Measure::ElsewherePeak, "2 s window peak jerk elsewhere (m/s^3)", 1),
+    (Measure::JointSpeed, "mean joint speed (m/s)", 3),
+    (Measure::LongestRepeat, "longest exact repeat (s)", 1),
+    (Measure::RepeatLag, "its lag (s)", 1),
+];
+
+/// The class-balanced value of `m`: the mean over classes that have one.
+fn balanced(per_class: &[Summary], m: Measure) -> f64 {
+    let v: Vec<f64> = per_class.iter().map(|s| s[m]).filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+fn cell(v: f64, digits: usize) -> String {
+    fixed_or(v, digits, "-")
+}
+
+pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let cfg = &if ctx.options.quick { MotionSuiteConfig::quick() } else { MotionSuiteConfig::full() };
+    let mut results = Vec::new();
+    for &dataset in &ctx.datasets {
+        results.push(model_result(dataset, ctx, cfg, log)?);
+    }
+    let mut md = Markdown::new(format!("{DEFINITIONS}\n\nGenerated: the shipped defaults (anchored transitions, class strength, keep-alive, LocGen, bone projection) from {} with noise seeds {:?}, {} s scored after the seed block per take; {} two-class takes per class ({} s + {} s); one {} s take per class for repeats. \"no lock\" is the same takes with `foot_lock` off.\n", cfg.variants.map_or("every window of each class's seed bank (up to 16, spread over the class's training clips)".to_string(), |v| format!("each class's first {v} seed-bank windows")), cfg.seeds, cfg.take_seconds, cfg.transitions, cfg.segment_seconds, cfg.segment_seconds, cfg.long_seconds));
+    for r in &results {
+        model_markdown(r, &mut md);
+    }
+    let json = json!({
+        "fps": COMMON_FPS,
+        "config": {"variants": cfg.variants, "seeds": cfg.seeds, "take_seconds": cfg.take_seconds, "segment_seconds": cfg.segment_seconds, "transitions": cfg.transitions, "long_seconds": cfg.long_seconds},
+        "models": results.iter().map(model_json).collect::<Vec<_>>(),
+    });
+    Ok((md, json))
+}
+
+fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<ModelResult> {
+    let dir = ctx.model_dir(dataset);
+    let model = GlocalModel::load(&dir)?;
+    let spec = model.spec.clone();
+    log(&format!("motion: {dataset} real test split"));
+    let corpus = Corpus::load(dataset, &ctx.options.data, spec.stride, 3)?;
+    if corpus.classes != spec.classes {
+        bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
+    }
+    let roles = JointRoles::new(&corpus.layout.skeleton)?;
+    let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
+    let real = real_pools(&corpus, &roles, grid, cfg.take_seconds);
+    log(&format!("motion: {dataset} generated, no foot lock"));
+    let unlocked = generated_pools(&model, cfg, &ctx.generation, false)?;
+    log(&format!("motion: {dataset} generated, shipped"));
+    let shipped = generated_pools(&model, cfg, &ctx.generation, true)?;
+    let classes = spec.classes.len();
+    let train_sums = joint_speed_sums(&corpus.train, classes);
+    Ok(ModelResult {
+        dataset,
+        dir: dir.display().to_string(),
+        classes: spec.classes.clone(),
+        sources: [Source::new("real", &real), Source::new("no lock", &unlocked), Source::new("generated", &shipped)],
+        train_speed: joint_speed_per_class(&train_sums),
+        tag_speeds: joint_speed_per_tag(&train_sums).into_iter().zip(joint_speed_per_tag(&joint_speed_sums(&corpus.test, classes))).map(|(a, b)| [a, b]).collect(),
+    })
+}
+
+fn model_markdown(r: &ModelResult, md: &mut Markdown) {
+    let [real, unlocked, shipped] = &r.sources;
+    md.text(&format!("\n**{} ({})**, class-balanced (mean over the {} classes)\n\n", r.dataset, r.dir, r.classes.len()));
+    let mut balanced_table = Table::new(["measure", "real test", "no lock", "generated", "no lock / real", "generated / real"]);
+    for (m, label, digits) in ROWS {
+        let (a, b, c) = (real.balanced[m], unlocked.balanced[m], shipped.balanced[m]);
+        balanced_table.row([label.to_string(), cell(a, digits), cell(b, digits), cell(c, digits), cell(b / a, 2), cell(c / a, 2)]);
+    }
+    let real_p95 = real.balanced[Measure::WindowPeakP95];
+    balanced_table.row([
+        "transition peak / real window peak p95".to_string(),
+        String::new(),
+        cell(unlocked.balanced[Measure::TransitionPeak] / real_p95, 2),
+        cell(shipped.balanced[Measure::TransitionPeak] / real_p95, 2),
+    ]);
+    md.table(balanced_table);
+    let profile = |p: &[Vec<f64>]| -> String {
+        let k = p.first().map_or(0, Vec::len);
+        (0..k).map(|i| cell(p.iter().map(|c| c[i]).sum::<f64>() / p.len() as f64, 2)).collect::<Vec<_>>().join(" ")
+    };
+    md.text(&format!("\nPose speed per sparse interval of a block, over the block's mean (class-balanced; the last interval crosses the seam): real {}; generated {}.\n", profile(&real.profile), profile(&shipped.profile)));
+    md.text("\nPer class (generated = shipped defaults, foot lock on):\n\n");
+    let mut per_class = Table::new([
+        "class",
+        "joint speed real (m/s)",
+        "generated / real",
+        "no lock / real",
+        "joint speed train (m/s)",
+        "generated / train",
+        "support speed real / no lock / generated (cm/s)",
+        "skating real / no lock / generated",
+        "contact real / no lock / generated",
+        "floating real / no lock / generated",
+        "jerk mean generated / real",
+    ]);
+    for (c, name) in r.classes.iter().enumerate() {
+        let (real, unlocked, shipped) = (&real.per_class[c], &unlocked.per_class[c], &shipped.per_class[c]);
+        let three = |m: Measure, d: usize| format!("{} / {} / {}", cell(real[m], d), cell(unlocked[m], d), cell(shipped[m], d));
+        let speed = Measure::JointSpeed;
+        per_class.row([
+            name.clone(),
+            cell(real[speed], 3),
+            cell(shipped[speed] / real[speed], 2),
+            cell(unlocked[speed] / real[speed], 2),
+            cell(r.train_speed[c], 3),
+            cell(shipped[speed] / r.train_speed[c], 2),
+            three(Measure::SupportSpeedMedian, 1),
+            three(Measure::SkatingRatio, 3),
+            three(Measure::ContactFraction, 2),
+            three(Measure::Floating, 2),
+            cell(shipped[Measure::JerkMean] / real[Measure::JerkMean], 2),
+        ]);
+    }
+    md.table(per_class);
+    tag_markdown(r, md);
+}
+
+/// Each class's joint speed by style or subject: how far the test split's own spread sits
+/// from the training split's, which bounds how near any model of the training split can come.
+fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
+    let tag = if r.dataset == Dataset::Bandai { "style" } else { "subject" };
+    md.text(&format!("\nJoint speed per {tag} (m/s, each {tag}'s clips of the class):\n\n"));
+    let mut table = Table::new(["class".to_string(), format!("training split: slowest / median / fastest {tag}"), format!("test split, each {tag}")]);
+    let named = |(name, speed): &(String, f64)| format!("{} {name}", cell(*speed, 3));
+    for (name, [train, test]) in r.classes.iter().zip(&r.tag_speeds) {
+        let spread = match (train.first(), train.get(train.len() / 2), train.last()) {
+            (Some(a), Some(m), Some(b)) => format!("{} / {} / {}", named(a), named(m), named(b)),
+            _ => "-".to_string(),
+        };
+        table.row([name.clone(), spread, test.iter().map(named).collect::<Vec<_>>().join(", ")]);
+    }
+    md.table(table);
+}
+
+fn model_json(r: &ModelResult) -> Value {
+    json!({"dataset": r.dataset.name(), "model": r.dir, "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
+}
