@@ -175,12 +175,17 @@ def check_generated(arm, keys, take, label, floor_limit, failures):
             if take["contacts"][f"{side}_foot"][f]:
                 lowest[side].append(min(min((arm.matrix_world @ arm.pose.bones[b].head).z, (arm.matrix_world @ arm.pose.bones[b].tail).z) for b in bones))
     means = {pair: sum(v) / len(v) for pair, v in angles.items()}
-    print("  " + ", ".join(f"{a}->{b} {m:.1f}" for (a, b), m in means.items()))
-    worst = max(means, key=means.get)
+    aimed = {pair: m for pair, m in means.items() if pair[0] not in RIGID}
+    rigid = {pair: m for pair, m in means.items() if pair[0] in RIGID}
+    worst = max(aimed, key=aimed.get)
+    moving = [pair for pair in BONES if source_turn[pair] > 1.0]
     planted = [z for side in lowest.values() for z in side]
     floor = max(abs(z) for z in planted) if planted else float("nan")
-    print(f"{label}: action '{action.name}', {frames} frames at {fps:g} fps; bone directions from the take's: "
-          f"mean {sum(means.values()) / len(means):.2f} deg, worst bone {worst[0]}->{worst[1]} {means[worst]:.2f} deg (mean over the take); "
+    print(f"{label}: action '{action.name}', {frames} frames at {fps:g} fps (scene {scene.frame_start}-{scene.frame_end}); "
+          f"{len(aimed)} limb, spine and neck bones from the take's: worst {worst[0]}->{worst[1]} {aimed[worst]:.1e} deg (mean over the take); "
+          f"rigid {', '.join(f'{a}->{b} {m:.1f}' for (a, b), m in rigid.items() if 'Right' not in b)} deg; "
+          f"all {len(means)} mapped bones: mean {sum(means.values()) / len(means):.2f} deg; "
+          f"{sum(track_turn[p] >= 1e-3 for p in moving)} of {len(moving)} moving bones keyed off identity; "
           f"planted feet {len(planted)} foot-frames, farthest from the floor {100 * floor:.2f} cm")
     for pair, mean in means.items():
         if mean > 5.0 and pair[0] not in RIGID:

@@ -5,9 +5,10 @@ import bpy
 from mathutils import Matrix
 
 
-def new_action(arm, take, name):
+def new_action(arm, take, name, progress=lambda done: None):
     """Keys frames 1..N of a new Action from `take` (joints matched by bone name) and
-    returns it; the armature's own actions are not touched."""
+    returns it; the armature's own actions are not touched. `progress` hears the fraction
+    of frames done."""
     world_turn = arm.matrix_world.to_quaternion().to_matrix()
     to_armature = arm.matrix_world.inverted()
     index = {n: j for j, n in enumerate(take.names)}
@@ -26,6 +27,7 @@ def new_action(arm, take, name):
             else:
                 basis = rest[bone.name].inverted() @ posed[bone.name]
             tracks[bone.name].append(basis)
+        progress((f + 1) / take.frames)
     action = bpy.data.actions.new(name)
     for bone in bones:
         _key_bone(action, arm.pose.bones[bone.name], tracks[bone.name])

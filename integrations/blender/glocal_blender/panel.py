@@ -43,11 +43,4 @@ class GLOCAL_PT_panel(bpy.types.Panel):
 _classes = (GLOCAL_UL_segments, GLOCAL_PT_panel)
 
 
-def register():
-    for c in _classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(_classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(_classes)

@@ -25,9 +25,4 @@ def glocal_binary(context):
     return path or None
 
 
-def register():
-    bpy.utils.register_class(GlocalPreferences)
-
-
-def unregister():
-    bpy.utils.unregister_class(GlocalPreferences)
+register, unregister = bpy.utils.register_classes_factory((GlocalPreferences,))

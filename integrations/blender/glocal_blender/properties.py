@@ -70,16 +70,14 @@ def timeline_text(settings):
     return ",".join(parts)
 
 
-_classes = (GlocalSegment, GlocalSettings)
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory((GlocalSegment, GlocalSettings))
 
 
 def register():
-    for c in _classes:
-        bpy.utils.register_class(c)
+    _register_classes()
     bpy.types.Scene.glocal = bpy.props.PointerProperty(type=GlocalSettings)
 
 
 def unregister():
     del bpy.types.Scene.glocal
-    for c in reversed(_classes):
-        bpy.utils.unregister_class(c)
+    _unregister_classes()
