@@ -3,6 +3,7 @@
 use crate::model::spec::LossKind;
 use crate::model::train::Stage;
 use crate::synth::export::Units;
+use crate::synth::joint_names::JointNames;
 use crate::synth::Transition;
 
 /// How the class changes at a segment boundary (see [`Transition`]).
@@ -79,6 +80,30 @@ impl From<UnitsArg> for Units {
             UnitsArg::Metres => Units::Metres,
             UnitsArg::Centimetres => Units::Centimetres,
             UnitsArg::Native => Units::Native,
+        }
+    }
+}
+
+/// The naming convention of an exported skeleton's joints (see [`JointNames`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum JointNamesArg {
+    /// The model's (or the --retarget-to rig's) own names.
+    Native,
+    /// mixamorig:Hips, mixamorig:LeftUpLeg, ...
+    Mixamo,
+    /// The Unreal mannequin's pelvis, spine_01, thigh_l, ball_l, ...
+    Unreal,
+    /// Unity Mecanim's Hips, Spine, LeftUpperLeg, LeftToes, ...
+    Unity,
+}
+
+impl From<JointNamesArg> for JointNames {
+    fn from(n: JointNamesArg) -> Self {
+        match n {
+            JointNamesArg::Native => JointNames::Native,
+            JointNamesArg::Mixamo => JointNames::Mixamo,
+            JointNamesArg::Unreal => JointNames::Unreal,
+            JointNamesArg::Unity => JointNames::Unity,
         }
     }
 }

@@ -13,7 +13,8 @@ use crate::model::glocal::GlocalModel;
 use crate::synth::rig::{onto_model_file, onto_skeleton_file};
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
-use super::args::{TransitionArg, UnitsArg};
+use super::args::{JointNamesArg, TransitionArg, UnitsArg};
+use crate::synth::joint_names::JointNames;
 use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, Preset, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
@@ -93,6 +94,10 @@ pub struct GenerateArgs {
     /// Frame rate of the file (e.g. 24, 30, 60); the model's own by default.
     #[arg(long)]
     pub fps: Option<f32>,
+    /// Joint names of the file: the skeleton's own, or those Mixamo tools, Unreal's
+    /// mannequin or Unity's Humanoid avatar recognise, given by each joint's role.
+    #[arg(long, value_enum, default_value = "native")]
+    pub joint_names: JointNamesArg,
 }
 
 /// `seed:CLASS`, `seed:N` or `clip:PATH@FRAME`.
@@ -156,6 +161,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     };
     let options = ExportOptions { units: args.units.into(), fps: args.fps, source_root: false };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
+    let m = JointNames::from(args.joint_names).apply(&m, joint_map.as_ref())?;
     export_with_contacts(&m, &segments, Some(&take.contacts), &args.out)?;
     note_rounded_durations(&opts, &take.segments, take.motion.fps);
     for warning in &take.warnings {

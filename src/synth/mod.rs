@@ -7,6 +7,7 @@ pub mod foot_lock;
 pub mod generate;
 pub mod gltf;
 pub mod init;
+pub mod joint_names;
 pub mod keys;
 pub mod options;
 mod pace;
@@ -16,6 +17,7 @@ mod plan;
 pub mod render;
 pub mod rig;
 mod steer;
+mod t_pose;
 pub mod timeline;
 
 /// How a generation ends other than with a take, where the caller acts on the kind (other

@@ -15,7 +15,9 @@ from mathutils import Vector
 from import_checks import imported_frames, main, passed, skeleton_failures
 
 
-def check(bvh_path, json_path):
+def check(bvh_path, json_path, tolerance=None):
+    """True when the BVH matches the JSON; joint positions within `tolerance` metres when
+    given, else within 0.1% of the skeleton's extent."""
     take = json.load(open(json_path))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     # Forward Y, up Z: the importer's identity conversion, so positions compare one to one
@@ -41,9 +43,10 @@ def check(bvh_path, json_path):
             lowest = min(lowest, head.y)
     units = "mm" if abs(take["meters_per_unit"] - 0.001) < 1e-9 else f"x {take['meters_per_unit']} m"
     print(f"{bvh_path}: {len(bones)} bones, {frames} frames at {fps:g} fps, "
-          f"largest joint position difference {worst:.4f} ({units}; skeleton extent {scale:.0f}), "
+          f"largest joint position difference {worst:.6f} ({units}; skeleton extent {scale:.0f}), "
           f"lowest joint at height {lowest:.4f}")
-    if worst > 1e-3 * scale:
+    limit = tolerance / take["meters_per_unit"] if tolerance is not None else 1e-3 * scale
+    if worst > limit:
         failures.append(f"joint positions differ by up to {worst}")
     if abs(lowest) > 1e-3 * scale:
         failures.append(f"the lowest joint is at height {lowest}, not on the floor")

@@ -19,6 +19,12 @@ def setup(glb_path):
     bpy.ops.import_scene.gltf(filepath=glb_path)
     arm = next(o for o in scene.objects if o.type == "ARMATURE")
     first, last = arm.animation_data.action.frame_range
+    camera = stage(scene)
+    return scene, arm, camera, int(first), int(last)
+
+
+def stage(scene):
+    """Floor, sun, sky, camera and Cycles on the CPU around whatever the scene holds."""
     bpy.ops.mesh.primitive_plane_add(size=40)
     floor = bpy.context.active_object
     floor_material = bpy.data.materials.new("floor")
@@ -42,7 +48,7 @@ def setup(glb_path):
     scene.cycles.samples = 24
     scene.render.resolution_x, scene.render.resolution_y = WIDTH, HEIGHT
     scene.render.film_transparent = False
-    return scene, arm, camera, int(first), int(last)
+    return camera
 
 
 def render_frame(scene, arm, camera, frame, path):
@@ -59,15 +65,23 @@ def render_frame(scene, arm, camera, frame, path):
     return pixels
 
 
-def main(glb_path, out_path, count):
-    scene, arm, camera, first, last = setup(glb_path)
+def render_strip(scene, arm, camera, first, last, count, out_path):
+    """`count` frames spread over first..last side by side in one PNG; the frames drawn."""
     frames = [round(first + (last - first) * (k + 0.5) / count) for k in range(count)]
     strip = np.concatenate([render_frame(scene, arm, camera, f, f"/tmp/render_gltf_{f}.png") for f in frames], axis=1)
     image = bpy.data.images.new("strip", WIDTH * count, HEIGHT)
     image.pixels = strip.ravel()
-    image.filepath_raw = out_path
-    image.file_format = "PNG"
-    image.save()
+    # Saved through the scene's settings, an RGB PNG at full compression for a small file; the
+    # frames already went through the view transform, so the strip goes through none.
+    settings = scene.render.image_settings
+    settings.file_format, settings.color_mode, settings.compression = "PNG", "RGB", 100
+    scene.view_settings.view_transform = "Standard"
+    image.save_render(out_path, scene=scene)
+    return frames
+
+
+def main(glb_path, out_path, count):
+    frames = render_strip(*setup(glb_path), count, out_path)
     print(f"{out_path}: frames {frames} of {glb_path}")
 
 

@@ -1,0 +1,76 @@
+"""One run of `glocal generate` in the background: the selected armature written as the
+retarget rig, the command, the subprocess, and its outcome as a take or one line of error."""
+import json
+import os
+import subprocess
+import tempfile
+import time
+
+from . import bvh_io
+
+# Bones glocal's name table does not know, by rig convention. The Rigify metarig names its
+# head `spine.006`; of its two neck bones the upper one is mapped, so that the head hangs
+# from it directly and the lower one turns the neck towards it.
+KNOWN_JOINT_MAPS = (({"spine.004", "spine.005", "spine.006"}, {"spine.005": "Neck", "spine.006": "Head"}),)
+
+
+def joint_map(arm):
+    """A `--joint-map` for the armature's bones where its convention needs one, else None."""
+    names = {b.name for b in arm.data.bones}
+    if any(n.lower().rsplit(":", 1)[-1] == "head" for n in names):
+        return None
+    for needed, mapping in KNOWN_JOINT_MAPS:
+        if needed <= names:
+            return mapping
+    return None
+
+
+class Run:
+    """A started `glocal generate` onto `arm`; `poll()` until it returns True, then `result()`."""
+
+    def __init__(self, binary, model, timeline, seed, arm):
+        self.folder = tempfile.TemporaryDirectory(prefix="glocal-")
+        rig = os.path.join(self.folder.name, "rig.bvh")
+        self.take_path = os.path.join(self.folder.name, "take.bvh")
+        with open(rig, "w") as f:
+            f.write(bvh_io.rig_bvh(arm))
+        self.command = [binary, "generate", "--model", model, "--timeline", timeline, "--seed", str(seed),
+                        "--retarget-to", rig, "--out", self.take_path, "--json"]
+        mapping = joint_map(arm)
+        if mapping:
+            map_path = os.path.join(self.folder.name, "joint_map.json")
+            with open(map_path, "w") as f:
+                json.dump(mapping, f)
+            self.command += ["--joint-map", map_path]
+        self.started = time.monotonic()
+        self.process = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def poll(self):
+        return self.process.poll() is not None
+
+    def elapsed(self):
+        return time.monotonic() - self.started
+
+    def result(self):
+        """The take read back, or raises RuntimeError with glocal's error as one line."""
+        out, err = self.process.communicate()
+        try:
+            if self.process.returncode != 0:
+                raise RuntimeError(error_line(err) or f"glocal exited with status {self.process.returncode}")
+            with open(self.take_path) as f:
+                return bvh_io.read_take(f.read())
+        finally:
+            self.folder.cleanup()
+
+    def cancel(self):
+        self.process.kill()
+        self.process.communicate()
+        self.folder.cleanup()
+
+
+def error_line(stderr):
+    """glocal's `error: ...` line (the last one), else the last line it printed."""
+    lines = [l.strip() for l in stderr.splitlines() if l.strip()]
+    errors = [l for l in lines if l.lower().startswith("error")]
+    line = (errors or lines or [""])[-1]
+    return line[len("error:"):].strip() if line.lower().startswith("error:") else line

@@ -1,0 +1,316 @@
+"""Drives the Blender add-on (integrations/blender) in Blender itself: installs it from a zip
+as a user would, generates onto a Rigify human metarig and onto a Mixamo-named armature built
+here (lying in its own y-up space at 0.01 scale, as Mixamo FBX files import), and checks each
+take against the same generation exported as JSON with Mixamo names:
+
+- the new Action has the take's frame count and the scene its frame rate and range;
+- every mapped bone of a limb, the spine or the neck points within 5 degrees of the take's
+  (mean over the take); the bones from the hips to the thighs and from the chest to the neck
+  and collars turn with the hips and the chest as one rigid piece, so where the rig's rest
+  shape differs from the model's (the metarig's hip sockets sit above its pelvis, Human3.6M's
+  collars start at its neck) they cannot all point as the take's do: they are measured and
+  printed, not checked;
+- where the take's foot is planted, the rig's foot is within 2 cm of the floor (the metarig:
+  10 cm, see RIGS);
+- no mapped bone keeps an identity track while the take's joint moves;
+- the add-on's Export FBX re-imports with the same frame count and every bone's turn from its
+  rest pose within 0.5 degrees;
+- a glocal error (a wrong class) is reported as one line and the armature keeps its actions.
+
+Then the same take exported with `--joint-names mixamo` as BVH and glTF opens in Blender's
+importers with the Mixamo names and every joint within 0.01 mm of the JSON export.
+
+    /tmp/bpy/bin/python tests/blender/check_addon.py GLOCAL MODEL TIMELINE SEED TAKE.json TAKE.bvh TAKE.glb OUTDIR
+(tests/blender.rs runs it; TAKE.* are `glocal generate --joint-names mixamo` of TIMELINE, SEED.)
+"""
+import json
+import os
+import shutil
+import sys
+from math import degrees, radians
+
+import bpy
+import addon_utils  # after bpy, which puts Blender's modules on the path
+from mathutils import Matrix, Vector
+
+import check_bvh_import
+import check_gltf_import
+from import_checks import SETUP, passed
+
+ADDON = os.path.join(os.path.dirname(__file__), "..", "..", "integrations", "blender", "glocal_blender")
+# Each mapped bone: (key joint at its start, key joint at its end), as retargeting maps them.
+BONES = [("Hips", "Chest"), ("Chest", "Neck"), ("Neck", "Head")] + [
+    pair for side in ("Left", "Right") for pair in [
+        ("Chest", f"{side}Shoulder"), (f"{side}Shoulder", f"{side}Arm"), (f"{side}Arm", f"{side}ForeArm"),
+        (f"{side}ForeArm", f"{side}Hand"), ("Hips", f"{side}UpLeg"), (f"{side}UpLeg", f"{side}Leg"),
+        (f"{side}Leg", f"{side}Foot"), (f"{side}Foot", f"{side}ToeBase")]]
+RIGIFY_KEYS = {"Hips": "spine", "Chest": "spine.003", "Neck": "spine.005", "Head": "spine.006", **{
+    f"{side}{key}": f"{bone}.{side[0]}" for side in ("Left", "Right") for key, bone in [
+        ("Shoulder", "shoulder"), ("Arm", "upper_arm"), ("ForeArm", "forearm"), ("Hand", "hand"),
+        ("UpLeg", "thigh"), ("Leg", "shin"), ("Foot", "foot"), ("ToeBase", "toe")]}}
+MIXAMO_KEYS = {key: f"mixamorig:{key}" for pair in BONES for key in pair} | {"Chest": "mixamorig:Spine2"}
+# Key joints whose bones to their children are posed together (a rotation fitted to all).
+RIGID = {"Hips", "Chest"}
+
+
+def install_addon(out_dir, binary):
+    """The add-on zipped and installed through Blender's preferences, as a user installs it."""
+    archive = shutil.make_archive(os.path.join(out_dir, "glocal_blender"), "zip", os.path.dirname(ADDON), "glocal_blender")
+    bpy.ops.preferences.addon_install(filepath=archive, overwrite=True)
+    addon_utils.enable("glocal_blender", default_set=True)
+    bpy.context.preferences.addons["glocal_blender"].preferences.binary = binary
+
+
+def rigify_metarig():
+    addon_utils.enable("rigify", default_set=True)
+    bpy.ops.object.armature_human_metarig_add()
+    return bpy.context.active_object
+
+
+# A Mixamo-like T-pose in metres (z up, facing -y): bone -> (parent, head); tails at the
+# first child's head, leaves pointing on along their parent's bone.
+MIXAMO_REST = {
+    "Hips": (None, (0, 0, 1.0)), "Spine": ("Hips", (0, 0, 1.1)), "Spine1": ("Spine", (0, 0, 1.22)),
+    "Spine2": ("Spine1", (0, 0, 1.34)), "Neck": ("Spine2", (0, 0, 1.5)), "Head": ("Neck", (0, 0, 1.6)),
+    "HeadTop_End": ("Head", (0, 0, 1.8)),
+    **{name: (parent, (sign * x, y, z)) for side, sign in (("Left", 1), ("Right", -1)) for name, parent, (x, y, z) in [
+        (f"{side}Shoulder", "Spine2", (0.05, 0, 1.45)), (f"{side}Arm", f"{side}Shoulder", (0.18, 0, 1.45)),
+        (f"{side}ForeArm", f"{side}Arm", (0.45, 0, 1.45)), (f"{side}Hand", f"{side}ForeArm", (0.7, 0, 1.45)),
+        (f"{side}UpLeg", "Hips", (0.09, 0, 0.95)), (f"{side}Leg", f"{side}UpLeg", (0.09, 0, 0.52)),
+        (f"{side}Foot", f"{side}Leg", (0.09, 0, 0.08)), (f"{side}ToeBase", f"{side}Foot", (0.09, -0.12, 0.02)),
+        (f"{side}Toe_End", f"{side}ToeBase", (0.09, -0.2, 0.02))]},
+}
+
+
+def mixamo_armature():
+    """MIXAMO_REST with `mixamorig:` names, stored as a Mixamo FBX imports: armature space
+    y up in centimetres, the object turned 90 degrees about x and scaled 0.01."""
+    data = bpy.data.armatures.new("mixamo")
+    arm = bpy.data.objects.new("mixamo", data)
+    bpy.context.scene.collection.objects.link(arm)
+    arm.rotation_euler = (radians(90), 0, 0)
+    arm.scale = (0.01, 0.01, 0.01)
+    select_only(arm)
+    bpy.ops.object.mode_set(mode="EDIT")
+    to_armature = Matrix.Rotation(radians(-90), 3, "X") * 100.0
+    heads = {n: to_armature @ Vector(p) for n, (_, p) in MIXAMO_REST.items()}
+    bones = {}
+    for name, (parent, _) in MIXAMO_REST.items():
+        bone = data.edit_bones.new(f"mixamorig:{name}")
+        children = [c for c, (p, _) in MIXAMO_REST.items() if p == name]
+        bone.head = heads[name]
+        bone.tail = heads[children[0]] if children else heads[name] + (heads[name] - heads[parent]).normalized() * 8
+        if parent:
+            bone.parent = bones[parent]
+        bones[name] = bone
+    bpy.ops.object.mode_set(mode="OBJECT")
+    return arm
+
+
+def select_only(obj):
+    for o in bpy.context.scene.objects:
+        o.select_set(o == obj)
+    bpy.context.view_layer.objects.active = obj
+
+
+def existing_action(arm):
+    """An action the user made before: a key on the first bone."""
+    bone = arm.pose.bones[0]
+    bone.rotation_mode = "QUATERNION"
+    bone.rotation_quaternion = (0.9, 0.1, 0, 0)
+    bone.keyframe_insert("rotation_quaternion", frame=1)
+    action = arm.animation_data.action
+    action.name = "Before"
+    return action
+
+
+def action_state(action):
+    return [(c.data_path, c.array_index, [tuple(k.co) for k in c.keyframe_points]) for c in action.fcurves]
+
+
+def native_keys(take):
+    """Key joint -> index in the JSON take (Mixamo names; the chest is the spine's top)."""
+    index = {n: j for j, n in enumerate(take["joints"])}
+    keys = {key: index[f"mixamorig:{key}"] for pair in BONES for key in pair if f"mixamorig:{key}" in index}
+    keys["Chest"] = take["parents"][index["mixamorig:LeftShoulder"]]
+    return keys
+
+
+def blender_point(p):
+    """glocal's y-up world in Blender's z-up one (as the add-on's BVH files turn it)."""
+    return Vector((p[0], -p[2], p[1]))
+
+
+def check_generated(arm, keys, take, label, floor_limit, failures):
+    """Frames, rate, bone directions, feet and moving tracks of the generated action."""
+    scene = bpy.context.scene
+    action = arm.animation_data.action
+    frames = len(take["frames"])
+    first, last = action.frame_range
+    fps = scene.render.fps / scene.render.fps_base
+    if (int(round(last - first)) + 1, scene.frame_start, scene.frame_end) != (frames, 1, frames):
+        failures.append(f"{label}: action frames {first}-{last}, scene {scene.frame_start}-{scene.frame_end}, take {frames}")
+    if abs(fps - take["fps"]) > 1e-4:
+        failures.append(f"{label}: scene fps {fps}, take {take['fps']}")
+    source = native_keys(take)
+    angles = {pair: [] for pair in BONES}
+    source_turn = {pair: 0.0 for pair in BONES}
+    track_turn = {pair: 0.0 for pair in BONES}
+    lowest = {side: [] for side in ("left", "right")}
+    feet = {side: foot_bones(arm, keys[f"{side.title()}Foot"]) for side in lowest}
+    first_dirs = {}
+    for f in range(frames):
+        scene.frame_set(f + 1)
+        heads = {key: arm.matrix_world @ arm.pose.bones[bone].head for key, bone in keys.items()}
+        points = [blender_point(p) for p in take["frames"][f]]
+        for pair in BONES:
+            a, b = pair
+            want = points[source[b]] - points[source[a]]
+            angles[pair].append(degrees((heads[b] - heads[a]).angle(want)))
+            first_dirs.setdefault(pair, want)
+            source_turn[pair] = max(source_turn[pair], degrees(want.angle(first_dirs[pair])))
+            basis = arm.pose.bones[keys[a]].matrix_basis.to_quaternion()
+            track_turn[pair] = max(track_turn[pair], degrees(basis.angle))
+        for side, bones in feet.items():
+            if take["contacts"][f"{side}_foot"][f]:
+                lowest[side].append(min(min((arm.matrix_world @ arm.pose.bones[b].head).z, (arm.matrix_world @ arm.pose.bones[b].tail).z) for b in bones))
+    means = {pair: sum(v) / len(v) for pair, v in angles.items()}
+    aimed = {pair: m for pair, m in means.items() if pair[0] not in RIGID}
+    rigid = {pair: m for pair, m in means.items() if pair[0] in RIGID}
+    worst = max(aimed, key=aimed.get)
+    moving = [pair for pair in BONES if source_turn[pair] > 1.0]
+    planted = [z for side in lowest.values() for z in side]
+    floor = max(abs(z) for z in planted) if planted else float("nan")
+    print(f"{label}: action '{action.name}', {frames} frames at {fps:g} fps (scene {scene.frame_start}-{scene.frame_end}); "
+          f"{len(aimed)} limb, spine and neck bones from the take's: worst {worst[0]}->{worst[1]} {aimed[worst]:.1e} deg (mean over the take); "
+          f"rigid {', '.join(f'{a}->{b} {m:.1f}' for (a, b), m in rigid.items() if 'Right' not in b)} deg; "
+          f"all {len(means)} mapped bones: mean {sum(means.values()) / len(means):.2f} deg; "
+          f"{sum(track_turn[p] >= 1e-3 for p in moving)} of {len(moving)} moving bones keyed off identity; "
+          f"planted feet {len(planted)} foot-frames, farthest from the floor {100 * floor:.2f} cm")
+    for pair, mean in means.items():
+        if mean > 5.0 and pair[0] not in RIGID:
+            failures.append(f"{label}: bone {pair[0]}->{pair[1]} is {mean:.2f} deg from the take's on average")
+        if source_turn[pair] > 1.0 and track_turn[pair] < 1e-3:
+            failures.append(f"{label}: bone {keys[pair[0]]} keeps an identity track while the take's {pair[0]} turns {source_turn[pair]:.1f} deg")
+    if not planted or floor > floor_limit:
+        failures.append(f"{label}: planted feet up to {floor} m from the floor")
+
+
+def foot_bones(arm, foot):
+    bone = arm.data.bones[foot]
+    return [foot] + [b.name for b in bone.children_recursive]
+
+
+def check_fbx(arm, out_dir, label, failures):
+    """Export FBX, import it back, compare frame counts and every bone's turn from rest."""
+    path = os.path.join(out_dir, f"{label}.fbx")
+    select_only(arm)
+    bpy.ops.glocal.export_fbx(filepath=path)
+    before = set(bpy.context.scene.objects)
+    # No frame offset: the importer's default shifts the keys one frame on.
+    bpy.ops.import_scene.fbx(filepath=path, anim_offset=0)
+    back = next(o for o in bpy.context.scene.objects if o not in before and o.type == "ARMATURE")
+    first, last = arm.animation_data.action.frame_range
+    got = back.animation_data.action.frame_range
+    if tuple(got) != (first, last):
+        failures.append(f"{label}: the FBX re-imports with frames {tuple(got)}, exported {(first, last)}")
+    worst = 0.0
+    for f in range(int(first), int(last) + 1):
+        bpy.context.scene.frame_set(f)
+        for bone in arm.pose.bones:
+            other = back.pose.bones[bone.name]
+            worst = max(worst, degrees(turn(arm, bone).rotation_difference(turn(back, other)).angle))
+    print(f"{label}: FBX re-imported with frames {got[0]:g}-{got[1]:g} ({int(got[1] - got[0]) + 1}), "
+          f"largest bone rotation difference {worst:.4f} deg over {len(arm.pose.bones)} bones")
+    if worst > 0.5:
+        failures.append(f"{label}: FBX bone rotations differ by up to {worst:.3f} deg")
+    bpy.data.objects.remove(back)
+
+
+def turn(arm, pose_bone):
+    """The bone's rotation in the world. (Not from its rest: the FBX importer takes an
+    armature's rest from the file's bone nodes, which the exporter writes in the pose.)"""
+    return (arm.matrix_world @ pose_bone.matrix).to_3x3().normalized().to_quaternion()
+
+
+def check_error(arm, before, label, failures):
+    """A wrong class: one line of error, and the armature's actions as they were."""
+    actions = set(bpy.data.actions)
+    state = action_state(before)
+    try:
+        bpy.ops.glocal.generate(timeline="flying:4")
+        failures.append(f"{label}: a wrong class generated")
+        return
+    except RuntimeError as e:
+        message = str(e).strip()
+    print(f"{label}: wrong class reported as: {message}")
+    if len(message.splitlines()) != 1 or "flying" not in message:
+        failures.append(f"{label}: the error is not one line naming the class: {message!r}")
+    if arm.animation_data.action != before or set(bpy.data.actions) != actions or action_state(before) != state:
+        failures.append(f"{label}: the armature's actions changed on an error")
+
+
+def run_rig(rig, timeline, seed, take, out_dir, failures):
+    label, make, keys, floor_limit = rig
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj)
+    for action in list(bpy.data.actions):
+        bpy.data.actions.remove(action)
+    arm = make()
+    select_only(arm)
+    before = existing_action(arm)
+    state = action_state(before)
+    check_error(arm, before, label, failures)
+    settings = bpy.context.scene.glocal
+    settings.seed = seed
+    settings.segments.clear()
+    for part in timeline.split(","):
+        activity, seconds = part.split(":")
+        row = settings.segments.add()
+        row.activity, row.seconds = activity, float(seconds)
+    bpy.ops.glocal.generate()
+    if arm.animation_data.action.name != timeline:
+        failures.append(f"{label}: the new action is '{arm.animation_data.action.name}', not named after the timeline")
+    if before.name not in bpy.data.actions or action_state(before) != state:
+        failures.append(f"{label}: the armature's earlier action changed")
+    check_generated(arm, keys, take, label, floor_limit, failures)
+    check_fbx(arm, out_dir, label, failures)
+
+
+def check_mixamo_names(bvh, glb, json_path, failures):
+    names = json.load(open(json_path))["joints"]
+    if not all(n.startswith("mixamorig:") for n in names) or not {"mixamorig:Hips", "mixamorig:LeftArm", "mixamorig:RightUpLeg"} <= set(names):
+        failures.append(f"--joint-names mixamo wrote {names}")
+    if not check_bvh_import.check(bvh, json_path, tolerance=1e-5):
+        failures.append(f"{bvh}: the Mixamo-named BVH does not import within 0.01 mm")
+    if not check_gltf_import.check(glb, json_path, tolerance=1e-5):
+        failures.append(f"{glb}: the Mixamo-named glTF does not import within 0.01 mm")
+
+
+# (label, builder, key joint -> bone, how far a planted foot may be from the floor in metres).
+# The metarig's: retargeting puts the hips where the model's are (scaled by leg length), and
+# the metarig's hip sockets sit 6 cm above its pelvis bone where the model's are level with
+# its hips, so its legs hang that much higher (motion/retarget.rs places the hips).
+RIGS = [("rigify", rigify_metarig, RIGIFY_KEYS, 0.10), ("mixamo", mixamo_armature, MIXAMO_KEYS, 0.02)]
+
+
+def main(binary, model, timeline, seed, json_path, bvh, glb, out_dir):
+    take = json.load(open(json_path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    install_addon(out_dir, binary)
+    bpy.context.scene.glocal.model = model
+    failures = []
+    for rig in RIGS:
+        run_rig(rig, timeline, int(seed), take, out_dir, failures)
+    # Last: these reset Blender to its factory settings.
+    check_mixamo_names(bvh, glb, json_path, failures)
+    ok = passed(failures)
+    sys.stdout.flush()
+    # Straight out: bpy 4.2 can crash tearing down after Rigify has been enabled.
+    os._exit(0 if ok else 1)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 9:
+        sys.exit(f"{__doc__}\n{SETUP}")
+    main(*sys.argv[1:])
