@@ -142,7 +142,7 @@ fn one_model(model_dir: &Path, ctx: &SuiteContext, md: &mut Markdown, log: &mut 
     for (k, &(track, first)) in cases.iter().enumerate() {
         let file = clip_file(&dir, &corpus.test[track], track)?;
         for (gap, row) in GAPS.iter().zip(&mut rows) {
-            score_case(&model, &corpus.test[track], &file, first, gap.frames(model.spec.fps), row)?;
+            score_case(&model, &ctx.generation, &corpus.test[track], &file, first, gap.frames(model.spec.fps), row)?;
         }
         if k % 16 == 15 {
             log(&format!("inbetween: {dataset} {} of {} cases", k + 1, cases.len()));
@@ -184,8 +184,9 @@ fn clip_file(dir: &Path, track: &Track, index: usize) -> Result<PathBuf> {
 }
 
 /// One case: a take started at `first` of the clip, keyed `gap` frames after its last given
-/// pose with the clip's own frame, against the real frames and the baselines.
-fn score_case(model: &GlocalModel, track: &Track, file: &Path, first: usize, gap: usize, row: &mut GapRow) -> Result<()> {
+/// pose with the clip's own frame (the suites' generation options otherwise), against the
+/// real frames and the baselines.
+fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, file: &Path, first: usize, gap: usize, row: &mut GapRow) -> Result<()> {
     let spec = &model.spec;
     let (s, t, joints) = (spec.stride, spec.block_len, spec.layout.joints());
     let cm = 100.0 * spec.layout.skeleton.meters_per_unit();
@@ -199,7 +200,7 @@ fn score_case(model: &GlocalModel, track: &Track, file: &Path, first: usize, gap
         timeline: Timeline { segments: vec![Segment::new(class, seconds + AFTER_KEY_SECONDS)] },
         init: InitPose::File { path: file.to_path_buf(), frame: first },
         keys: vec![key],
-        ..Default::default()
+        ..generation.clone()
     };
     let take = generate(model, &opts, &mut |_| true)?.motion;
     let start = FileStart::of(model, &track.motion, first);
