@@ -17,7 +17,8 @@ use super::viewport::Viewport;
 use super::worker::{ModelInfo, Reply, SeedMap, Take, Worker};
 use crate::synth::class_map::ClassMap;
 use crate::synth::export::{segments_in_range, ExportFormat, ExportOptions};
-use crate::synth::{GenerateOptions, InitPose, Segment};
+use crate::synth::project::user_joint_map;
+use crate::synth::{Document, GenerateOptions, InitPose, Request as TakeRequest, Segment};
 
 /// Edits regenerate after this pause (seconds).
 pub const DEBOUNCE: f64 = 0.3;
@@ -563,7 +564,7 @@ impl StudioApp {
         let classes = self.classes().to_vec();
         self.edit(|d| {
             *d = Project::new(model);
-            d.options.timeline = Project::default_timeline(&classes);
+            d.options.timeline = Document::default_timeline(&classes);
         });
         self.saved = self.doc.clone();
         self.project_path = None;
@@ -666,7 +667,7 @@ impl StudioApp {
 
     pub fn use_init_file(&mut self, path: PathBuf, frame: usize) {
         self.fields.init_path = path.display().to_string();
-        self.worker.check_init(InitPose::File { path, frame });
+        self.worker.check_init(InitPose::file(path, frame));
     }
 
     fn save_state(&mut self) {
@@ -813,7 +814,7 @@ impl StudioApp {
                 }
                 Reply::InitOk(init) => {
                     let name = match &init {
-                        InitPose::File { path, frame } => format!("{} from frame {frame}", project::shown_path(path)),
+                        InitPose::File { path, frame, .. } => format!("{} from frame {frame}", project::shown_path(path)),
                         _ => String::new(),
                     };
                     self.init_after_switch = false;
@@ -850,7 +851,7 @@ impl StudioApp {
         self.doc.model = info.dir.clone();
         self.fields.model_path = info.dir.display().to_string();
         if self.doc.options.timeline.segments.is_empty() {
-            self.doc.options.timeline = Project::default_timeline(&info.spec.classes);
+            self.doc.options.timeline = Document::default_timeline(&info.spec.classes);
         }
         if previous.is_none() && self.saved.options.timeline.segments.is_empty() {
             // The first model of a fresh start: its default timeline is not unsaved work.
@@ -982,7 +983,8 @@ impl StudioApp {
             return;
         }
         let options = self.engine_options();
-        let id = self.worker.generate(options.clone(), self.doc.joint_map.as_ref().map(super::joint_mapping::user_map));
+        let joint_map = self.doc.joint_map.as_ref().map(user_joint_map);
+        let id = self.worker.generate(TakeRequest { options: options.clone(), joint_map });
         self.requested = Some(options);
         self.generation_error = None;
         self.pending = Some((id, 0.0));

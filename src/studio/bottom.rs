@@ -120,7 +120,7 @@ impl StudioApp {
                 return;
             };
             let n = self.doc.options.timeline.segments.len();
-            let global_transition = self.doc.options.transition_seconds;
+            let (global_transition, global_pace) = (self.doc.options.transition_seconds, self.doc.options.pace);
             let seg = &mut self.doc.options.timeline.segments[k];
             let (r, _) = ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
             let color = class_index(classes, &seg.class).map_or(egui::Color32::GRAY, |c| color32(class_color(c)));
@@ -134,7 +134,7 @@ impl StudioApp {
             ui.add(egui::DragValue::new(&mut seg.seconds).range(MIN_SECONDS..=600.0).speed(0.05).suffix(" s").fixed_decimals(1));
             let mut own = seg.pace.is_some();
             if ui.checkbox(&mut own, "own pace").on_hover_text("This segment's pace replaces the global pace (it does not multiply it)").changed() {
-                seg.pace = own.then_some(self.doc.options.pace);
+                seg.pace = own.then_some(global_pace);
             }
             if let Some(p) = seg.pace.as_mut() {
                 ui.add(Slider::new(p, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true));

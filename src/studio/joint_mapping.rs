@@ -2,13 +2,12 @@
 //! of it onto the model, the studio shows the source and the retargeted pose side by side
 //! ("Use" / "Cancel"), and where the names do not match a small editor maps the model's key
 //! joints onto the file's joints. The mapping is saved in the project
-//! ([`super::project::Project::joint_map`]) and used when generating.
+//! ([`crate::synth::Document::joint_map`]) and used when generating.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::Result;
 use egui::RichText;
 
 use super::app::{InitTab, StudioApp};
@@ -22,7 +21,8 @@ use crate::data::joint_map::{guess_key_joints, UserJointMap};
 use crate::model::spec::ModelSpec;
 use crate::motion::{Key as JointKey, Motion, Skeleton};
 use crate::synth::constraints::KeySource;
-use crate::synth::rig::{onto_model, onto_model_file};
+use crate::synth::rig::{entries_for, onto_model};
+use crate::synth::project::user_joint_map;
 use crate::synth::{GenerateOptions, InitPose};
 
 /// Where a retargeted file goes once the user takes it.
@@ -78,17 +78,6 @@ pub struct RigState {
     pub editor: Option<JointMapEditor>,
 }
 
-/// The project's mapping (`{"joint in the file": "Key"}`, as `--joint-map` files spell it).
-pub fn user_map(map: &BTreeMap<String, String>) -> UserJointMap {
-    UserJointMap { entries: map.iter().filter_map(|(joint, key)| Some((joint.clone(), JointKey::from_name(key)?))).collect() }
-}
-
-/// The entries of `map` that name joints of `skeleton`: one project mapping serves every
-/// file, and a file without some of its joints is mapped by the name table there.
-fn restricted(map: &UserJointMap, skeleton: &Skeleton) -> UserJointMap {
-    UserJointMap { entries: map.entries.iter().filter(|(joint, _)| skeleton.index_of(joint).is_some()).cloned().collect() }
-}
-
 fn is_bvh(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh"))
 }
@@ -126,7 +115,7 @@ pub fn preview(spec: &ModelSpec, purpose: PreviewFor, path: PathBuf, frame: usiz
     if !is_foreign(spec, &source.skeleton) {
         return Reply::NotForeign { purpose, path, frame };
     }
-    let map = map.map(|m| restricted(m, &source.skeleton));
+    let map = map.map(|m| entries_for(m, &source.skeleton));
     let joints = source_joints(&source.skeleton, map.as_ref());
     match onto_model(spec, &source, &name, map.as_ref()) {
         Ok(on_model) if on_model.frames() > 0 => {
@@ -140,33 +129,6 @@ pub fn preview(spec: &ModelSpec, purpose: PreviewFor, path: PathBuf, frame: usiz
         Ok(_) => failed(path, format!("{name}: no frames left after retargeting"), joints),
         Err(e) => failed(path, format!("{e:#}"), joints),
     }
-}
-
-/// `options` with every foreign BVH among its start and key files replaced by a temporary
-/// file of it retargeted with `map` (kept alive with the returned files); without a map the
-/// engine retargets by the name table itself.
-pub fn with_retargeted_files(spec: &ModelSpec, options: &GenerateOptions, map: Option<&UserJointMap>) -> Result<(GenerateOptions, Vec<tempfile::NamedTempFile>)> {
-    let mut options = options.clone();
-    let mut files = Vec::new();
-    let Some(map) = map else { return Ok((options, files)) };
-    let inits = std::iter::once(&mut options.init).chain(options.keys.iter_mut().filter_map(|k| match &mut k.source {
-        KeySource::Init(init) => Some(init),
-        KeySource::Pose(_) => None,
-    }));
-    for init in inits {
-        let InitPose::File { path, .. } = init else { continue };
-        if !is_bvh(path) {
-            continue;
-        }
-        let name = path.display().to_string();
-        let source = read_bvh(&read_text(path, MAX_MOTION_BYTES)?, &name)?;
-        if is_foreign(spec, &source.skeleton) {
-            let file = onto_model_file(spec, &source, &name, &restricted(map, &source.skeleton))?;
-            *path = file.path().to_path_buf();
-            files.push(file);
-        }
-    }
-    Ok((options, files))
 }
 
 /// Whether the start or a key of `options` comes from `path`.
@@ -199,7 +161,7 @@ impl StudioApp {
     /// Asks the worker to retarget a frame of `path` (a BVH of another skeleton gets a
     /// preview; any other file goes on as before).
     pub(super) fn retarget_file(&mut self, purpose: PreviewFor, path: PathBuf, frame: usize) {
-        let map = self.doc.joint_map.as_ref().map(user_map);
+        let map = self.doc.joint_map.as_ref().map(user_joint_map);
         self.worker.retarget(purpose, path, frame, map);
     }
 
@@ -322,7 +284,7 @@ impl StudioApp {
             PreviewFor::Init => {
                 self.fields.init_path = path.display().to_string();
                 let name = format!("{} from frame {frame}", project::shown_path(&path));
-                self.edit(|d| d.options.init = InitPose::File { path, frame });
+                self.edit(|d| d.options.init = InitPose::file(path, frame));
                 self.init_tab = InitTab::File;
                 self.messages.set(Topic::Init, Level::Info, format!("Initial pose: {name} (retargeted)"));
             }

@@ -57,7 +57,7 @@ impl StudioApp {
     /// A frame of a motion file as a key at the current frame (the body's pose only).
     pub fn add_key_from_file(&mut self, path: PathBuf, frame: usize) {
         self.fields.key_path = path.display().to_string();
-        self.add_key(KeySource::Init(InitPose::File { path, frame }), false);
+        self.add_key(KeySource::Init(InitPose::file(path, frame)), false);
     }
 
     /// Applies a path edit from the viewport.
@@ -216,7 +216,7 @@ impl StudioApp {
                 KeySource::Pose(_) => "take frame".to_string(),
                 KeySource::Init(InitPose::SeedIndex(i)) => format!("seed {i}"),
                 KeySource::Init(InitPose::SeedClass { class, variant }) => format!("{class} seed {variant}"),
-                KeySource::Init(InitPose::File { path, frame }) => format!("{} @ {frame}", path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())),
+                KeySource::Init(InitPose::File { path, frame, .. }) => format!("{} @ {frame}", path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())),
             };
             ui.horizontal(|ui| {
                 let selected = self.selected_mark == Some(Mark::Key(k));

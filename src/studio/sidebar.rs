@@ -163,7 +163,7 @@ impl StudioApp {
             }
             InitTab::File => {
                 match &self.doc.options.init {
-                    InitPose::File { path, frame } => ui.label(format!("In use: {} @ {frame}", path.display())),
+                    InitPose::File { path, frame, .. } => ui.label(format!("In use: {} @ {frame}", path.display())),
                     _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
                 };
                 path_field(ui, "Motion file (BVH, NPY or dataset .txt)", &mut self.fields.init_path, "clip.bvh");

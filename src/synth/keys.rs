@@ -62,8 +62,8 @@ pub fn key_pose(model: &GlocalModel, key: &Key) -> Result<Vec<Vec3>> {
             let seed = model.seed_of_class(k, *variant).with_context(|| format!("key at {} s: the seed bank has no seed of class '{class}'", key.seconds))?;
             last_pose(&spec.layout, &seed.features)
         }
-        KeySource::Init(InitPose::File { path, frame }) => {
-            let motion = read_on_model_skeleton(model, path)?;
+        KeySource::Init(InitPose::File { path, frame, joint_map }) => {
+            let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
             if *frame >= motion.frames() {
                 bail!("{}: key frame {frame} is past the file's {} frames", path.display(), motion.frames());
             }

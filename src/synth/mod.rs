@@ -9,8 +9,9 @@ pub mod gltf;
 pub mod init;
 pub mod keys;
 mod pace;
-pub mod preset;
 pub mod path_follow;
+pub mod preset;
+pub mod project;
 pub mod render;
 pub mod rig;
 mod steer;
@@ -36,4 +37,5 @@ pub use generate::{generate, GenerateOptions, Generated, KeyMethod, SegmentSpan,
 pub use constraints::{Key, KeySource, RootPath, Waypoint};
 pub use init::InitPose;
 pub use preset::Preset;
+pub use project::{Document, Request};
 pub use timeline::{Segment, Timeline};
