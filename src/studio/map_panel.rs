@@ -5,7 +5,8 @@
 use egui::{Color32, RichText};
 use egui_plot::{Legend, Line, MarkerShape, Plot, PlotPoints, Points};
 
-use super::app::{InitTab, StudioApp};
+use super::app::StudioApp;
+use super::panels::InitTab;
 use super::timeline::color32;
 use crate::synth::render::class_color;
 use crate::synth::InitPose;
@@ -14,11 +15,11 @@ impl StudioApp {
     pub(super) fn map_panel(&mut self, ui: &mut egui::Ui) {
         ui.add_space(4.0);
         ui.label(RichText::new("Seed map (t-SNE of GloGen embeddings)").strong());
-        let (Some(model), Some(map)) = (self.model.clone(), self.map.clone()) else {
+        let (Some(model), Some(map)) = (self.engine.model.clone(), self.engine.map.clone()) else {
             ui.add_space(8.0);
-            if let Some(e) = &self.map_error {
+            if let Some(e) = &self.engine.map_error {
                 ui.colored_label(Color32::from_rgb(230, 90, 80), format!("No map: {e}"));
-            } else if self.model.is_some() {
+            } else if self.engine.model.is_some() {
                 ui.horizontal(|ui| {
                     ui.spinner();
                     ui.label("Computing the map…");
@@ -31,7 +32,7 @@ impl StudioApp {
         let classes = &model.spec.classes;
         // Seeds of each class, in map order.
         let by_class: Vec<Vec<usize>> = (0..classes.len()).map(|c| (0..model.seeds.len()).filter(|&i| model.seeds[i].class == c).collect()).collect();
-        let chosen = match &self.doc.options.init {
+        let chosen = match &self.editing.doc.options.init {
             InitPose::SeedIndex(i) => Some(*i),
             InitPose::SeedClass { class, variant } => classes
                 .iter()
@@ -39,7 +40,7 @@ impl StudioApp {
                 .and_then(|k| by_class.get(k).filter(|v| !v.is_empty()).map(|v| v[variant % v.len()])),
             InitPose::File { .. } => None,
         };
-        let take = self.take.clone();
+        let take = self.engine.take.clone();
         let current_block = take.as_ref().filter(|t| !t.path.is_empty()).map(|t| {
             let frames = t.motion.frames().max(1);
             ((self.playback.frame() as f32 / frames as f32) * t.path.len() as f32) as usize % t.path.len()
@@ -106,9 +107,9 @@ impl StudioApp {
                     .min_by(|a, b| a.1.total_cmp(&b.1));
                 if let Some((i, d)) = nearest {
                     if d < 10.0 {
-                        self.doc.options.init = InitPose::SeedIndex(i);
-                        self.init_tab = InitTab::Seed;
-                        self.fields.seed_index = i;
+                        self.editing.doc.options.init = InitPose::SeedIndex(i);
+                        self.panels.init_tab = InitTab::Seed;
+                        self.panels.fields.seed_index = i;
                     }
                 }
             }

@@ -2,7 +2,8 @@
 
 use egui::{Button, Key, KeyboardShortcut, Modifiers, PopupCloseBehavior};
 
-use super::app::{Guarded, StudioApp};
+use super::app::StudioApp;
+use super::panels::Guarded;
 use super::dialogs::Purpose;
 
 /// Keyboard and mouse, as the Help window lists them.
@@ -48,12 +49,12 @@ impl StudioApp {
                 }
                 ui.separator();
                 ui.menu_button("Models", |ui| {
-                    if self.shipped.is_empty() {
+                    if self.storage.shipped.is_empty() {
                         ui.label("No shipped models found");
                     }
-                    for dir in self.shipped.clone() {
+                    for dir in self.storage.shipped.clone() {
                         let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
-                        let current = self.model.as_ref().is_some_and(|m| m.dir == dir);
+                        let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
                         if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
                             self.load_model(dir);
                             ui.close();
@@ -75,8 +76,8 @@ impl StudioApp {
                 }
             });
             ui.menu_button("Edit", |ui| {
-                let can_undo = self.history.can_undo();
-                let can_redo = self.history.can_redo();
+                let can_undo = self.editing.history.can_undo();
+                let can_redo = self.editing.history.can_redo();
                 if ui.add_enabled(can_undo, Button::new("Undo").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND, Key::Z)))).clicked() {
                     self.undo();
                     ui.close();
@@ -90,8 +91,8 @@ impl StudioApp {
                     self.add_segment();
                     ui.close();
                 }
-                if ui.add_enabled(self.selected.is_some(), Button::new("Delete segment").shortcut_text("Del")).clicked() {
-                    if let Some(k) = self.selected {
+                if ui.add_enabled(self.editing.selected.is_some(), Button::new("Delete segment").shortcut_text("Del")).clicked() {
+                    if let Some(k) = self.editing.selected {
                         self.delete_segment(k);
                     }
                     ui.close();
@@ -101,17 +102,17 @@ impl StudioApp {
                     ui.close();
                 }
                 ui.separator();
-                if ui.add_enabled(self.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
-                    self.show_mapping = true;
+                if ui.add_enabled(self.panels.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
+                    self.panels.show_mapping = true;
                     ui.close();
                 }
             });
             ui.menu_button("View", |ui| {
-                ui.checkbox(&mut self.show_side, "Settings panel");
-                ui.checkbox(&mut self.show_map, "Seed map panel");
-                ui.checkbox(&mut self.compare, "Overlay the previous take (white)");
+                ui.checkbox(&mut self.panels.show_side, "Settings panel");
+                ui.checkbox(&mut self.panels.show_map, "Seed map panel");
+                ui.checkbox(&mut self.panels.compare, "Overlay the previous take (white)");
                 ui.separator();
-                let v = &mut self.doc.view;
+                let v = &mut self.editing.doc.view;
                 ui.checkbox(&mut v.grid, "Grid");
                 ui.checkbox(&mut v.trail, "Root trail");
                 ui.checkbox(&mut v.follow_root, "Follow the root");
@@ -129,11 +130,11 @@ impl StudioApp {
             });
             ui.menu_button("Help", |ui| {
                 if ui.button("Keyboard and mouse").clicked() {
-                    self.show_help = true;
+                    self.panels.show_help = true;
                     ui.close();
                 }
                 if ui.button("Message log").clicked() {
-                    self.show_log = true;
+                    self.panels.show_log = true;
                     ui.close();
                 }
             });
@@ -142,7 +143,7 @@ impl StudioApp {
 
     /// Help, the message log and the class mapping, when open.
     pub(super) fn windows(&mut self, ctx: &egui::Context) {
-        if self.show_help {
+        if self.panels.show_help {
             let mut open = true;
             egui::Window::new("Keyboard and mouse").open(&mut open).collapsible(false).resizable(false).show(ctx, |ui| {
                 egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
@@ -153,22 +154,22 @@ impl StudioApp {
                     }
                 });
             });
-            self.show_help = open;
+            self.panels.show_help = open;
         }
-        if self.show_log {
+        if self.panels.show_log {
             let mut open = true;
             egui::Window::new("Message log").open(&mut open).default_width(520.0).show(ctx, |ui| self.messages.log_ui(ui));
-            self.show_log = open;
+            self.panels.show_log = open;
         }
-        if self.show_mapping {
+        if self.panels.show_mapping {
             let mut open = true;
             egui::Window::new("Class mapping").open(&mut open).collapsible(false).show(ctx, |ui| self.mapping_ui(ui));
-            self.show_mapping = open && self.mapping.is_some();
+            self.panels.show_mapping = open && self.panels.mapping.is_some();
         }
     }
 
     fn mapping_ui(&mut self, ui: &mut egui::Ui) {
-        let Some(note) = &self.mapping else { return };
+        let Some(note) = &self.panels.mapping else { return };
         ui.label("Segments of the previous model's classes were retagged as below. A change applies to those segments and is remembered for later switches.");
         let (pairs, classes) = (note.map.pairs.clone(), note.classes.clone());
         let mut change = None;

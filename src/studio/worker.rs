@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 
-use super::joint_mapping::{self, PreviewFor, RetargetFailure, RetargetPreview};
+use super::retarget::{self, PreviewFor, RetargetFailure, Retargeting};
 use super::tsne;
 use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
@@ -89,7 +89,7 @@ pub struct Take {
 pub enum Job {
     LoadModel(PathBuf),
     Generate { id: u64, request: TakeRequest },
-    /// Retargets a frame of a BVH file onto the model for a preview (see [`joint_mapping`]).
+    /// Retargets a frame of a BVH file onto the model for a preview (see [`retarget`]).
     Retarget { purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap> },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
@@ -104,7 +104,7 @@ impl Job {
             Job::LoadModel(dir) => Reply::ModelFailed { dir: dir.clone(), error },
             Job::Generate { id, .. } => Reply::GenerateFailed { id: *id, error, cancelled: false },
             Job::CheckInit(init) => Reply::InitFailed { init: init.clone(), error },
-            Job::Retarget { purpose, path, frame, .. } => Reply::RetargetFailed(Arc::new(RetargetFailure { purpose: *purpose, path: path.clone(), frame: *frame, error, joints: Default::default() })),
+            Job::Retarget { purpose, path, frame, .. } => Reply::Retarget(Retargeting::Failed(Arc::new(RetargetFailure { purpose: *purpose, path: path.clone(), frame: *frame, error, joints: Default::default() }))),
             Job::Export { path, .. } => Reply::ExportFailed { path: path.clone(), error },
         }
     }
@@ -122,10 +122,7 @@ pub enum Reply {
     Path { id: u64, path: Vec<[f32; 2]> },
     InitOk(InitPose),
     InitFailed { init: InitPose, error: String },
-    Retargeted(Arc<RetargetPreview>),
-    RetargetFailed(Arc<RetargetFailure>),
-    /// The file asked to be retargeted is on the model's own skeleton (or not a BVH).
-    NotForeign { purpose: PreviewFor, path: PathBuf, frame: usize },
+    Retarget(Retargeting),
     Exported(PathBuf),
     ExportFailed { path: PathBuf, error: String },
 }
@@ -281,7 +278,7 @@ impl WorkerState {
                 let Some(model) = self.model.as_ref() else {
                     return Some(Job::Retarget { purpose, path: path.clone(), frame, joint_map }.failure("no model is loaded".into()));
                 };
-                return Some(joint_mapping::preview(&model.spec, purpose, path, frame, joint_map.as_ref()));
+                return Some(Reply::Retarget(retarget::preview(&model.spec, purpose, path, frame, joint_map.as_ref())));
             }
             Job::CheckInit(init) => {
                 return Some(match self.model.as_ref().context("no model is loaded").and_then(|m| initial_features(m, &init)) {

@@ -1,0 +1,43 @@
+//! The editing state: the document, its undo history, what was last saved, and what is
+//! selected in it.
+
+use std::path::PathBuf;
+
+use super::project::{History, Project};
+use super::timeline::Mark;
+
+pub struct Editing {
+    pub(super) doc: Project,
+    pub(super) history: History,
+    /// The document as last saved, opened or started: unsaved work is what differs from it.
+    pub(super) saved: Project,
+    /// Where the document was last saved or opened from.
+    pub(super) project_path: Option<PathBuf>,
+    /// An edit (e.g. a drag) is under way and has been recorded in the history.
+    pub(super) edit_open: bool,
+    /// The selected segment.
+    pub(super) selected: Option<usize>,
+    /// The key or waypoint selected on its track.
+    pub(super) selected_mark: Option<Mark>,
+}
+
+impl Editing {
+    /// `doc` to edit; `saved` is what counts as no unsaved work.
+    pub fn new(doc: Project, saved: Project, project_path: Option<PathBuf>) -> Self {
+        Self { doc, history: History::default(), saved, project_path, edit_open: false, selected: None, selected_mark: None }
+    }
+
+    /// Replaces the document by `f(doc)` as one undoable edit.
+    pub fn edit(&mut self, f: impl FnOnce(&mut Project)) {
+        let before = self.doc.clone();
+        f(&mut self.doc);
+        if self.doc.options != before.options {
+            self.history.record(before);
+        }
+    }
+
+    /// Whether the document differs from what was last saved, opened or started.
+    pub fn has_unsaved_work(&self) -> bool {
+        !self.doc.same_take(&self.saved)
+    }
+}
