@@ -656,7 +656,8 @@ fn without_a_system_dialog_export_opens_a_typed_path_dialog() {
     assert!(field.is_focused(), "the path field is focused");
     assert_eq!(field.value().as_deref(), Some(out.display().to_string().as_str()));
     h.get_by_label("OK").click();
-    wait(&mut h, "the export", |_| out.exists());
+    // The file is written before the worker's reply reaches the UI: wait for both.
+    wait(&mut h, "the export", |a| out.exists() && has_message(a, &format!("Exported {}", out.display())));
     assert!(has_message(h.state(), &format!("Exported {}", out.display())));
 }
 

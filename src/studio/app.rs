@@ -195,7 +195,7 @@ impl StudioApp {
         if self.engine.model.as_ref().is_none_or(|m| m.dir != take.model_dir) || self.editing.doc.model != take.model_dir {
             return Some("it was generated with another model".into());
         }
-        if take.options == self.engine_options() {
+        if take.options == self.editing.take_request().options {
             return None;
         }
         Some(match (&self.engine.generation_error, self.engine.pending) {

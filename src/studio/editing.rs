@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use super::project::{History, Project};
 use super::timeline::Mark;
+use crate::synth::Request as TakeRequest;
 
 pub struct Editing {
     pub(super) doc: Project,
@@ -34,6 +35,16 @@ impl Editing {
         if self.doc.options != before.options {
             self.history.record(before);
         }
+    }
+
+    /// What the engine is asked to generate: the document's request, where a path of one
+    /// waypoint (while it is being drawn) is no path yet.
+    pub fn take_request(&self) -> TakeRequest {
+        let mut request = self.doc.request();
+        if request.options.path.as_ref().is_some_and(|p| p.waypoints.len() < 2) {
+            request.options.path = None;
+        }
+        request
     }
 
     /// Whether the document differs from what was last saved, opened or started.

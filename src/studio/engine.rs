@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use super::worker::{ModelInfo, SeedMap, Take, Worker};
-use crate::synth::GenerateOptions;
+use crate::synth::{GenerateOptions, Request as TakeRequest};
 
 /// Edits regenerate after this pause (seconds).
 pub const DEBOUNCE: f64 = 0.3;
@@ -66,6 +66,15 @@ impl Engine {
     /// The loaded model's classes (none before a model is loaded).
     pub fn classes(&self) -> &[String] {
         self.model.as_ref().map_or(&[], |m| m.spec.classes.as_slice())
+    }
+
+    /// Asks the worker for the take of `request`, cancelling any older one.
+    pub fn generate(&mut self, request: TakeRequest) {
+        self.requested = Some(request.options.clone());
+        let id = self.worker.generate(request);
+        self.generation_error = None;
+        self.pending = Some((id, 0.0));
+        self.regen_at = None;
     }
 
     /// Stops the generation under way and any waiting for its pause.

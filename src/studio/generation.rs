@@ -11,8 +11,7 @@ use super::panels::{InitTab, MappingNote};
 use super::project::{self, Project};
 use super::worker::{ModelInfo, Reply, Take};
 use crate::synth::class_map::ClassMap;
-use crate::synth::project::user_joint_map;
-use crate::synth::{Document, InitPose, Request as TakeRequest};
+use crate::synth::{Document, InitPose};
 
 impl StudioApp {
     /// Takes in what the worker sent since the last frame.
@@ -251,7 +250,7 @@ impl StudioApp {
         if model.dir != self.editing.doc.model || self.engine.model_loading.is_some() || self.engine.init_after_switch {
             return;
         }
-        let options = self.engine_options();
+        let options = self.editing.take_request().options;
         if self.engine.requested.as_ref() != Some(&options) && self.engine.auto_regen && self.engine.regen_at.is_none() {
             self.engine.regen_at = Some(self.now + DEBOUNCE);
         }
@@ -267,18 +266,13 @@ impl StudioApp {
         }
     }
 
-    /// Generates now with the current options.
+    /// Generates now with the document's request.
     pub fn regenerate(&mut self) {
         if self.engine.model.is_none() {
             return;
         }
-        let options = self.engine_options();
-        let joint_map = self.editing.doc.joint_map.as_ref().map(user_joint_map);
-        let id = self.engine.worker.generate(TakeRequest { options: options.clone(), joint_map });
-        self.engine.requested = Some(options);
-        self.engine.generation_error = None;
-        self.engine.pending = Some((id, 0.0));
-        self.engine.regen_at = None;
+        let request = self.editing.take_request();
+        self.engine.generate(request);
     }
 
     pub fn cancel(&mut self) {

@@ -12,6 +12,7 @@ use super::dialogs::Purpose;
 use super::messages::{Level, Topic};
 use super::timeline::{color32, waypoint_times, Mark, KEY_COLOR, PATH_COLOR};
 use super::viewport::PathEdit;
+use super::worker::ModelInfo;
 use crate::motion::JointRoles;
 use crate::synth::constraints::{Key, KeySource, RootPath, Waypoint, MIN_KEY_GAP_SECONDS};
 use crate::synth::render::class_color;
@@ -169,22 +170,30 @@ impl StudioApp {
         times
     }
 
-    /// What the engine is asked to generate: the document's options, where a path of one
-    /// waypoint (while it is being drawn) is no path yet.
-    pub fn engine_options(&self) -> crate::synth::GenerateOptions {
-        let mut options = self.editing.doc.options.clone();
-        if options.path.as_ref().is_some_and(|p| p.waypoints.len() < 2) {
-            options.path = None;
-        }
-        options
-    }
-
     /// The sidebar's "Keys and path" section.
     pub(super) fn keys_section(&mut self, ui: &mut egui::Ui) {
         let Some(model) = self.engine.model.clone() else {
             ui.label(RichText::new("Load a model first").weak());
             return;
         };
+        self.new_key_buttons(ui, &model);
+        let mut delete = None;
+        self.key_list(ui, &mut delete);
+        ui.separator();
+        self.path_controls(ui);
+        self.waypoint_list(ui, &mut delete);
+        if let Some(mark) = delete {
+            self.delete_mark(mark);
+        }
+        if let Some(take) = &self.engine.take {
+            for w in &take.warnings {
+                ui.label(RichText::new(w).color(ui.visuals().warn_fg_color));
+            }
+        }
+    }
+
+    /// Keys from the current frame, a file or a seed.
+    fn new_key_buttons(&mut self, ui: &mut egui::Ui, model: &ModelInfo) {
         let at = self.current_seconds();
         ui.label(RichText::new(format!("New keys go at the current frame ({at:.2} s)")).weak());
         ui.horizontal_wrapped(|ui| {
@@ -210,7 +219,10 @@ impl StudioApp {
             });
         }
         ui.add(egui::DragValue::new(&mut self.panels.fields.key_frame).range(0..=super::panels::MAX_INIT_FRAME).prefix("file frame "));
-        let mut delete = None;
+    }
+
+    /// The keys, each selectable; its "x" marks it in `delete`.
+    fn key_list(&mut self, ui: &mut egui::Ui, delete: &mut Option<Mark>) {
         for (k, key) in self.editing.doc.options.keys.iter().enumerate() {
             let what = match &key.source {
                 KeySource::Pose(_) => "take frame".to_string(),
@@ -225,11 +237,14 @@ impl StudioApp {
                     self.editing.selected_mark = Some(Mark::Key(k));
                 }
                 if ui.small_button("x").on_hover_text("Delete this key").clicked() {
-                    delete = Some(Mark::Key(k));
+                    *delete = Some(Mark::Key(k));
                 }
             });
         }
-        ui.separator();
+    }
+
+    /// Drawing and clearing the root path.
+    fn path_controls(&mut self, ui: &mut egui::Ui) {
         let n = self.editing.doc.options.path.as_ref().map_or(0, |p| p.waypoints.len());
         ui.horizontal_wrapped(|ui| {
             ui.toggle_value(&mut self.panels.path_edit, "Draw path").on_hover_text("Click the ground in the viewport to add waypoints, drag one to move it");
@@ -245,6 +260,10 @@ impl StudioApp {
         if n == 1 {
             ui.label(RichText::new("A path needs a second waypoint").weak().small());
         }
+    }
+
+    /// The path's waypoints, each selectable with its time; its "x" marks it in `delete`.
+    fn waypoint_list(&mut self, ui: &mut egui::Ui, delete: &mut Option<Mark>) {
         let times = self.waypoint_times();
         if let Some(path) = self.editing.doc.options.path.clone() {
             for (k, w) in path.waypoints.iter().enumerate() {
@@ -271,17 +290,9 @@ impl StudioApp {
                         ui.label(RichText::new(format!("~{:.2} s", times.get(k).copied().unwrap_or(0.0))).weak());
                     }
                     if ui.small_button("x").on_hover_text("Delete this waypoint").clicked() {
-                        delete = Some(Mark::Waypoint(k));
+                        *delete = Some(Mark::Waypoint(k));
                     }
                 });
-            }
-        }
-        if let Some(mark) = delete {
-            self.delete_mark(mark);
-        }
-        if let Some(take) = &self.engine.take {
-            for w in &take.warnings {
-                ui.label(RichText::new(w).color(ui.visuals().warn_fg_color));
             }
         }
     }

@@ -23,122 +23,133 @@ const CONTROLS: &[(&str, &str)] = &[
     ("View > Reset camera", "the starting view"),
 ];
 
+/// How the platform writes `shortcut` (Ctrl+S, ⌘S).
+fn shortcut_text(ui: &egui::Ui, shortcut: KeyboardShortcut) -> String {
+    ui.ctx().format_shortcut(&shortcut)
+}
+
 impl StudioApp {
     pub(super) fn menu_bar(&mut self, ui: &mut egui::Ui) {
-        let ctx = ui.ctx().clone();
-        let fmt = |s: KeyboardShortcut| ctx.format_shortcut(&s);
         // Checkboxes and sliders keep a menu open; buttons close it themselves.
         let config = egui::containers::menu::MenuConfig::new().close_behavior(PopupCloseBehavior::CloseOnClickOutside);
         egui::MenuBar::new().config(config).ui(ui, |ui| {
-            ui.menu_button("File", |ui| {
-                if ui.button("New project").clicked() {
-                    self.request(Guarded::New);
-                    ui.close();
-                }
-                if ui.button("Open project…").clicked() {
-                    self.open_dialog(Purpose::OpenProject, ui.ctx());
-                    ui.close();
-                }
-                if ui.add(Button::new("Save project").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))).clicked() {
-                    self.save_shortcut(ui.ctx());
-                    ui.close();
-                }
-                if ui.button("Save project as…").clicked() {
-                    self.open_dialog(Purpose::SaveProject, ui.ctx());
-                    ui.close();
-                }
-                ui.separator();
-                ui.menu_button("Models", |ui| {
-                    if self.storage.shipped.is_empty() {
-                        ui.label("No shipped models found");
-                    }
-                    for dir in self.storage.shipped.clone() {
-                        let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
-                        let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
-                        if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
-                            self.load_model(dir);
-                            ui.close();
-                        }
-                    }
-                });
-                if ui.button("Open model folder…").clicked() {
-                    self.open_dialog(Purpose::OpenModel, ui.ctx());
-                    ui.close();
-                }
-                ui.separator();
-                if ui.button("Export take…").clicked() {
-                    self.open_dialog(Purpose::Export, ui.ctx());
-                    ui.close();
-                }
-                ui.separator();
-                if ui.button("Quit").clicked() {
-                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
-                }
-            });
-            ui.menu_button("Edit", |ui| {
-                let can_undo = self.editing.history.can_undo();
-                let can_redo = self.editing.history.can_redo();
-                if ui.add_enabled(can_undo, Button::new("Undo").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND, Key::Z)))).clicked() {
-                    self.undo();
-                    ui.close();
-                }
-                if ui.add_enabled(can_redo, Button::new("Redo").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z)))).clicked() {
-                    self.redo();
-                    ui.close();
-                }
-                ui.separator();
-                if ui.button("Add segment").clicked() {
-                    self.add_segment();
-                    ui.close();
-                }
-                if ui.add_enabled(self.editing.selected.is_some(), Button::new("Delete segment").shortcut_text("Del")).clicked() {
-                    if let Some(k) = self.editing.selected {
-                        self.delete_segment(k);
-                    }
-                    ui.close();
-                }
-                if ui.add_enabled(self.playback.selection.is_some(), Button::new("Clear range")).clicked() {
-                    self.playback.selection = None;
-                    ui.close();
-                }
-                ui.separator();
-                if ui.add_enabled(self.panels.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
-                    self.panels.show_mapping = true;
-                    ui.close();
-                }
-            });
-            ui.menu_button("View", |ui| {
-                ui.checkbox(&mut self.panels.show_side, "Settings panel");
-                ui.checkbox(&mut self.panels.show_map, "Seed map panel");
-                ui.checkbox(&mut self.panels.compare, "Overlay the previous take (white)");
-                ui.separator();
-                let v = &mut self.editing.doc.view;
-                ui.checkbox(&mut v.grid, "Grid");
-                ui.checkbox(&mut v.trail, "Root trail");
-                ui.checkbox(&mut v.follow_root, "Follow the root");
-                ui.add(egui::Slider::new(&mut v.ghosts, 0..=8).text("ghosts"));
-                ui.add(egui::Slider::new(&mut v.ghost_step, 1..=20).text("frames between ghosts"));
-                ui.separator();
-                if ui.button("Reset camera").clicked() {
-                    self.viewport.reset_camera();
-                    ui.close();
-                }
-                if ui.button("Frame the take").on_hover_text("Double-click in the viewport").clicked() {
-                    self.viewport.frame_all();
-                    ui.close();
-                }
-            });
-            ui.menu_button("Help", |ui| {
-                if ui.button("Keyboard and mouse").clicked() {
-                    self.panels.show_help = true;
-                    ui.close();
-                }
-                if ui.button("Message log").clicked() {
-                    self.panels.show_log = true;
-                    ui.close();
-                }
-            });
+            ui.menu_button("File", |ui| self.file_menu(ui));
+            ui.menu_button("Edit", |ui| self.edit_menu(ui));
+            ui.menu_button("View", |ui| self.view_menu(ui));
+            ui.menu_button("Help", |ui| self.help_menu(ui));
         });
+    }
+
+    fn file_menu(&mut self, ui: &mut egui::Ui) {
+        if ui.button("New project").clicked() {
+            self.request(Guarded::New);
+            ui.close();
+        }
+        if ui.button("Open project…").clicked() {
+            self.open_dialog(Purpose::OpenProject, ui.ctx());
+            ui.close();
+        }
+        if ui.add(Button::new("Save project").shortcut_text(shortcut_text(ui, KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))).clicked() {
+            self.save_shortcut(ui.ctx());
+            ui.close();
+        }
+        if ui.button("Save project as…").clicked() {
+            self.open_dialog(Purpose::SaveProject, ui.ctx());
+            ui.close();
+        }
+        ui.separator();
+        ui.menu_button("Models", |ui| {
+            if self.storage.shipped.is_empty() {
+                ui.label("No shipped models found");
+            }
+            for dir in self.storage.shipped.clone() {
+                let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
+                let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
+                if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
+                    self.load_model(dir);
+                    ui.close();
+                }
+            }
+        });
+        if ui.button("Open model folder…").clicked() {
+            self.open_dialog(Purpose::OpenModel, ui.ctx());
+            ui.close();
+        }
+        ui.separator();
+        if ui.button("Export take…").clicked() {
+            self.open_dialog(Purpose::Export, ui.ctx());
+            ui.close();
+        }
+        ui.separator();
+        if ui.button("Quit").clicked() {
+            ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+
+    fn edit_menu(&mut self, ui: &mut egui::Ui) {
+        let can_undo = self.editing.history.can_undo();
+        let can_redo = self.editing.history.can_redo();
+        if ui.add_enabled(can_undo, Button::new("Undo").shortcut_text(shortcut_text(ui, KeyboardShortcut::new(Modifiers::COMMAND, Key::Z)))).clicked() {
+            self.undo();
+            ui.close();
+        }
+        if ui.add_enabled(can_redo, Button::new("Redo").shortcut_text(shortcut_text(ui, KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z)))).clicked() {
+            self.redo();
+            ui.close();
+        }
+        ui.separator();
+        if ui.button("Add segment").clicked() {
+            self.add_segment();
+            ui.close();
+        }
+        if ui.add_enabled(self.editing.selected.is_some(), Button::new("Delete segment").shortcut_text("Del")).clicked() {
+            if let Some(k) = self.editing.selected {
+                self.delete_segment(k);
+            }
+            ui.close();
+        }
+        if ui.add_enabled(self.playback.selection.is_some(), Button::new("Clear range")).clicked() {
+            self.playback.selection = None;
+            ui.close();
+        }
+        ui.separator();
+        if ui.add_enabled(self.panels.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
+            self.panels.show_mapping = true;
+            ui.close();
+        }
+    }
+
+    fn view_menu(&mut self, ui: &mut egui::Ui) {
+        ui.checkbox(&mut self.panels.show_side, "Settings panel");
+        ui.checkbox(&mut self.panels.show_map, "Seed map panel");
+        ui.checkbox(&mut self.panels.compare, "Overlay the previous take (white)");
+        ui.separator();
+        let v = &mut self.editing.doc.view;
+        ui.checkbox(&mut v.grid, "Grid");
+        ui.checkbox(&mut v.trail, "Root trail");
+        ui.checkbox(&mut v.follow_root, "Follow the root");
+        ui.add(egui::Slider::new(&mut v.ghosts, 0..=8).text("ghosts"));
+        ui.add(egui::Slider::new(&mut v.ghost_step, 1..=20).text("frames between ghosts"));
+        ui.separator();
+        if ui.button("Reset camera").clicked() {
+            self.viewport.reset_camera();
+            ui.close();
+        }
+        if ui.button("Frame the take").on_hover_text("Double-click in the viewport").clicked() {
+            self.viewport.frame_all();
+            ui.close();
+        }
+    }
+
+    fn help_menu(&mut self, ui: &mut egui::Ui) {
+        if ui.button("Keyboard and mouse").clicked() {
+            self.panels.show_help = true;
+            ui.close();
+        }
+        if ui.button("Message log").clicked() {
+            self.panels.show_log = true;
+            ui.close();
+        }
     }
 
     /// Help, the message log and the class mapping, when open.
