@@ -37,6 +37,31 @@ impl Editing {
         }
     }
 
+    /// Steps the document back; false when there is nothing to undo.
+    pub fn undo(&mut self) -> bool {
+        let stepped = self.history.undo(&mut self.doc);
+        if stepped {
+            self.after_history_step();
+        }
+        stepped
+    }
+
+    /// Steps the document forward again; false when there is nothing to redo.
+    pub fn redo(&mut self) -> bool {
+        let stepped = self.history.redo(&mut self.doc);
+        if stepped {
+            self.after_history_step();
+        }
+        stepped
+    }
+
+    /// Keeps the selection to what the document still has.
+    fn after_history_step(&mut self) {
+        let n = self.doc.options.timeline.segments.len();
+        self.selected = self.selected.filter(|&k| k < n);
+        self.selected_mark = None;
+    }
+
     /// What the engine is asked to generate: the document's request, where a path of one
     /// waypoint (while it is being drawn) is no path yet.
     pub fn take_request(&self) -> TakeRequest {

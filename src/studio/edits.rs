@@ -19,26 +19,19 @@ impl StudioApp {
     }
 
     pub fn undo(&mut self) {
-        if self.editing.history.undo(&mut self.editing.doc) {
-            self.after_history_step();
+        if self.editing.undo() {
+            self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
         } else {
             self.messages.info("Nothing to undo");
         }
     }
 
     pub fn redo(&mut self) {
-        if self.editing.history.redo(&mut self.editing.doc) {
-            self.after_history_step();
+        if self.editing.redo() {
+            self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
         } else {
             self.messages.info("Nothing to redo");
         }
-    }
-
-    fn after_history_step(&mut self) {
-        let n = self.editing.doc.options.timeline.segments.len();
-        self.editing.selected = self.editing.selected.filter(|&k| k < n);
-        self.editing.selected_mark = None;
-        self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
     }
 
     /// Adds a segment of the class chosen in the UI after the selected one (or at the end).

@@ -9,6 +9,7 @@ use super::app::StudioApp;
 use super::panels::{ExportRange, Guarded, InitTab, MAX_INIT_FRAME};
 use super::dialogs::Purpose;
 use super::timeline::color32;
+use super::worker::ModelInfo;
 use crate::model::spec::DEFAULT_CLASS_STRENGTH;
 use crate::synth::export::Units;
 use crate::synth::render::class_color;
@@ -106,7 +107,6 @@ impl StudioApp {
             ui.label(RichText::new("Load a model first").weak());
             return;
         };
-        let classes = &model.spec.classes;
         ui.horizontal(|ui| {
             for (tab, name, tip) in [
                 (InitTab::Class, "By class", "A typical pose of a class"),
@@ -119,67 +119,78 @@ impl StudioApp {
             }
         });
         match self.panels.init_tab {
-            InitTab::Class => {
-                let (class, rank) = match &self.editing.doc.options.init {
-                    InitPose::SeedClass { class, variant } => {
-                        let k = model.spec.class_index(class).unwrap_or(0);
-                        (k, model.typical_rank(k, *variant))
-                    }
-                    _ => (0, 0),
-                };
-                let (mut new_class, mut new_rank) = (class, rank);
-                egui::ComboBox::from_label("Start class").selected_text(&classes[class]).height(400.0).show_ui(ui, |ui| {
-                    for (k, c) in classes.iter().enumerate() {
-                        ui.selectable_value(&mut new_class, k, c);
-                    }
-                });
-                if new_class != class {
-                    new_rank = 0;
-                }
-                let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
-                ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
-                    .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
-                if (new_class, new_rank) != (class, rank) || !matches!(self.editing.doc.options.init, InitPose::SeedClass { .. }) {
-                    self.set_init_class(new_class, new_rank);
-                }
-            }
-            InitTab::Seed => {
-                let mut index = match &self.editing.doc.options.init {
-                    InitPose::SeedIndex(i) => *i,
-                    _ => self.panels.fields.seed_index,
-                };
-                if let Some(s) = model.seeds.get(index) {
-                    ui.horizontal(|ui| {
-                        let (r, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
-                        ui.painter().circle_filled(r.center(), 5.0, color32(class_color(s.class)));
-                        ui.label(format!("{} · {} @ {}", classes[s.class], s.clip, s.frame));
-                    });
-                }
-                let max = model.seeds.len().saturating_sub(1);
-                if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.editing.doc.options.init, InitPose::SeedIndex(_)) {
-                    self.panels.fields.seed_index = index;
-                    self.editing.doc.options.init = InitPose::SeedIndex(index);
-                }
-                ui.label(RichText::new("Or click a point in the seed map").weak());
-            }
-            InitTab::File => {
-                match &self.editing.doc.options.init {
-                    InitPose::File { path, frame, .. } => ui.label(format!("In use: {} @ {frame}", path.display())),
-                    _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
-                };
-                path_field(ui, "Motion file (BVH, NPY or dataset .txt)", &mut self.panels.fields.init_path, "clip.bvh");
-                ui.add(egui::DragValue::new(&mut self.panels.fields.init_frame).range(0..=MAX_INIT_FRAME).prefix("from frame "));
-                ui.horizontal(|ui| {
-                    if ui.button("Use file").clicked() {
-                        let p = PathBuf::from(self.panels.fields.init_path.trim());
-                        self.retarget_file(super::retarget::PreviewFor::Init, p, self.panels.fields.init_frame);
-                    }
-                    if ui.button("Browse…").clicked() {
-                        self.open_dialog(Purpose::InitFile, ui.ctx());
-                    }
-                });
-            }
+            InitTab::Class => self.init_class_tab(ui, &model),
+            InitTab::Seed => self.init_seed_tab(ui, &model),
+            InitTab::File => self.init_file_tab(ui),
         }
+    }
+
+    /// A typical pose of a class, by class and rank.
+    fn init_class_tab(&mut self, ui: &mut egui::Ui, model: &ModelInfo) {
+        let classes = &model.spec.classes;
+        let (class, rank) = match &self.editing.doc.options.init {
+            InitPose::SeedClass { class, variant } => {
+                let k = model.spec.class_index(class).unwrap_or(0);
+                (k, model.typical_rank(k, *variant))
+            }
+            _ => (0, 0),
+        };
+        let (mut new_class, mut new_rank) = (class, rank);
+        egui::ComboBox::from_label("Start class").selected_text(&classes[class]).height(400.0).show_ui(ui, |ui| {
+            for (k, c) in classes.iter().enumerate() {
+                ui.selectable_value(&mut new_class, k, c);
+            }
+        });
+        if new_class != class {
+            new_rank = 0;
+        }
+        let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
+        ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
+            .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
+        if (new_class, new_rank) != (class, rank) || !matches!(self.editing.doc.options.init, InitPose::SeedClass { .. }) {
+            self.set_init_class(new_class, new_rank);
+        }
+    }
+
+    /// Any seed of the bank, by index.
+    fn init_seed_tab(&mut self, ui: &mut egui::Ui, model: &ModelInfo) {
+        let classes = &model.spec.classes;
+        let mut index = match &self.editing.doc.options.init {
+            InitPose::SeedIndex(i) => *i,
+            _ => self.panels.fields.seed_index,
+        };
+        if let Some(s) = model.seeds.get(index) {
+            ui.horizontal(|ui| {
+                let (r, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
+                ui.painter().circle_filled(r.center(), 5.0, color32(class_color(s.class)));
+                ui.label(format!("{} · {} @ {}", classes[s.class], s.clip, s.frame));
+            });
+        }
+        let max = model.seeds.len().saturating_sub(1);
+        if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.editing.doc.options.init, InitPose::SeedIndex(_)) {
+            self.panels.fields.seed_index = index;
+            self.editing.doc.options.init = InitPose::SeedIndex(index);
+        }
+        ui.label(RichText::new("Or click a point in the seed map").weak());
+    }
+
+    /// A motion file and the frame it starts from.
+    fn init_file_tab(&mut self, ui: &mut egui::Ui) {
+        match &self.editing.doc.options.init {
+            InitPose::File { path, frame, .. } => ui.label(format!("In use: {} @ {frame}", path.display())),
+            _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
+        };
+        path_field(ui, "Motion file (BVH, NPY or dataset .txt)", &mut self.panels.fields.init_path, "clip.bvh");
+        ui.add(egui::DragValue::new(&mut self.panels.fields.init_frame).range(0..=MAX_INIT_FRAME).prefix("from frame "));
+        ui.horizontal(|ui| {
+            if ui.button("Use file").clicked() {
+                let p = PathBuf::from(self.panels.fields.init_path.trim());
+                self.retarget_file(super::retarget::PreviewFor::Init, p, self.panels.fields.init_frame);
+            }
+            if ui.button("Browse…").clicked() {
+                self.open_dialog(Purpose::InitFile, ui.ctx());
+            }
+        });
     }
 
     fn generation_section(&mut self, ui: &mut egui::Ui) {
@@ -253,6 +264,12 @@ impl StudioApp {
                 }
             }
         });
+        self.export_format(ui);
+        self.export_buttons(ui);
+    }
+
+    /// Units, frame rate and the source root joint of the export.
+    fn export_format(&mut self, ui: &mut egui::Ui) {
         let (native_unit, native_fps, root) = match &self.engine.model {
             Some(m) => {
                 let unit = match m.spec.layout.skeleton.meters_per_unit() {
@@ -293,6 +310,10 @@ impl StudioApp {
             None => "This model's skeleton already has the source's root joint".to_string(),
         };
         ui.add_enabled(root.is_some(), egui::Checkbox::new(&mut o.source_root, "Keep the source root joint")).on_hover_text(&tip).on_disabled_hover_text(&tip);
+    }
+
+    /// Whole take or range, and the export buttons (off while the take is out of date).
+    fn export_buttons(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
             ui.radio_value(&mut self.panels.export_range, ExportRange::Whole, "Whole take");
             let label = self.range_label().map_or_else(|| "Selected range".to_string(), |l| l.replacen("Range", "Selected range", 1));
