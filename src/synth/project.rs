@@ -183,9 +183,9 @@ impl Document {
     }
 }
 
-/// The text of the project file at `path`.
+/// The text of the project file at `path` (errors name it).
 pub fn read_project(path: &Path) -> Result<String> {
-    read_text(path, MAX_PROJECT_BYTES).with_context(|| format!("cannot read project {}", path.display()))
+    read_text(path, MAX_PROJECT_BYTES)
 }
 
 /// A project file's text as JSON (`name` names it in errors).
