@@ -135,7 +135,7 @@ fn a_key_from_a_file_frame_is_reached() {
         for ext in ["bvh", "npy"] {
             let file = dir.path().join(format!("{name}.{ext}"));
             export(&source.motion, &source.segments, &file).unwrap();
-            let key = Key { seconds: 5.0, source: KeySource::Init(InitPose::File { path: file.clone(), frame: 120 }), fix_root: false };
+            let key = Key { seconds: 5.0, source: KeySource::Init(InitPose::file(file.clone(), 120)), fix_root: false };
             let opts = GenerateOptions { timeline: format!("{}:10", walking(&m)).parse().unwrap(), keys: vec![key.clone()], ..Default::default() };
             let take = generate(&mut m, &opts, &mut |_| true).unwrap().motion;
             let frame = (key.seconds * m.spec.fps).round() as usize;

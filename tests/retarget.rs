@@ -158,7 +158,7 @@ fn foreign_bvh_files_start_takes_on_both_models() {
             let file = path.file_name().unwrap().to_string_lossy().into_owned();
             let source = read_bvh(&std::fs::read_to_string(path).unwrap(), &file).unwrap();
             let sk = keys_of(&source.skeleton);
-            let o = GenerateOptions { timeline: format!("{}:4", m.spec.classes[0]).parse().unwrap(), init: InitPose::File { path: path.clone(), frame: *frame }, ..Default::default() };
+            let o = GenerateOptions { timeline: format!("{}:4", m.spec.classes[0]).parse().unwrap(), init: InitPose::file(path.clone(), *frame), ..Default::default() };
             let take = generate(&mut m, &o, &mut |_| true).unwrap_or_else(|e| panic!("{file} on {name}: {e:#}"));
             let at_start = source.resample(m.spec.fps);
             let bones = mapped_bones(&tk, &target, &sk, &source.skeleton);

@@ -501,7 +501,7 @@ fn new_and_open_ask_before_discarding_unsaved_work() {
     h.state_mut().add_segment();
     h.state_mut().fields_mut().project_path = mine.display().to_string();
     h.run_ok();
-    h.state_mut().request(glocal::studio::app::Guarded::Open(other.clone()));
+    h.state_mut().request(glocal::studio::panels::Guarded::Open(other.clone()));
     h.run_ok();
     assert!(shows(&h, "Unsaved changes"), "Open asks");
     h.get_by_label("Save first").click();
@@ -656,7 +656,8 @@ fn without_a_system_dialog_export_opens_a_typed_path_dialog() {
     assert!(field.is_focused(), "the path field is focused");
     assert_eq!(field.value().as_deref(), Some(out.display().to_string().as_str()));
     h.get_by_label("OK").click();
-    wait(&mut h, "the export", |_| out.exists());
+    // The file is written before the worker's reply reaches the UI: wait for both.
+    wait(&mut h, "the export", |a| out.exists() && has_message(a, &format!("Exported {}", out.display())));
     assert!(has_message(h.state(), &format!("Exported {}", out.display())));
 }
 
@@ -836,7 +837,7 @@ fn a_foreign_bvh_is_mapped_in_the_editor_previewed_and_starts_the_take() {
     wait_take(&mut h);
     let seed_take = h.state().take().unwrap().motion.clone();
 
-    h.state_mut().set_init_tab(glocal::studio::app::InitTab::File);
+    h.state_mut().set_init_tab(glocal::studio::panels::InitTab::File);
     h.run_ok();
     h.state_mut().fields_mut().init_path = bvh.display().to_string();
     h.get_by_label("Use file").click();

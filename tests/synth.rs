@@ -165,7 +165,7 @@ fn bad_input_is_named() {
     let chain = "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n JOINT b\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 10 0\n  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.04\n0 0 0 0 0 0 0 0 0\n";
     std::fs::write(&other, chain).unwrap();
     let mut wrong = opts("walking:3");
-    wrong.init = InitPose::File { path: other, frame: 0 };
+    wrong.init = InitPose::file(other, 0);
     let e = error_of(&mut m, &wrong);
     assert!(e.contains("cannot map this skeleton onto a humanoid: no joint found for Hips"), "{e}");
 
@@ -202,7 +202,7 @@ fn an_exported_take_starts_the_next_at_the_same_height() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("first.bvh");
     export(&first.motion, &first.segments, &path).unwrap();
-    let next = GenerateOptions { init: InitPose::File { path, frame: 0 }, ..opts("walking:4") };
+    let next = GenerateOptions { init: InitPose::file(path, 0), ..opts("walking:4") };
     let next = generate(&mut m, &next, &mut |_| true).unwrap();
     let hips = |motion: &glocal::motion::Motion, t: usize| motion.frame(t)[0].y;
     let unit = first.motion.skeleton.meters_per_unit();

@@ -252,11 +252,10 @@ fn viewport_layers_side_by_side_and_overlaid() {
 /// file's skeleton on the left in orange, the h36m model's pose on the right in blue.
 #[test]
 fn viewport_retarget_preview_side_by_side() {
-    use glocal::studio::joint_mapping::{preview, PreviewFor};
-    use glocal::studio::worker::Reply;
+    use glocal::studio::retarget::{preview, PreviewFor, Retargeting};
     let spec = glocal::model::glocal::GlocalModel::load(std::path::Path::new("models/h36m")).expect("the shipped h36m model").spec;
     let file = std::path::PathBuf::from("tests/assets/blender-unreal-salsa.bvh");
-    let Reply::Retargeted(p) = preview(&spec, PreviewFor::Init, file, 0, None) else { panic!("the Unreal-named file retargets by the name table") };
+    let Retargeting::Previewed(p) = preview(&spec, PreviewFor::Init, file, 0, None) else { panic!("the Unreal-named file retargets by the name table") };
     let mut h = harness(egui::vec2(640.0, 400.0), p.layers(), ViewSettings::default());
     let img = render(&mut h);
     h.snapshot_options("viewport_retarget_preview", &snapshot_options());

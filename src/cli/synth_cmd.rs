@@ -5,17 +5,15 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::data::bvh::read_bvh;
 use crate::data::joint_map::UserJointMap;
-use crate::data::input::{read_text, MAX_MOTION_BYTES};
 use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
-use crate::synth::rig::{onto_model_file, onto_skeleton_file};
+use crate::synth::rig::onto_skeleton_file;
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::{JointNamesArg, TransitionArg, UnitsArg};
 use crate::synth::joint_names::JointNames;
-use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, Preset, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
+use crate::synth::{Document, GenerateOptions, InitPose, Key, KeySource, Preset, Request, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
@@ -113,7 +111,7 @@ pub fn parse_init(s: &str) -> Result<InitPose> {
             Some((p, f)) => (p, f.parse::<usize>().with_context(|| format!("--init {s}: frame '{f}' is not a whole number"))?),
             None => (rest, 0),
         };
-        return Ok(InitPose::File { path: PathBuf::from(path), frame });
+        return Ok(InitPose::file(PathBuf::from(path), frame));
     }
     bail!("--init {s}: expected seed:CLASS, seed:N or clip:PATH@FRAME")
 }
@@ -123,47 +121,40 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
         bail!("--fps {fps}: expected a frame rate from 1 to 1000");
     }
-    let mut model = GlocalModel::load(&args.model)?;
-    let (mut opts, project_map) = match (&args.project, &args.timeline) {
-        (Some(project), _) => project_options(project)?,
-        (None, Some(timeline)) => (options_from_args(&args, timeline)?, None),
+    let model = GlocalModel::load(&args.model)?;
+    let mut request = match (&args.project, &args.timeline) {
+        (Some(project), _) => Document::load(project)?.request(),
+        (None, Some(timeline)) => Request { options: options_from_args(&args, timeline)?, joint_map: None },
         (None, None) => bail!("--timeline or --project is needed"),
     };
     // Every file the take reads: the output may be none of them.
-    let inputs: Vec<&Path> = args.project.iter().map(PathBuf::as_path).chain(input_files(&opts)).collect();
+    let inputs: Vec<&Path> = args.project.iter().map(PathBuf::as_path).chain(input_files(&request.options)).collect();
     check_output(&args.out, &inputs)?;
-    let joint_map = match &args.joint_map {
-        Some(path) => Some(UserJointMap::read(path)?),
-        None => project_map,
-    };
-    // Kept until generation is over: foreign BVH files retargeted with the user's joint map.
-    let retargeted = match &joint_map {
-        Some(map) => retarget_foreign_files(&model, &mut opts, map)?,
-        None => Vec::new(),
-    };
-    let opts = Preset::from_paper_flag(args.paper).apply(opts);
+    if let Some(path) = &args.joint_map {
+        request.joint_map = Some(UserJointMap::read(path)?);
+    }
+    request.options = Preset::from_paper_flag(args.paper).apply(request.options);
     let start = Instant::now();
     let bar = ProgressBar::new(1000);
     bar.set_style(ProgressStyle::with_template("{bar:30} {percent}% {elapsed}")?);
     if args.json {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    let take = generate(&mut model, &opts, &mut |f| {
+    let take = request.generate(&model, &mut |f| {
         bar.set_position((f * 1000.0) as u64);
         true
     })?;
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    drop(retargeted);
     let motion = match &args.retarget_to {
-        Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, joint_map.as_ref())?,
+        Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, request.joint_map.as_ref())?,
         None => take.motion.clone(),
     };
     let options = ExportOptions { units: args.units.into(), fps: args.fps, source_root: false };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
-    let m = JointNames::from(args.joint_names).apply(&m, joint_map.as_ref())?;
+    let m = JointNames::from(args.joint_names).apply(&m, request.joint_map.as_ref())?;
     export_with_contacts(&m, &segments, Some(&take.contacts), &args.out)?;
-    note_rounded_durations(&opts, &take.segments, take.motion.fps);
+    note_rounded_durations(&request.options, &take.segments, take.motion.fps);
     for warning in &take.warnings {
         eprintln!("warning: {warning}");
     }
@@ -219,56 +210,6 @@ fn input_files(opts: &GenerateOptions) -> impl Iterator<Item = &Path> {
         InitPose::File { path, .. } => Some(path.as_path()),
         _ => None,
     })
-}
-
-/// The generation options a studio project saved (format version 2 on), and its joint map.
-fn project_options(path: &Path) -> Result<(GenerateOptions, Option<UserJointMap>)> {
-    let name = path.display();
-    let value: serde_json::Value = serde_json::from_str(&read_text(path, MAX_PROJECT_BYTES)?).with_context(|| format!("{name} is not a project file (not JSON)"))?;
-    match value.get("version").and_then(serde_json::Value::as_u64) {
-        Some(v) if v >= 2 => {}
-        Some(v) => bail!("{name}: a version {v} project keeps no generation options; open and save it in the studio to bring it to version 2"),
-        None => bail!("{name}: not a project file (no version)"),
-    }
-    let options = value.get("options").with_context(|| format!("{name}: the project has no \"options\""))?;
-    let options = serde_json::from_value(options.clone()).with_context(|| format!("{name}: options"))?;
-    let map = match value.get("joint_map") {
-        Some(map) if !map.is_null() => Some(UserJointMap::from_value(map, &format!("{name}: joint_map"))?),
-        _ => None,
-    };
-    Ok((options, map))
-}
-
-/// A project file larger than this is not one (a project with a thousand keys is ~1 MB).
-const MAX_PROJECT_BYTES: u64 = 64 << 20;
-
-/// A foreign BVH brought onto the model's joints with the user's joint map, in a temporary
-/// BVH file that `--init clip:` reads like a take the model exported.
-fn retarget_foreign_files(model: &GlocalModel, opts: &mut GenerateOptions, map: &UserJointMap) -> Result<Vec<tempfile::NamedTempFile>> {
-    let mut files = Vec::new();
-    let keyed = opts.keys.iter_mut().filter_map(|k| match &mut k.source {
-        KeySource::Init(init) => Some(init),
-        KeySource::Pose(_) => None,
-    });
-    for init in std::iter::once(&mut opts.init).chain(keyed) {
-        let InitPose::File { path, frame } = init else { continue };
-        if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) {
-            continue;
-        }
-        let name = path.display().to_string();
-        let source = read_bvh(&read_text(path, MAX_MOTION_BYTES)?, &name)?;
-        // One project map may name the joints of several files: each gets its own entries.
-        let own = UserJointMap { entries: map.entries.iter().filter(|(joint, _)| source.skeleton.index_of(joint).is_some()).cloned().collect() };
-        // Frames count at the model's rate, as for every start or key file.
-        let frames = source.resample(model.spec.fps).frames();
-        if *frame >= frames {
-            bail!("{name}: frame {frame} is past its {frames} frames at the model's {} fps", model.spec.fps);
-        }
-        let file = onto_model_file(&model.spec, &source, &name, &own)?;
-        *path = file.path().to_path_buf();
-        files.push(file);
-    }
-    Ok(files)
 }
 
 /// Segments last whole sparse steps (`stride * pace` frames), so a duration that is not a

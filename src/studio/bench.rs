@@ -177,14 +177,14 @@ impl eframe::App for Empty {
 /// The studio's measured state: a take playing with ghosts on, nothing generating, the seed
 /// map built (the worker builds it right after the first take, on another thread).
 fn studio_ready(app: &mut StudioApp) -> bool {
-    let frames = app.take.as_ref().map_or(0, |t| t.motion.frames());
-    let idle = app.pending.is_none() && app.model_loading.is_none() && (app.map.is_some() || app.map_error.is_some());
+    let frames = app.engine.take.as_ref().map_or(0, |t| t.motion.frames());
+    let idle = app.engine.pending.is_none() && app.engine.model_loading.is_none() && (app.engine.map.is_some() || app.engine.map_error.is_some());
     if frames < 2 || !idle {
         return false;
     }
     if !app.playback.playing {
-        app.doc.view.ghosts = app.doc.view.ghosts.max(3);
-        app.playback.toggle(frames, &app.doc.playback);
+        app.editing.doc.view.ghosts = app.editing.doc.view.ghosts.max(3);
+        app.playback.toggle(frames, &app.editing.doc.playback);
     }
     app.playback.playing
 }

@@ -15,25 +15,25 @@ impl StudioApp {
         self.transport_row(ui);
         ui.add_space(2.0);
         let classes = self.classes().to_vec();
-        let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
-        let spans = self.take.as_ref().filter(|t| t.options.timeline == self.doc.options.timeline).map(|t| t.segments.clone());
+        let (frames, fps) = self.engine.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
+        let spans = self.engine.take.as_ref().filter(|t| t.options.timeline == self.editing.doc.options.timeline).map(|t| t.segments.clone());
         let waypoint_times = self.waypoint_times();
         let input = Input {
-            timeline: &self.doc.options.timeline,
+            timeline: &self.editing.doc.options.timeline,
             classes: &classes,
             spans: spans.as_deref(),
             frames,
             fps,
             frame: self.playback.frame(),
             selection: self.playback.selection,
-            selected: self.selected,
-            keys: &self.doc.options.keys,
-            path: self.doc.options.path.as_ref(),
+            selected: self.editing.selected,
+            keys: &self.editing.doc.options.keys,
+            path: self.editing.doc.options.path.as_ref(),
             waypoint_times: &waypoint_times,
-            selected_mark: self.selected_mark,
-            contacts: self.take.as_ref().map(|t| t.contacts.as_ref()),
+            selected_mark: self.editing.selected_mark,
+            contacts: self.engine.take.as_ref().map(|t| t.contacts.as_ref()),
         };
-        let actions = timeline_ui(ui, &mut self.timeline_state, &input);
+        let actions = timeline_ui(ui, &mut self.panels.timeline_state, &input);
         self.apply_timeline(actions);
         ui.add_space(2.0);
         self.segment_row(ui, &classes);
@@ -41,11 +41,11 @@ impl StudioApp {
     }
 
     fn transport_row(&mut self, ui: &mut egui::Ui) {
-        let (frames, fps) = self.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
+        let (frames, fps) = self.engine.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
         ui.horizontal_wrapped(|ui| {
             let play = if self.playback.playing { "Pause" } else { "Play" };
             if ui.add_enabled(frames > 1, Button::new(play).min_size(egui::vec2(76.0, 0.0))).on_hover_text("Space").clicked() {
-                self.playback.toggle(frames, &self.doc.playback);
+                self.playback.toggle(frames, &self.editing.doc.playback);
             }
             if ui.add_enabled(frames > 1, Button::new(" < ")).on_hover_text("Previous frame (Left arrow)").clicked() {
                 self.playback.step(-1, frames);
@@ -68,24 +68,24 @@ impl StudioApp {
             }
             ui.separator();
             ui.label("Loop");
-            let lm = &mut self.doc.playback.loop_mode;
+            let lm = &mut self.editing.doc.playback.loop_mode;
             ui.selectable_value(lm, LoopMode::Off, "Off");
             ui.selectable_value(lm, LoopMode::All, "All");
             ui.add_enabled_ui(self.playback.selection.is_some(), |ui| ui.selectable_value(lm, LoopMode::Selection, "Range"))
                 .inner
                 .on_disabled_hover_text("Shift-drag on the ruler to select a range");
             ui.separator();
-            ui.add(Slider::new(&mut self.doc.playback.speed, 0.1..=4.0).logarithmic(true).text("speed"));
+            ui.add(Slider::new(&mut self.editing.doc.playback.speed, 0.1..=4.0).logarithmic(true).text("speed"));
             ui.separator();
             if ui.button("+ Add segment").clicked() {
                 self.add_segment();
             }
             let classes = self.classes().to_vec();
             if !classes.is_empty() {
-                let k = self.fields.new_class.min(classes.len() - 1);
+                let k = self.panels.fields.new_class.min(classes.len() - 1);
                 egui::ComboBox::from_id_salt("new_class").selected_text(&classes[k]).width(110.0).height(400.0).show_ui(ui, |ui| {
                     for (i, c) in classes.iter().enumerate() {
-                        ui.selectable_value(&mut self.fields.new_class, i, c);
+                        ui.selectable_value(&mut self.panels.fields.new_class, i, c);
                     }
                 });
             }
@@ -96,7 +96,7 @@ impl StudioApp {
                     self.playback.selection = None;
                 }
             }
-            if let Some((_, p)) = self.pending {
+            if let Some((_, p)) = self.engine.pending {
                 ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
                     if ui.button("Cancel").clicked() {
                         self.cancel();
@@ -111,17 +111,17 @@ impl StudioApp {
         ui.horizontal_wrapped(|ui| {
             // What the pointer is over on the timeline, here rather than in a tooltip that
             // would cover the transport bar.
-            if let Some(hint) = self.timeline_state.hint() {
+            if let Some(hint) = self.panels.timeline_state.hint() {
                 ui.label(RichText::new(hint).weak());
                 return;
             }
-            let Some(k) = self.selected.filter(|&k| k < self.doc.options.timeline.segments.len()) else {
+            let Some(k) = self.editing.selected.filter(|&k| k < self.editing.doc.options.timeline.segments.len()) else {
                 ui.label(RichText::new("Select a segment to edit it · drag blocks to reorder, their right edge to resize · right-click for more").weak());
                 return;
             };
-            let n = self.doc.options.timeline.segments.len();
-            let global_transition = self.doc.options.transition_seconds;
-            let seg = &mut self.doc.options.timeline.segments[k];
+            let n = self.editing.doc.options.timeline.segments.len();
+            let (global_transition, global_pace) = (self.editing.doc.options.transition_seconds, self.editing.doc.options.pace);
+            let seg = &mut self.editing.doc.options.timeline.segments[k];
             let (r, _) = ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
             let color = class_index(classes, &seg.class).map_or(egui::Color32::GRAY, |c| color32(class_color(c)));
             ui.painter().circle_filled(r.center(), 6.0, color);
@@ -134,7 +134,7 @@ impl StudioApp {
             ui.add(egui::DragValue::new(&mut seg.seconds).range(MIN_SECONDS..=600.0).speed(0.05).suffix(" s").fixed_decimals(1));
             let mut own = seg.pace.is_some();
             if ui.checkbox(&mut own, "own pace").on_hover_text("This segment's pace replaces the global pace (it does not multiply it)").changed() {
-                seg.pace = own.then_some(self.doc.options.pace);
+                seg.pace = own.then_some(global_pace);
             }
             if let Some(p) = seg.pace.as_mut() {
                 ui.add(Slider::new(p, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true));

@@ -13,22 +13,22 @@ impl StudioApp {
         let mut layers = Vec::new();
         if let Some(preview) = self.preview_layers() {
             layers = preview;
-        } else if let Some(t) = &self.take {
+        } else if let Some(t) = &self.engine.take {
             layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0, contacts: Some(t.contacts.clone()) });
-            if self.compare {
-                if let Some((p, white)) = &self.previous {
+            if self.panels.compare {
+                if let Some((p, white)) = &self.engine.previous {
                     layers.push(Layer { motion: p.motion.clone(), frame_colors: white.clone(), offset: glam::Vec3::ZERO, opacity: 0.45, contacts: None });
                 }
             }
         }
         let frame = self.playback.frame();
-        let waypoints: Vec<[f32; 2]> = self.doc.options.path.as_ref().map_or_else(Vec::new, |p| p.waypoints.iter().map(|w| [w.x, w.z]).collect());
-        let selected = match self.selected_mark {
+        let waypoints: Vec<[f32; 2]> = self.editing.doc.options.path.as_ref().map_or_else(Vec::new, |p| p.waypoints.iter().map(|w| [w.x, w.z]).collect());
+        let selected = match self.editing.selected_mark {
             Some(Mark::Waypoint(k)) => Some(k),
             _ => None,
         };
-        let path = (self.path_edit || !waypoints.is_empty()).then_some(PathOverlay { waypoints: &waypoints, selected, editing: self.path_edit });
-        let scene = Scene { layers: &layers, frame, settings: &self.doc.view, path };
+        let path = (self.panels.path_edit || !waypoints.is_empty()).then_some(PathOverlay { waypoints: &waypoints, selected, editing: self.panels.path_edit });
+        let scene = Scene { layers: &layers, frame, settings: &self.editing.doc.view, path };
         self.viewport.ui(ui, &scene);
         for edit in self.viewport.take_path_edits() {
             self.apply_path_edit(edit);
@@ -37,7 +37,7 @@ impl StudioApp {
         // Overlay: where we are, and what the worker is doing.
         let painter = ui.painter_at(rect);
         let text_color = Color32::from_gray(225);
-        if let Some(t) = &self.take {
+        if let Some(t) = &self.engine.take {
             let seg = t.segments.iter().find(|s| frame >= s.start_frame && frame < s.end_frame.max(s.start_frame + 1));
             let label = format!(
                 "frame {frame} / {}   {:.2} s   {}",
@@ -51,18 +51,18 @@ impl StudioApp {
                 painter.text(rect.left_top() + egui::vec2(12.0, 30.0), Align2::LEFT_TOP, format!("OUT OF DATE: {why}"), FontId::proportional(14.0), warn);
             }
         } else {
-            let msg = if self.model_loading.is_some() {
+            let msg = if self.engine.model_loading.is_some() {
                 "Loading the model…"
-            } else if self.pending.is_some() {
+            } else if self.engine.pending.is_some() {
                 "Generating…"
-            } else if self.model.is_none() {
+            } else if self.engine.model.is_none() {
                 "No model loaded: choose one in the Model section or the File menu"
             } else {
                 "Nothing generated yet"
             };
             painter.text(rect.center(), Align2::CENTER_CENTER, msg, FontId::proportional(18.0), text_color);
         }
-        if let Some((_, p)) = self.pending {
+        if let Some((_, p)) = self.engine.pending {
             let r = egui::Rect::from_min_size(rect.left_bottom() + egui::vec2(12.0, -30.0), egui::vec2(220.0, 18.0));
             ui.put(r, egui::ProgressBar::new(p).text(RichText::new(format!("generating {:.0}%", p * 100.0)).small()));
         }

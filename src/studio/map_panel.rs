@@ -5,41 +5,26 @@
 use egui::{Color32, RichText};
 use egui_plot::{Legend, Line, MarkerShape, Plot, PlotPoints, Points};
 
-use super::app::{InitTab, StudioApp};
+use super::app::StudioApp;
+use super::panels::InitTab;
 use super::timeline::color32;
 use crate::synth::render::class_color;
+use super::worker::Take;
 use crate::synth::InitPose;
 
 impl StudioApp {
     pub(super) fn map_panel(&mut self, ui: &mut egui::Ui) {
         ui.add_space(4.0);
         ui.label(RichText::new("Seed map (t-SNE of GloGen embeddings)").strong());
-        let (Some(model), Some(map)) = (self.model.clone(), self.map.clone()) else {
-            ui.add_space(8.0);
-            if let Some(e) = &self.map_error {
-                ui.colored_label(Color32::from_rgb(230, 90, 80), format!("No map: {e}"));
-            } else if self.model.is_some() {
-                ui.horizontal(|ui| {
-                    ui.spinner();
-                    ui.label("Computing the map…");
-                });
-            } else {
-                ui.label(RichText::new("Load a model to see its seed bank").weak());
-            }
+        let (Some(model), Some(map)) = (self.engine.model.clone(), self.engine.map.clone()) else {
+            self.no_map_yet(ui);
             return;
         };
         let classes = &model.spec.classes;
         // Seeds of each class, in map order.
         let by_class: Vec<Vec<usize>> = (0..classes.len()).map(|c| (0..model.seeds.len()).filter(|&i| model.seeds[i].class == c).collect()).collect();
-        let chosen = match &self.doc.options.init {
-            InitPose::SeedIndex(i) => Some(*i),
-            InitPose::SeedClass { class, variant } => classes
-                .iter()
-                .position(|c| c.eq_ignore_ascii_case(class))
-                .and_then(|k| by_class.get(k).filter(|v| !v.is_empty()).map(|v| v[variant % v.len()])),
-            InitPose::File { .. } => None,
-        };
-        let take = self.take.clone();
+        let chosen = chosen_seed(&self.editing.doc.options.init, classes, &by_class);
+        let take = self.engine.take.clone();
         let current_block = take.as_ref().filter(|t| !t.path.is_empty()).map(|t| {
             let frames = t.motion.frames().max(1);
             ((self.playback.frame() as f32 / frames as f32) * t.path.len() as f32) as usize % t.path.len()
@@ -84,34 +69,67 @@ impl StudioApp {
                     );
                 }
                 if let Some(t) = take.as_ref().filter(|t| !t.path.is_empty()) {
-                    let path: Vec<[f64; 2]> = t.path.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect();
-                    plot.line(Line::new("take", PlotPoints::new(path.clone())).color(Color32::from_gray(230)).width(1.5).allow_hover(false));
-                    for (b, p) in path.iter().enumerate() {
-                        let c = t.block_classes.get(b).map_or(Color32::GRAY, |&c| color32(class_color(c)));
-                        plot.points(Points::new("take", PlotPoints::new(vec![*p])).shape(MarkerShape::Diamond).radius(4.5).color(c).allow_hover(false));
-                    }
-                    if let Some(b) = current_block {
-                        plot.points(Points::new("take", PlotPoints::new(vec![path[b]])).shape(MarkerShape::Circle).radius(6.0).filled(false).color(Color32::from_rgb(255, 90, 60)).allow_hover(false));
-                    }
+                    plot_take_path(plot, t, current_block);
                 }
             });
-        // A click picks the nearest seed within a few pixels.
-        if resp.response.clicked() {
-            if let Some(pos) = resp.response.interact_pointer_pos() {
-                let nearest = map
-                    .points
-                    .iter()
-                    .enumerate()
-                    .map(|(i, p)| (i, resp.transform.position_from_point(&egui_plot::PlotPoint::new(p[0], p[1])).distance(pos)))
-                    .min_by(|a, b| a.1.total_cmp(&b.1));
-                if let Some((i, d)) = nearest {
-                    if d < 10.0 {
-                        self.doc.options.init = InitPose::SeedIndex(i);
-                        self.init_tab = InitTab::Seed;
-                        self.fields.seed_index = i;
-                    }
-                }
-            }
+        if let Some(i) = clicked_seed(&resp, &map.points) {
+            self.editing.doc.options.init = InitPose::SeedIndex(i);
+            self.panels.init_tab = InitTab::Seed;
+            self.panels.fields.seed_index = i;
         }
     }
+
+    /// What stands in for the map until it exists: why not, or that it is being computed.
+    fn no_map_yet(&self, ui: &mut egui::Ui) {
+        ui.add_space(8.0);
+        if let Some(e) = &self.engine.map_error {
+            ui.colored_label(Color32::from_rgb(230, 90, 80), format!("No map: {e}"));
+        } else if self.engine.model.is_some() {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("Computing the map…");
+            });
+        } else {
+            ui.label(RichText::new("Load a model to see its seed bank").weak());
+        }
+    }
+}
+
+/// The seed the take starts from, if it starts from one (`by_class`: each class's seeds).
+fn chosen_seed(init: &InitPose, classes: &[String], by_class: &[Vec<usize>]) -> Option<usize> {
+    match init {
+        InitPose::SeedIndex(i) => Some(*i),
+        InitPose::SeedClass { class, variant } => classes
+            .iter()
+            .position(|c| c.eq_ignore_ascii_case(class))
+            .and_then(|k| by_class.get(k).filter(|v| !v.is_empty()).map(|v| v[variant % v.len()])),
+        InitPose::File { .. } => None,
+    }
+}
+
+/// The take's blocks on the map, coloured by class, joined in order, the one playing ringed.
+fn plot_take_path(plot: &mut egui_plot::PlotUi, t: &Take, current_block: Option<usize>) {
+    let path: Vec<[f64; 2]> = t.path.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect();
+    plot.line(Line::new("take", PlotPoints::new(path.clone())).color(Color32::from_gray(230)).width(1.5).allow_hover(false));
+    for (b, p) in path.iter().enumerate() {
+        let c = t.block_classes.get(b).map_or(Color32::GRAY, |&c| color32(class_color(c)));
+        plot.points(Points::new("take", PlotPoints::new(vec![*p])).shape(MarkerShape::Diamond).radius(4.5).color(c).allow_hover(false));
+    }
+    if let Some(b) = current_block {
+        plot.points(Points::new("take", PlotPoints::new(vec![path[b]])).shape(MarkerShape::Circle).radius(6.0).filled(false).color(Color32::from_rgb(255, 90, 60)).allow_hover(false));
+    }
+}
+
+/// The seed a click on the map picked: the nearest within a few pixels.
+fn clicked_seed<R>(resp: &egui_plot::PlotResponse<R>, points: &[[f32; 2]]) -> Option<usize> {
+    if !resp.response.clicked() {
+        return None;
+    }
+    let pos = resp.response.interact_pointer_pos()?;
+    let (i, d) = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (i, resp.transform.position_from_point(&egui_plot::PlotPoint::new(p[0], p[1])).distance(pos)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (d < 10.0).then_some(i)
 }

@@ -2,7 +2,8 @@
 
 use egui::{Button, Key, KeyboardShortcut, Modifiers, PopupCloseBehavior};
 
-use super::app::{Guarded, StudioApp};
+use super::app::StudioApp;
+use super::panels::Guarded;
 use super::dialogs::Purpose;
 
 /// Keyboard and mouse, as the Help window lists them.
@@ -22,127 +23,138 @@ const CONTROLS: &[(&str, &str)] = &[
     ("View > Reset camera", "the starting view"),
 ];
 
+/// How the platform writes `shortcut` (Ctrl+S, ⌘S).
+fn shortcut_text(ui: &egui::Ui, shortcut: KeyboardShortcut) -> String {
+    ui.ctx().format_shortcut(&shortcut)
+}
+
 impl StudioApp {
     pub(super) fn menu_bar(&mut self, ui: &mut egui::Ui) {
-        let ctx = ui.ctx().clone();
-        let fmt = |s: KeyboardShortcut| ctx.format_shortcut(&s);
         // Checkboxes and sliders keep a menu open; buttons close it themselves.
         let config = egui::containers::menu::MenuConfig::new().close_behavior(PopupCloseBehavior::CloseOnClickOutside);
         egui::MenuBar::new().config(config).ui(ui, |ui| {
-            ui.menu_button("File", |ui| {
-                if ui.button("New project").clicked() {
-                    self.request(Guarded::New);
-                    ui.close();
-                }
-                if ui.button("Open project…").clicked() {
-                    self.open_dialog(Purpose::OpenProject, ui.ctx());
-                    ui.close();
-                }
-                if ui.add(Button::new("Save project").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))).clicked() {
-                    self.save_shortcut(ui.ctx());
-                    ui.close();
-                }
-                if ui.button("Save project as…").clicked() {
-                    self.open_dialog(Purpose::SaveProject, ui.ctx());
-                    ui.close();
-                }
-                ui.separator();
-                ui.menu_button("Models", |ui| {
-                    if self.shipped.is_empty() {
-                        ui.label("No shipped models found");
-                    }
-                    for dir in self.shipped.clone() {
-                        let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
-                        let current = self.model.as_ref().is_some_and(|m| m.dir == dir);
-                        if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
-                            self.load_model(dir);
-                            ui.close();
-                        }
-                    }
-                });
-                if ui.button("Open model folder…").clicked() {
-                    self.open_dialog(Purpose::OpenModel, ui.ctx());
-                    ui.close();
-                }
-                ui.separator();
-                if ui.button("Export take…").clicked() {
-                    self.open_dialog(Purpose::Export, ui.ctx());
-                    ui.close();
-                }
-                ui.separator();
-                if ui.button("Quit").clicked() {
-                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
-                }
-            });
-            ui.menu_button("Edit", |ui| {
-                let can_undo = self.history.can_undo();
-                let can_redo = self.history.can_redo();
-                if ui.add_enabled(can_undo, Button::new("Undo").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND, Key::Z)))).clicked() {
-                    self.undo();
-                    ui.close();
-                }
-                if ui.add_enabled(can_redo, Button::new("Redo").shortcut_text(fmt(KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z)))).clicked() {
-                    self.redo();
-                    ui.close();
-                }
-                ui.separator();
-                if ui.button("Add segment").clicked() {
-                    self.add_segment();
-                    ui.close();
-                }
-                if ui.add_enabled(self.selected.is_some(), Button::new("Delete segment").shortcut_text("Del")).clicked() {
-                    if let Some(k) = self.selected {
-                        self.delete_segment(k);
-                    }
-                    ui.close();
-                }
-                if ui.add_enabled(self.playback.selection.is_some(), Button::new("Clear range")).clicked() {
-                    self.playback.selection = None;
-                    ui.close();
-                }
-                ui.separator();
-                if ui.add_enabled(self.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
-                    self.show_mapping = true;
-                    ui.close();
-                }
-            });
-            ui.menu_button("View", |ui| {
-                ui.checkbox(&mut self.show_side, "Settings panel");
-                ui.checkbox(&mut self.show_map, "Seed map panel");
-                ui.checkbox(&mut self.compare, "Overlay the previous take (white)");
-                ui.separator();
-                let v = &mut self.doc.view;
-                ui.checkbox(&mut v.grid, "Grid");
-                ui.checkbox(&mut v.trail, "Root trail");
-                ui.checkbox(&mut v.follow_root, "Follow the root");
-                ui.add(egui::Slider::new(&mut v.ghosts, 0..=8).text("ghosts"));
-                ui.add(egui::Slider::new(&mut v.ghost_step, 1..=20).text("frames between ghosts"));
-                ui.separator();
-                if ui.button("Reset camera").clicked() {
-                    self.viewport.reset_camera();
-                    ui.close();
-                }
-                if ui.button("Frame the take").on_hover_text("Double-click in the viewport").clicked() {
-                    self.viewport.frame_all();
-                    ui.close();
-                }
-            });
-            ui.menu_button("Help", |ui| {
-                if ui.button("Keyboard and mouse").clicked() {
-                    self.show_help = true;
-                    ui.close();
-                }
-                if ui.button("Message log").clicked() {
-                    self.show_log = true;
-                    ui.close();
-                }
-            });
+            ui.menu_button("File", |ui| self.file_menu(ui));
+            ui.menu_button("Edit", |ui| self.edit_menu(ui));
+            ui.menu_button("View", |ui| self.view_menu(ui));
+            ui.menu_button("Help", |ui| self.help_menu(ui));
         });
+    }
+
+    fn file_menu(&mut self, ui: &mut egui::Ui) {
+        if ui.button("New project").clicked() {
+            self.request(Guarded::New);
+            ui.close();
+        }
+        if ui.button("Open project…").clicked() {
+            self.open_dialog(Purpose::OpenProject, ui.ctx());
+            ui.close();
+        }
+        if ui.add(Button::new("Save project").shortcut_text(shortcut_text(ui, KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))).clicked() {
+            self.save_shortcut(ui.ctx());
+            ui.close();
+        }
+        if ui.button("Save project as…").clicked() {
+            self.open_dialog(Purpose::SaveProject, ui.ctx());
+            ui.close();
+        }
+        ui.separator();
+        ui.menu_button("Models", |ui| {
+            if self.storage.shipped.is_empty() {
+                ui.label("No shipped models found");
+            }
+            for dir in self.storage.shipped.clone() {
+                let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
+                let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
+                if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
+                    self.load_model(dir);
+                    ui.close();
+                }
+            }
+        });
+        if ui.button("Open model folder…").clicked() {
+            self.open_dialog(Purpose::OpenModel, ui.ctx());
+            ui.close();
+        }
+        ui.separator();
+        if ui.button("Export take…").clicked() {
+            self.open_dialog(Purpose::Export, ui.ctx());
+            ui.close();
+        }
+        ui.separator();
+        if ui.button("Quit").clicked() {
+            ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+
+    fn edit_menu(&mut self, ui: &mut egui::Ui) {
+        let can_undo = self.editing.history.can_undo();
+        let can_redo = self.editing.history.can_redo();
+        if ui.add_enabled(can_undo, Button::new("Undo").shortcut_text(shortcut_text(ui, KeyboardShortcut::new(Modifiers::COMMAND, Key::Z)))).clicked() {
+            self.undo();
+            ui.close();
+        }
+        if ui.add_enabled(can_redo, Button::new("Redo").shortcut_text(shortcut_text(ui, KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z)))).clicked() {
+            self.redo();
+            ui.close();
+        }
+        ui.separator();
+        if ui.button("Add segment").clicked() {
+            self.add_segment();
+            ui.close();
+        }
+        if ui.add_enabled(self.editing.selected.is_some(), Button::new("Delete segment").shortcut_text("Del")).clicked() {
+            if let Some(k) = self.editing.selected {
+                self.delete_segment(k);
+            }
+            ui.close();
+        }
+        if ui.add_enabled(self.playback.selection.is_some(), Button::new("Clear range")).clicked() {
+            self.playback.selection = None;
+            ui.close();
+        }
+        ui.separator();
+        if ui.add_enabled(self.panels.mapping.is_some(), Button::new("Class mapping…")).on_disabled_hover_text("Appears after a model switch carried classes over").clicked() {
+            self.panels.show_mapping = true;
+            ui.close();
+        }
+    }
+
+    fn view_menu(&mut self, ui: &mut egui::Ui) {
+        ui.checkbox(&mut self.panels.show_side, "Settings panel");
+        ui.checkbox(&mut self.panels.show_map, "Seed map panel");
+        ui.checkbox(&mut self.panels.compare, "Overlay the previous take (white)");
+        ui.separator();
+        let v = &mut self.editing.doc.view;
+        ui.checkbox(&mut v.grid, "Grid");
+        ui.checkbox(&mut v.trail, "Root trail");
+        ui.checkbox(&mut v.follow_root, "Follow the root");
+        ui.add(egui::Slider::new(&mut v.ghosts, 0..=8).text("ghosts"));
+        ui.add(egui::Slider::new(&mut v.ghost_step, 1..=20).text("frames between ghosts"));
+        ui.separator();
+        if ui.button("Reset camera").clicked() {
+            self.viewport.reset_camera();
+            ui.close();
+        }
+        if ui.button("Frame the take").on_hover_text("Double-click in the viewport").clicked() {
+            self.viewport.frame_all();
+            ui.close();
+        }
+    }
+
+    fn help_menu(&mut self, ui: &mut egui::Ui) {
+        if ui.button("Keyboard and mouse").clicked() {
+            self.panels.show_help = true;
+            ui.close();
+        }
+        if ui.button("Message log").clicked() {
+            self.panels.show_log = true;
+            ui.close();
+        }
     }
 
     /// Help, the message log and the class mapping, when open.
     pub(super) fn windows(&mut self, ctx: &egui::Context) {
-        if self.show_help {
+        if self.panels.show_help {
             let mut open = true;
             egui::Window::new("Keyboard and mouse").open(&mut open).collapsible(false).resizable(false).show(ctx, |ui| {
                 egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
@@ -153,22 +165,22 @@ impl StudioApp {
                     }
                 });
             });
-            self.show_help = open;
+            self.panels.show_help = open;
         }
-        if self.show_log {
+        if self.panels.show_log {
             let mut open = true;
             egui::Window::new("Message log").open(&mut open).default_width(520.0).show(ctx, |ui| self.messages.log_ui(ui));
-            self.show_log = open;
+            self.panels.show_log = open;
         }
-        if self.show_mapping {
+        if self.panels.show_mapping {
             let mut open = true;
             egui::Window::new("Class mapping").open(&mut open).collapsible(false).show(ctx, |ui| self.mapping_ui(ui));
-            self.show_mapping = open && self.mapping.is_some();
+            self.panels.show_mapping = open && self.panels.mapping.is_some();
         }
     }
 
     fn mapping_ui(&mut self, ui: &mut egui::Ui) {
-        let Some(note) = &self.mapping else { return };
+        let Some(note) = &self.panels.mapping else { return };
         ui.label("Segments of the previous model's classes were retagged as below. A change applies to those segments and is remembered for later switches.");
         let (pairs, classes) = (note.map.pairs.clone(), note.classes.clone());
         let mut change = None;

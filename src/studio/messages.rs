@@ -201,3 +201,8 @@ fn colours(level: Level) -> (Color32, Color32) {
         Level::Info => (Color32::from_rgb(28, 44, 60), Color32::from_rgb(90, 150, 210)),
     }
 }
+
+/// The first line of a message (engine errors may hold more).
+pub fn first_line(text: &str) -> &str {
+    text.lines().next().unwrap_or("")
+}

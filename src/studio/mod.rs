@@ -1,15 +1,19 @@
 //! The desktop studio (egui). Nothing below this module knows egui exists.
 //!
-//! - [`advice`]: timelines the model will not follow as written, and their fixes
-//! - [`project`]: the document (timeline, pace, initial pose, settings) and its undo history
-//! - [`worker`]: the background thread that owns the model
-//! - [`tsne`]: the seed map
-//! - [`transport`]: playback
-//! - [`timeline`]: the timeline widget (segments, key and path tracks)
-//! - `keys`: keys and the root path (edits, their sidebar section)
-//! - [`app`]: the application state and frame loop; the panels are in `menu`, `sidebar`,
-//!   `bottom`, `central` and `map_panel`
-//! - [`viewport`]: the 3D view
+//! The studio is its editing state, an engine, and panels that each draw one part:
+//!
+//! - the editing state: [`project`] (the document, saved as the synth project document with
+//!   the view settings, and its undo history) and [`editing`] (the document being edited,
+//!   what was saved, the selection); `edits` changes it
+//! - the engine: [`worker`] (the background thread that owns the model), [`engine`] (the
+//!   model, takes and generation under way as the UI knows them), [`retarget`] (foreign BVH
+//!   files for a preview); `generation` asks for takes and takes in the replies
+//! - the panels: [`panels`] (what they remember between frames), and `menu`, `sidebar`,
+//!   `bottom`, `central`, `map_panel`, `keys` and `joint_mapping` that draw them, with the
+//!   widgets [`timeline`], [`viewport`] (the 3D view) and [`transport`] (playback)
+//! - around them: [`app`] (the frame loop), `files` and [`storage`] (projects, exports, the
+//!   autosave), [`dialogs`], [`messages`], [`advice`] (timelines the model will not follow as
+//!   written, and their fixes) and [`tsne`] (the seed map)
 
 pub mod advice;
 pub mod app;
@@ -17,13 +21,21 @@ pub mod bench;
 mod bottom;
 mod central;
 pub mod dialogs;
-pub mod joint_mapping;
+pub mod editing;
+mod edits;
+pub mod engine;
+mod files;
+mod generation;
+mod joint_mapping;
 mod keys;
 mod map_panel;
 mod menu;
 pub mod messages;
+pub mod panels;
 pub mod project;
+pub mod retarget;
 mod sidebar;
+pub mod storage;
 pub mod timeline;
 pub mod transport;
 pub mod tsne;

@@ -1,21 +1,16 @@
-//! The document the studio edits, as plain data: a project (timeline, pace, initial pose,
-//! generation settings, model, view settings) that saves as readable JSON, and the undo
-//! history of its edits. No egui here.
+//! The document the studio edits, as plain data: a project (the synth [`Document`]: model,
+//! generation options and joint map, with the view and playback settings) that saves as
+//! readable JSON, and the undo history of its edits. No egui here.
 
+use std::ops::{Deref, DerefMut};
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::viewport::ViewSettings;
 use crate::data::write::write_atomic;
-use crate::synth::{GenerateOptions, InitPose, Segment, Timeline, Transition};
-
-/// The project file format this build writes; files of a newer version are refused and
-/// older ones migrated ([`Project::from_json`]). Version 2 holds the engine's
-/// [`GenerateOptions`] as they are (keys and a root path included); version 1 had the
-/// timeline and settings as separate fields.
-pub const PROJECT_VERSION: u32 = 2;
+use crate::synth::project::{parse_json, read_project, Document};
 
 /// How playback repeats.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -38,116 +33,56 @@ impl Default for PlaybackSettings {
     }
 }
 
-/// Everything a take is made from, and how it is viewed.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// Everything a take is made from, and how it is viewed. It reads as the synth document it
+/// extends (`project.options`, `project.joint_map`): the file is that document's fields and
+/// the studio's view and playback settings side by side.
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Project {
-    pub version: u32,
-    /// Model folder.
-    pub model: PathBuf,
-    /// What the engine generates the take from, exactly as it takes it. The variation seed
-    /// is set through [`GenerateOptions::varied`] so its noise goes with it.
-    pub options: GenerateOptions,
-    #[serde(default)]
+    #[serde(flatten)]
+    pub document: Document,
     pub view: ViewSettings,
-    #[serde(default)]
     pub playback: PlaybackSettings,
-    /// Joints of foreign BVH files (start and key files) for the model's key joints, as
-    /// `{"joint in the file": "Key"}` like a `--joint-map` file (see `joint_mapping`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub joint_map: Option<std::collections::BTreeMap<String, String>>,
 }
 
-/// A version 1 project: the generation settings as fields of their own.
+/// The studio's fields of a project file, as every version keeps them: at the top level.
 #[derive(Deserialize)]
-struct ProjectV1 {
-    model: PathBuf,
-    timeline: Timeline,
-    pace: f32,
-    init: InitPose,
-    transition: Transition,
-    class_strength: f32,
-    locgen: bool,
-    variation_seed: u64,
+struct StudioFields {
     #[serde(default)]
     view: ViewSettings,
     #[serde(default)]
     playback: PlaybackSettings,
 }
 
-impl From<ProjectV1> for Project {
-    fn from(v1: ProjectV1) -> Self {
-        let options = GenerateOptions {
-            timeline: v1.timeline,
-            pace: v1.pace,
-            init: v1.init,
-            locgen: v1.locgen,
-            transition: v1.transition,
-            class_strength: Some(v1.class_strength),
-            ..Default::default()
-        }
-        .varied(v1.variation_seed);
-        Self { version: PROJECT_VERSION, model: v1.model, options, view: v1.view, playback: v1.playback, joint_map: None }
+impl Deref for Project {
+    type Target = Document;
+
+    fn deref(&self) -> &Document {
+        &self.document
+    }
+}
+
+impl DerefMut for Project {
+    fn deref_mut(&mut self) -> &mut Document {
+        &mut self.document
     }
 }
 
 impl Project {
     pub fn new(model: PathBuf) -> Self {
-        Self { version: PROJECT_VERSION, model, options: GenerateOptions::default(), view: ViewSettings::default(), playback: PlaybackSettings::default(), joint_map: None }
-    }
-
-    /// A first timeline for a model's classes: a walk and then a second activity.
-    pub fn default_timeline(classes: &[String]) -> Timeline {
-        let walk = classes.iter().find(|c| c.to_lowercase().contains("walk")).or(classes.first());
-        let other = classes.iter().find(|c| Some(*c) != walk);
-        let segments = walk
-            .into_iter()
-            .chain(other)
-            .map(|c| Segment::new(c.clone(), 4.0))
-            .collect();
-        Timeline { segments }
-    }
-
-    /// Sets the variation seed (0: the model's deterministic take).
-    pub fn set_variation_seed(&mut self, seed: u64) {
-        self.options = std::mem::take(&mut self.options).varied(seed);
-    }
-
-    /// Whether a change from `other` to `self` changes the generated take (and not only how
-    /// it is viewed or played).
-    pub fn same_take(&self, other: &Project) -> bool {
-        self.options == other.options && self.model == other.model
+        Self { document: Document::new(model), view: ViewSettings::default(), playback: PlaybackSettings::default() }
     }
 
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("a project always serialises")
     }
 
-    /// Parses a project file; `name` names it in errors. The version is checked before
-    /// anything else so a newer file says so instead of failing on an unknown field; a
-    /// version 1 file is migrated.
+    /// Parses a project file; `name` names it in errors. The document is read (and
+    /// migrated) as `glocal generate --project` reads it.
     pub fn from_json(text: &str, name: &str) -> Result<Self> {
-        let value: serde_json::Value = serde_json::from_str(text).with_context(|| format!("{name} is not a valid project file (not JSON)"))?;
-        let version = value
-            .get("version")
-            .and_then(serde_json::Value::as_u64)
-            .with_context(|| format!("{name} is not a Glocal Studio project: it has no \"version\" field"))?;
-        if version > u64::from(PROJECT_VERSION) {
-            bail!("{name} is a version {version} project, newer than this studio understands (version {PROJECT_VERSION}); update Glocal Studio to open it");
-        }
-        let project: Project = if version == 1 {
-            serde_json::from_value::<ProjectV1>(value).with_context(|| format!("{name} is not a valid version 1 project file"))?.into()
-        } else {
-            serde_json::from_value(value).with_context(|| format!("{name} is not a valid project file"))?
-        };
-        for (k, s) in project.options.timeline.segments.iter().enumerate() {
-            if !(s.seconds > 0.0 && s.seconds.is_finite()) {
-                bail!("{name}: segment {} has a duration of {} seconds", k + 1, s.seconds);
-            }
-        }
-        if let Some(path) = &project.options.path {
-            path.check().with_context(|| format!("{name}: root path"))?;
-        }
-        Ok(Project { version: PROJECT_VERSION, ..project })
+        let value = parse_json(text, name)?;
+        let document = Document::from_value(&value, name)?;
+        let StudioFields { view, playback } = StudioFields::deserialize(&value).with_context(|| format!("{name} is not a valid project file (view or playback settings)"))?;
+        Ok(Self { document, view, playback })
     }
 
     pub fn save(&self, path: &Path) -> Result<()> {
@@ -155,9 +90,7 @@ impl Project {
     }
 
     pub fn load(path: &Path) -> Result<Self> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read project {name}"))?;
-        Self::from_json(&text, &name)
+        Self::from_json(&read_project(path)?, &path.display().to_string())
     }
 }
 
@@ -293,6 +226,8 @@ impl History {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::synth::{InitPose, Transition};
+    use crate::synth::project::PROJECT_VERSION;
 
     fn sample() -> Project {
         let mut p = Project::new(PathBuf::from("models/h36m"));
@@ -301,13 +236,13 @@ mod tests {
     }
 
     #[test]
-    fn round_trips_and_refuses_newer_or_broken_files() {
-        let p = sample();
+    fn round_trips_with_the_view_settings() {
+        let mut p = sample();
+        p.view.ghosts = 3;
+        p.playback.speed = 0.5;
         assert_eq!(Project::from_json(&p.to_json(), "p").unwrap(), p);
-        let newer = p.to_json().replace("\"version\": 2", "\"version\": 99");
-        assert!(format!("{:#}", Project::from_json(&newer, "p").unwrap_err()).contains("newer"));
-        assert!(Project::from_json("{ not json", "p").is_err());
-        assert!(format!("{:#}", Project::from_json("{}", "p").unwrap_err()).contains("version"));
+        let broken = p.to_json().replace("\"speed\": 0.5", "\"speed\": \"slow\"");
+        assert!(format!("{:#}", Project::from_json(&broken, "p").unwrap_err()).contains("playback"));
     }
 
     /// A version 1 project exactly as the studio wrote it before version 2.

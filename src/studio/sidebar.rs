@@ -5,9 +5,11 @@ use std::path::PathBuf;
 use egui::{RichText, Slider};
 
 use super::advice::seated_too_short;
-use super::app::{ExportRange, Guarded, InitTab, StudioApp, MAX_INIT_FRAME};
+use super::app::StudioApp;
+use super::panels::{ExportRange, Guarded, InitTab, MAX_INIT_FRAME};
 use super::dialogs::Purpose;
 use super::timeline::color32;
+use super::worker::ModelInfo;
 use crate::model::spec::DEFAULT_CLASS_STRENGTH;
 use crate::synth::export::Units;
 use crate::synth::render::class_color;
@@ -40,7 +42,7 @@ impl StudioApp {
 
     /// Timelines the model will not follow as written (see [`super::advice`]), with fixes.
     fn advice_ui(&mut self, ui: &mut egui::Ui) {
-        let found = seated_too_short(&self.doc.options.timeline, self.classes());
+        let found = seated_too_short(&self.editing.doc.options.timeline, self.classes());
         for short in found {
             ui.label(RichText::new(format!("{} (now {:.1} s)", short.message(), short.seconds)).color(ui.visuals().warn_fg_color));
             ui.horizontal_wrapped(|ui| {
@@ -55,7 +57,7 @@ impl StudioApp {
     }
 
     fn model_section(&mut self, ui: &mut egui::Ui) {
-        match &self.model {
+        match &self.engine.model {
             Some(m) => {
                 let s = &m.spec;
                 ui.label(RichText::new(m.dir.display().to_string()).monospace());
@@ -68,30 +70,30 @@ impl StudioApp {
                 ui.label(RichText::new("No model loaded").weak());
             }
         }
-        if let Some(dir) = &self.model_loading {
+        if let Some(dir) = &self.engine.model_loading {
             ui.horizontal(|ui| {
                 ui.spinner();
                 ui.label(format!("Loading {}…", dir.display()));
             });
         }
-        let looked = self.model_roots.iter().map(|r| r.display().to_string()).collect::<Vec<_>>().join("\n");
-        if !self.shipped.is_empty() {
+        let looked = self.storage.model_roots.iter().map(|r| r.display().to_string()).collect::<Vec<_>>().join("\n");
+        if !self.storage.shipped.is_empty() {
             ui.horizontal_wrapped(|ui| {
                 ui.label("Shipped:").on_hover_text(format!("Models are looked for in\n{looked}"));
-                for dir in self.shipped.clone() {
+                for dir in self.storage.shipped.clone() {
                     let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
-                    let current = self.model.as_ref().is_some_and(|m| m.dir == dir);
+                    let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
                     if ui.selectable_label(current, name).clicked() && !current {
                         self.load_model(dir);
                     }
                 }
             });
         }
-        let r = path_field(ui, "Model folder", &mut self.fields.model_path, "path/to/model");
+        let r = path_field(ui, "Model folder", &mut self.panels.fields.model_path, "path/to/model");
         let enter = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
         ui.horizontal(|ui| {
             if ui.button("Load model").clicked() || enter {
-                let p = PathBuf::from(self.fields.model_path.trim());
+                let p = PathBuf::from(self.panels.fields.model_path.trim());
                 self.load_model(p);
             }
             if ui.button("Browse…").clicked() {
@@ -101,158 +103,174 @@ impl StudioApp {
     }
 
     fn init_section(&mut self, ui: &mut egui::Ui) {
-        let Some(model) = self.model.clone() else {
+        let Some(model) = self.engine.model.clone() else {
             ui.label(RichText::new("Load a model first").weak());
             return;
         };
-        let classes = &model.spec.classes;
         ui.horizontal(|ui| {
             for (tab, name, tip) in [
                 (InitTab::Class, "By class", "A typical pose of a class"),
                 (InitTab::Seed, "Seed", "Any pose of the seed bank (or click the seed map)"),
                 (InitTab::File, "File", "A pose from a BVH, NPY or dataset file"),
             ] {
-                if ui.selectable_label(self.init_tab == tab, name).on_hover_text(tip).clicked() && self.init_tab != tab {
+                if ui.selectable_label(self.panels.init_tab == tab, name).on_hover_text(tip).clicked() && self.panels.init_tab != tab {
                     self.set_init_tab(tab);
                 }
             }
         });
-        match self.init_tab {
-            InitTab::Class => {
-                let (class, rank) = match &self.doc.options.init {
-                    InitPose::SeedClass { class, variant } => {
-                        let k = model.spec.class_index(class).unwrap_or(0);
-                        (k, model.typical_rank(k, *variant))
-                    }
-                    _ => (0, 0),
-                };
-                let (mut new_class, mut new_rank) = (class, rank);
-                egui::ComboBox::from_label("Start class").selected_text(&classes[class]).height(400.0).show_ui(ui, |ui| {
-                    for (k, c) in classes.iter().enumerate() {
-                        ui.selectable_value(&mut new_class, k, c);
-                    }
-                });
-                if new_class != class {
-                    new_rank = 0;
-                }
-                let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
-                ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
-                    .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
-                if (new_class, new_rank) != (class, rank) || !matches!(self.doc.options.init, InitPose::SeedClass { .. }) {
-                    self.set_init_class(new_class, new_rank);
-                }
-            }
-            InitTab::Seed => {
-                let mut index = match &self.doc.options.init {
-                    InitPose::SeedIndex(i) => *i,
-                    _ => self.fields.seed_index,
-                };
-                if let Some(s) = model.seeds.get(index) {
-                    ui.horizontal(|ui| {
-                        let (r, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
-                        ui.painter().circle_filled(r.center(), 5.0, color32(class_color(s.class)));
-                        ui.label(format!("{} · {} @ {}", classes[s.class], s.clip, s.frame));
-                    });
-                }
-                let max = model.seeds.len().saturating_sub(1);
-                if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.doc.options.init, InitPose::SeedIndex(_)) {
-                    self.fields.seed_index = index;
-                    self.doc.options.init = InitPose::SeedIndex(index);
-                }
-                ui.label(RichText::new("Or click a point in the seed map").weak());
-            }
-            InitTab::File => {
-                match &self.doc.options.init {
-                    InitPose::File { path, frame } => ui.label(format!("In use: {} @ {frame}", path.display())),
-                    _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
-                };
-                path_field(ui, "Motion file (BVH, NPY or dataset .txt)", &mut self.fields.init_path, "clip.bvh");
-                ui.add(egui::DragValue::new(&mut self.fields.init_frame).range(0..=MAX_INIT_FRAME).prefix("from frame "));
-                ui.horizontal(|ui| {
-                    if ui.button("Use file").clicked() {
-                        let p = PathBuf::from(self.fields.init_path.trim());
-                        self.retarget_file(super::joint_mapping::PreviewFor::Init, p, self.fields.init_frame);
-                    }
-                    if ui.button("Browse…").clicked() {
-                        self.open_dialog(Purpose::InitFile, ui.ctx());
-                    }
-                });
-            }
+        match self.panels.init_tab {
+            InitTab::Class => self.init_class_tab(ui, &model),
+            InitTab::Seed => self.init_seed_tab(ui, &model),
+            InitTab::File => self.init_file_tab(ui),
         }
     }
 
+    /// A typical pose of a class, by class and rank.
+    fn init_class_tab(&mut self, ui: &mut egui::Ui, model: &ModelInfo) {
+        let classes = &model.spec.classes;
+        let (class, rank) = match &self.editing.doc.options.init {
+            InitPose::SeedClass { class, variant } => {
+                let k = model.spec.class_index(class).unwrap_or(0);
+                (k, model.typical_rank(k, *variant))
+            }
+            _ => (0, 0),
+        };
+        let (mut new_class, mut new_rank) = (class, rank);
+        egui::ComboBox::from_label("Start class").selected_text(&classes[class]).height(400.0).show_ui(ui, |ui| {
+            for (k, c) in classes.iter().enumerate() {
+                ui.selectable_value(&mut new_class, k, c);
+            }
+        });
+        if new_class != class {
+            new_rank = 0;
+        }
+        let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
+        ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
+            .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
+        if (new_class, new_rank) != (class, rank) || !matches!(self.editing.doc.options.init, InitPose::SeedClass { .. }) {
+            self.set_init_class(new_class, new_rank);
+        }
+    }
+
+    /// Any seed of the bank, by index.
+    fn init_seed_tab(&mut self, ui: &mut egui::Ui, model: &ModelInfo) {
+        let classes = &model.spec.classes;
+        let mut index = match &self.editing.doc.options.init {
+            InitPose::SeedIndex(i) => *i,
+            _ => self.panels.fields.seed_index,
+        };
+        if let Some(s) = model.seeds.get(index) {
+            ui.horizontal(|ui| {
+                let (r, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
+                ui.painter().circle_filled(r.center(), 5.0, color32(class_color(s.class)));
+                ui.label(format!("{} · {} @ {}", classes[s.class], s.clip, s.frame));
+            });
+        }
+        let max = model.seeds.len().saturating_sub(1);
+        if ui.add(Slider::new(&mut index, 0..=max).text("seed")).changed() || !matches!(self.editing.doc.options.init, InitPose::SeedIndex(_)) {
+            self.panels.fields.seed_index = index;
+            self.editing.doc.options.init = InitPose::SeedIndex(index);
+        }
+        ui.label(RichText::new("Or click a point in the seed map").weak());
+    }
+
+    /// A motion file and the frame it starts from.
+    fn init_file_tab(&mut self, ui: &mut egui::Ui) {
+        match &self.editing.doc.options.init {
+            InitPose::File { path, frame, .. } => ui.label(format!("In use: {} @ {frame}", path.display())),
+            _ => ui.label(RichText::new("No file in use yet: the take starts from the previous choice").weak()),
+        };
+        path_field(ui, "Motion file (BVH, NPY or dataset .txt)", &mut self.panels.fields.init_path, "clip.bvh");
+        ui.add(egui::DragValue::new(&mut self.panels.fields.init_frame).range(0..=MAX_INIT_FRAME).prefix("from frame "));
+        ui.horizontal(|ui| {
+            if ui.button("Use file").clicked() {
+                let p = PathBuf::from(self.panels.fields.init_path.trim());
+                self.retarget_file(super::retarget::PreviewFor::Init, p, self.panels.fields.init_frame);
+            }
+            if ui.button("Browse…").clicked() {
+                self.open_dialog(Purpose::InitFile, ui.ctx());
+            }
+        });
+    }
+
     fn generation_section(&mut self, ui: &mut egui::Ui) {
-        let has_locgen = self.model.as_ref().is_some_and(|m| m.has_locgen);
-        let guidance = self.model.as_ref().is_some_and(|m| m.spec.glogen.class_dropout > 0.0);
-        ui.add(Slider::new(&mut self.doc.options.pace, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true).text("global pace"))
+        let has_locgen = self.engine.model.as_ref().is_some_and(|m| m.has_locgen);
+        let guidance = self.engine.model.as_ref().is_some_and(|m| m.spec.glogen.class_dropout > 0.0);
+        ui.add(Slider::new(&mut self.editing.doc.options.pace, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true).text("global pace"))
             .on_hover_text("How long each pose lasts: 2 plays the motion twice as slowly (over twice the time), 0.5 twice as fast. A segment with its own pace uses that instead.");
         ui.horizontal(|ui| {
             ui.label("Transitions:");
-            ui.selectable_value(&mut self.doc.options.transition, Transition::Anchor, "Anchor")
+            ui.selectable_value(&mut self.editing.doc.options.transition, Transition::Anchor, "Anchor")
                 .on_hover_text("The new activity takes over within about two seconds, even from a very different motion (recommended)");
-            ui.selectable_value(&mut self.doc.options.transition, Transition::Blend, "Blend")
+            ui.selectable_value(&mut self.editing.doc.options.transition, Transition::Blend, "Blend")
                 .on_hover_text("The two activities mix over about two seconds around the change; a strong motion may carry on for a while");
-            ui.selectable_value(&mut self.doc.options.transition, Transition::Cut, "Cut")
+            ui.selectable_value(&mut self.editing.doc.options.transition, Transition::Cut, "Cut")
                 .on_hover_text("The activity switches at the boundary; the previous motion's momentum can carry on (the paper's method)");
         });
-        ui.add(Slider::new(&mut self.doc.options.transition_seconds, 0.0..=MAX_TRANSITION_SECONDS).text("transition length (s)"))
+        ui.add(Slider::new(&mut self.editing.doc.options.transition_seconds, 0.0..=MAX_TRANSITION_SECONDS).text("transition length (s)"))
             .on_hover_text("Seconds over which each class change happens, centred on its boundary (0: a cut). A segment can have its own: select it on the timeline");
         // Until it is moved, the slider shows (and takes are made with) the model's own strength.
-        let own = self.model.as_ref().map_or(DEFAULT_CLASS_STRENGTH, |m| m.spec.class_strength);
-        let mut strength = self.doc.options.class_strength.unwrap_or(own);
+        let own = self.engine.model.as_ref().map_or(DEFAULT_CLASS_STRENGTH, |m| m.spec.class_strength);
+        let mut strength = self.editing.doc.options.class_strength.unwrap_or(own);
         let slider = ui
             .add_enabled(guidance, Slider::new(&mut strength, 0.0..=4.0).text("class strength"))
             .on_hover_text(format!("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity. This model's own: {own}"))
             .on_disabled_hover_text("This model was trained without class dropout, so the strength cannot be changed");
         if slider.changed() {
-            self.doc.options.class_strength = Some(strength);
+            self.editing.doc.options.class_strength = Some(strength);
         }
-        let locks_feet = self.model.as_ref().is_some_and(|m| m.spec.foot_lock);
+        let locks_feet = self.engine.model.as_ref().is_some_and(|m| m.spec.foot_lock);
         ui.horizontal_wrapped(|ui| {
-            ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.doc.options.locgen, "LocGen refinement"))
+            ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.editing.doc.options.locgen, "LocGen refinement"))
                 .on_hover_text("Adds natural in-between motion (weight shifts, swing) between the model's key poses. Off: straight-line in-betweens, for comparison");
-            ui.add_enabled(locks_feet, egui::Checkbox::new(&mut self.doc.options.foot_lock, "Foot lock"))
+            ui.add_enabled(locks_feet, egui::Checkbox::new(&mut self.editing.doc.options.foot_lock, "Foot lock"))
                 .on_hover_text("Keeps planted feet still on the floor (leg IK), marked orange on the feet and on the timeline's feet track. Off: the feet as the network made them, for comparison")
                 .on_disabled_hover_text("This model's takes are left as the network made them (its model.json turns the foot lock off)");
         });
         ui.horizontal(|ui| {
-            let mut seed = self.doc.options.seed;
+            let mut seed = self.editing.doc.options.seed;
             let r = ui.add(egui::DragValue::new(&mut seed).range(0..=9999))
                 .on_hover_text("Another version of the same timeline: 0 is the model's standard take, every other number a slightly different one");
             if r.changed() {
-                self.doc.set_variation_seed(seed);
+                self.editing.doc.set_variation_seed(seed);
             }
             ui.label("variation seed");
         });
-        ui.checkbox(&mut self.auto_regen, "Regenerate after every edit");
+        ui.checkbox(&mut self.engine.auto_regen, "Regenerate after every edit");
         ui.horizontal(|ui| {
-            if ui.add_enabled(self.model.is_some(), egui::Button::new("Generate")).clicked() {
+            if ui.add_enabled(self.engine.model.is_some(), egui::Button::new("Generate")).clicked() {
                 self.regenerate();
             }
-            if let Some((_, p)) = self.pending {
+            if let Some((_, p)) = self.engine.pending {
                 if ui.button("Cancel").clicked() {
                     self.cancel();
                 }
                 ui.add(egui::ProgressBar::new(p).show_percentage().desired_width(110.0));
             }
         });
-        if let Some(t) = &self.take {
+        if let Some(t) = &self.engine.take {
             ui.label(RichText::new(format!("{} frames ({:.1} s) in {:.0} ms", t.motion.frames(), t.motion.seconds(), t.millis)).weak());
         }
     }
 
     fn export_section(&mut self, ui: &mut egui::Ui) {
-        path_field(ui, "Export file (.bvh, .json or .npy)", &mut self.fields.export_path, "take.bvh");
+        path_field(ui, "Export file (.bvh, .json or .npy)", &mut self.panels.fields.export_path, "take.bvh");
         ui.horizontal(|ui| {
             for (ext, name) in [("bvh", "BVH"), ("json", "JSON"), ("npy", "NPY")] {
-                let current = PathBuf::from(&self.fields.export_path);
+                let current = PathBuf::from(&self.panels.fields.export_path);
                 let is = current.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
                 if ui.selectable_label(is, name).clicked() {
-                    self.fields.export_path = current.with_extension(ext).display().to_string();
+                    self.panels.fields.export_path = current.with_extension(ext).display().to_string();
                 }
             }
         });
-        let (native_unit, native_fps, root) = match &self.model {
+        self.export_format(ui);
+        self.export_buttons(ui);
+    }
+
+    /// Units, frame rate and the source root joint of the export.
+    fn export_format(&mut self, ui: &mut egui::Ui) {
+        let (native_unit, native_fps, root) = match &self.engine.model {
             Some(m) => {
                 let unit = match m.spec.layout.skeleton.meters_per_unit() {
                     u if (u - 0.001).abs() < 1e-6 => "mm".to_string(),
@@ -265,7 +283,7 @@ impl StudioApp {
             }
             None => ("native".to_string(), 25.0, None),
         };
-        let o = &mut self.export_options;
+        let o = &mut self.panels.export_options;
         ui.horizontal(|ui| {
             ui.label("Units");
             egui::ComboBox::from_id_salt("export_units")
@@ -292,22 +310,26 @@ impl StudioApp {
             None => "This model's skeleton already has the source's root joint".to_string(),
         };
         ui.add_enabled(root.is_some(), egui::Checkbox::new(&mut o.source_root, "Keep the source root joint")).on_hover_text(&tip).on_disabled_hover_text(&tip);
+    }
+
+    /// Whole take or range, and the export buttons (off while the take is out of date).
+    fn export_buttons(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
-            ui.radio_value(&mut self.export_range, ExportRange::Whole, "Whole take");
+            ui.radio_value(&mut self.panels.export_range, ExportRange::Whole, "Whole take");
             let label = self.range_label().map_or_else(|| "Selected range".to_string(), |l| l.replacen("Range", "Selected range", 1));
-            ui.add_enabled(self.playback.selection.is_some(), egui::RadioButton::new(self.export_range == ExportRange::Selection, label))
+            ui.add_enabled(self.playback.selection.is_some(), egui::RadioButton::new(self.panels.export_range == ExportRange::Selection, label))
                 .clicked()
-                .then(|| self.export_range = ExportRange::Selection);
+                .then(|| self.panels.export_range = ExportRange::Selection);
         });
         let stale = self.stale_reason();
         if let Some(why) = &stale {
             ui.label(RichText::new(format!("Out of date: {why}")).color(ui.visuals().warn_fg_color));
         }
-        let ready = self.take.is_some() && stale.is_none();
+        let ready = self.engine.take.is_some() && stale.is_none();
         ui.horizontal(|ui| {
             let why = stale.clone().unwrap_or_else(|| "Nothing generated yet".into());
             if ui.add_enabled(ready, egui::Button::new("Export")).on_disabled_hover_text(&why).clicked() {
-                let p = PathBuf::from(self.fields.export_path.trim());
+                let p = PathBuf::from(self.panels.fields.export_path.trim());
                 self.export_to(p);
             }
             if ui.add_enabled(ready, egui::Button::new("Export…")).on_disabled_hover_text(&why).clicked() {
@@ -317,14 +339,14 @@ impl StudioApp {
     }
 
     fn project_section(&mut self, ui: &mut egui::Ui) {
-        path_field(ui, "Project file", &mut self.fields.project_path, "project.glocal.json");
+        path_field(ui, "Project file", &mut self.panels.fields.project_path, "project.glocal.json");
         ui.horizontal_wrapped(|ui| {
             if ui.button("Open").clicked() {
-                let p = PathBuf::from(self.fields.project_path.trim());
+                let p = PathBuf::from(self.panels.fields.project_path.trim());
                 self.request(Guarded::Open(p));
             }
             if ui.button("Save").clicked() {
-                let p = PathBuf::from(self.fields.project_path.trim());
+                let p = PathBuf::from(self.panels.fields.project_path.trim());
                 self.save_project(&p);
             }
             if ui.button("Open…").clicked() {
@@ -336,7 +358,7 @@ impl StudioApp {
         });
         let status = if self.has_unsaved_work() { "unsaved changes" } else { "saved" };
         let label = ui.label(RichText::new(format!("{status} · autosaved")).weak().small());
-        if let Some(p) = &self.autosave {
+        if let Some(p) = &self.storage.autosave {
             label.on_hover_text(format!("Autosave: {}", p.display()));
         }
     }

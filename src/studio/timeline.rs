@@ -107,119 +107,173 @@ pub fn color32(rgb: [u8; 3]) -> Color32 {
 
 /// Draws the timeline in the available width; returns what the user did.
 pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) -> Vec<Action> {
-    let mut actions = Vec::new();
     state.hint = None;
-    let width = ui.available_width().max(100.0);
-    let (ruler_h, lane_h, track_h) = (20.0, 44.0, 16.0);
-    let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 3.0 * (track_h + 2.0) + 6.0), Sense::hover());
-    let ruler = Rect::from_min_size(outer.min, vec2(width, ruler_h));
-    let lane = Rect::from_min_size(pos2(outer.left(), ruler.bottom() + 2.0), vec2(width, lane_h));
-    let key_track = Rect::from_min_size(pos2(outer.left(), lane.bottom() + 2.0), vec2(width, track_h));
-    let path_track = Rect::from_min_size(pos2(outer.left(), key_track.bottom() + 2.0), vec2(width, track_h));
-    let feet_track = Rect::from_min_size(pos2(outer.left(), path_track.bottom() + 2.0), vec2(width, track_h));
-    let total = input.timeline.seconds().max(1.0);
-    let scale = state.frozen_scale.unwrap_or((width - 8.0) / total);
-    let x_of = |t: f32| outer.left() + t * scale;
-    let fps = input.fps.max(1.0);
-    let frame_at = |x: f32| (((x - outer.left()) / scale).max(0.0) * fps).round() as usize;
-    let painter = ui.painter_at(outer.expand(2.0));
-    let visuals = ui.visuals().clone();
+    let layout = Layout::new(ui, state, input);
+    let mut pass = Pass { input, painter: ui.painter_at(layout.outer.expand(2.0)), visuals: ui.visuals().clone(), layout, actions: Vec::new() };
+    pass.ruler(ui, state);
+    let pointer = ui.input(|i| i.pointer.interact_pos());
+    pass.segments(ui, state);
+    let tracks = [pass.layout.key_track, pass.layout.path_track];
+    marks_ui(ui, state, input, &pass.painter, tracks, pass.layout.scale, &mut pass.actions);
+    contacts_track(&pass.painter, &pass.visuals, input, pass.layout.feet_track, pass.layout.scale);
+    pass.drags(ui, state, pointer);
+    pass.empty_lane(ui);
+    pass.selection_and_cursor();
+    pass.actions
+}
 
-    // Ruler.
-    painter.rect_filled(ruler, 3.0, visuals.extreme_bg_color);
-    let step = [0.5f32, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0].into_iter().find(|s| s * scale >= 48.0).unwrap_or(120.0);
-    let mut t = 0.0;
-    while x_of(t) <= outer.right() {
-        let x = x_of(t);
-        painter.line_segment([pos2(x, ruler.bottom() - 6.0), pos2(x, ruler.bottom())], Stroke::new(1.0, visuals.weak_text_color()));
-        painter.text(pos2(x + 3.0, ruler.center().y - 2.0), Align2::LEFT_CENTER, format!("{t}s"), FontId::proportional(11.0), visuals.weak_text_color());
-        t += step;
+/// Where the timeline's rows are, and how seconds map to pixels.
+struct Layout {
+    outer: Rect,
+    ruler: Rect,
+    lane: Rect,
+    key_track: Rect,
+    path_track: Rect,
+    feet_track: Rect,
+    /// Pixels per second.
+    scale: f32,
+    fps: f32,
+    /// Each segment's start, in seconds, and the timeline's end.
+    starts: Vec<f32>,
+    end: f32,
+}
+
+impl Layout {
+    fn new(ui: &mut egui::Ui, state: &TimelineState, input: &Input) -> Self {
+        let width = ui.available_width().max(100.0);
+        let (ruler_h, lane_h, track_h) = (20.0, 44.0, 16.0);
+        let (outer, _) = ui.allocate_exact_size(vec2(width, ruler_h + lane_h + 3.0 * (track_h + 2.0) + 6.0), Sense::hover());
+        let ruler = Rect::from_min_size(outer.min, vec2(width, ruler_h));
+        let below = |r: Rect, h: f32| Rect::from_min_size(pos2(outer.left(), r.bottom() + 2.0), vec2(width, h));
+        let lane = below(ruler, lane_h);
+        let key_track = below(lane, track_h);
+        let path_track = below(key_track, track_h);
+        let feet_track = below(path_track, track_h);
+        let total = input.timeline.seconds().max(1.0);
+        let scale = state.frozen_scale.unwrap_or((width - 8.0) / total);
+        let mut starts = Vec::with_capacity(input.timeline.segments.len());
+        let mut end = 0.0;
+        for s in &input.timeline.segments {
+            starts.push(end);
+            end += s.seconds;
+        }
+        Self { outer, ruler, lane, key_track, path_track, feet_track, scale, fps: input.fps.max(1.0), starts, end }
     }
-    let ruler_resp = ui.interact(ruler, ui.scope_id().with("ruler"), Sense::click_and_drag()).on_hover_cursor(CursorIcon::Text);
-    ruler_resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, "Timeline ruler"));
-    if ruler_resp.hovered() {
-        state.hint = Some("Ruler: click or drag to scrub; shift-drag to select a range".into());
+
+    fn x_of(&self, t: f32) -> f32 {
+        self.outer.left() + t * self.scale
     }
-    if let Some(pos) = ruler_resp.interact_pointer_pos() {
-        let f = frame_at(pos.x).min(input.frames.saturating_sub(1));
+
+    fn frame_at(&self, x: f32) -> usize {
+        (((x - self.outer.left()) / self.scale).max(0.0) * self.fps).round() as usize
+    }
+}
+
+/// One frame's drawing of the timeline: what it draws with and the actions it collects.
+struct Pass<'a> {
+    input: &'a Input<'a>,
+    layout: Layout,
+    painter: egui::Painter,
+    visuals: egui::Visuals,
+    actions: Vec<Action>,
+}
+
+impl Pass<'_> {
+    /// The ruler: seconds, and scrubbing or selecting a range.
+    fn ruler(&mut self, ui: &mut egui::Ui, state: &mut TimelineState) {
+        let (at, visuals) = (&self.layout, &self.visuals);
+        let ruler = at.ruler;
+        self.painter.rect_filled(ruler, 3.0, visuals.extreme_bg_color);
+        let step = [0.5f32, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0].into_iter().find(|s| s * at.scale >= 48.0).unwrap_or(120.0);
+        let mut t = 0.0;
+        while at.x_of(t) <= at.outer.right() {
+            let x = at.x_of(t);
+            self.painter.line_segment([pos2(x, ruler.bottom() - 6.0), pos2(x, ruler.bottom())], Stroke::new(1.0, visuals.weak_text_color()));
+            self.painter.text(pos2(x + 3.0, ruler.center().y - 2.0), Align2::LEFT_CENTER, format!("{t}s"), FontId::proportional(11.0), visuals.weak_text_color());
+            t += step;
+        }
+        let ruler_resp = ui.interact(ruler, ui.scope_id().with("ruler"), Sense::click_and_drag()).on_hover_cursor(CursorIcon::Text);
+        ruler_resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, "Timeline ruler"));
+        if ruler_resp.hovered() {
+            state.hint = Some("Ruler: click or drag to scrub; shift-drag to select a range".into());
+        }
+        let Some(pos) = ruler_resp.interact_pointer_pos() else { return };
+        let f = at.frame_at(pos.x).min(self.input.frames.saturating_sub(1));
         if ruler_resp.drag_started() || ruler_resp.clicked() {
-            if ui.input(|i| i.modifiers.shift) {
-                state.drag = Some(Drag::Range { anchor: f });
-            } else {
-                state.drag = Some(Drag::Scrub);
-            }
+            state.drag = Some(if ui.input(|i| i.modifiers.shift) { Drag::Range { anchor: f } } else { Drag::Scrub });
         }
         match state.drag {
             Some(Drag::Range { anchor }) => {
                 let (a, b) = (anchor.min(f), anchor.max(f) + 1);
-                actions.push(Action::SetSelection((b > a + 1).then_some((a, b))));
+                self.actions.push(Action::SetSelection((b > a + 1).then_some((a, b))));
             }
-            _ => actions.push(Action::Seek(f)),
+            _ => self.actions.push(Action::Seek(f)),
         }
     }
 
-    // Segments.
-    painter.rect_filled(lane, 3.0, visuals.faint_bg_color);
-    let mut starts = Vec::with_capacity(input.timeline.segments.len());
-    let mut acc = 0.0;
-    for s in &input.timeline.segments {
-        starts.push(acc);
-        acc += s.seconds;
+    /// The segments' lane: a block per segment.
+    fn segments(&mut self, ui: &mut egui::Ui, state: &mut TimelineState) {
+        self.painter.rect_filled(self.layout.lane, 3.0, self.visuals.faint_bg_color);
+        let moving = match state.drag {
+            Some(Drag::Move { index }) => Some(index),
+            _ => None,
+        };
+        for k in 0..self.input.timeline.segments.len() {
+            self.segment(ui, state, k, moving == Some(k));
+        }
     }
-    let dragging_move = match state.drag {
-        Some(Drag::Move { index }) => Some(index),
-        _ => None,
-    };
-    let pointer = ui.input(|i| i.pointer.interact_pos());
-    for (k, seg) in input.timeline.segments.iter().enumerate() {
-        let (x0, x1) = (x_of(starts[k]), x_of(starts[k] + seg.seconds));
+
+    /// Segment `k`'s block (faded while it is being moved), its menu and its resize handle.
+    fn segment(&mut self, ui: &mut egui::Ui, state: &mut TimelineState, k: usize, moving: bool) {
+        let (input, lane) = (self.input, self.layout.lane);
+        let seg = &input.timeline.segments[k];
+        let (x0, x1) = (self.layout.x_of(self.layout.starts[k]), self.layout.x_of(self.layout.starts[k] + seg.seconds));
         let rect = Rect::from_min_max(pos2(x0 + 1.0, lane.top() + 2.0), pos2(x1 - 1.0, lane.bottom() - 2.0));
         let known = class_index(input.classes, &seg.class);
         let fill = known.map_or(UNKNOWN_FILL, |c| color32(class_color(c)));
-        let name = if known.is_some() { seg.class.clone() } else { format!("{}?", seg.class) };
-        let mut label = match seg.pace {
-            Some(p) => format!("{name} · {:.1}s · pace {p:.2}", seg.seconds),
-            None => format!("{name} · {:.1}s", seg.seconds),
-        };
-        if let Some(t) = seg.transition.filter(|_| k > 0) {
-            label.push_str(&format!(" · in {t:.1}s"));
-        }
+        let label = segment_label(seg, k, known.is_some());
         let id = ui.scope_id().with(("segment", k));
         let resp = ui.interact(rect, id, Sense::click_and_drag());
         resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, format!("Segment {}: {}", k + 1, seg.class)));
-        let selected = input.selected == Some(k);
-        let faded = if dragging_move == Some(k) { fill.gamma_multiply(0.35) } else { fill };
-        painter.rect_filled(rect, 4.0, faded);
-        let stroke = if selected {
+        self.painter.rect_filled(rect, 4.0, if moving { fill.gamma_multiply(0.35) } else { fill });
+        let stroke = if input.selected == Some(k) {
             Stroke::new(2.0, Color32::WHITE)
         } else if known.is_none() {
             Stroke::new(2.0, Color32::from_rgb(230, 60, 60))
         } else {
             Stroke::new(1.0, fill.gamma_multiply(0.6))
         };
-        painter.rect_stroke(rect, 4.0, stroke, StrokeKind::Inside);
-        let text_painter = painter.with_clip_rect(rect.shrink(3.0));
+        self.painter.rect_stroke(rect, 4.0, stroke, StrokeKind::Inside);
+        let text_painter = self.painter.with_clip_rect(rect.shrink(3.0));
         text_painter.text(rect.left_center() + vec2(6.0, 0.0), Align2::LEFT_CENTER, &label, FontId::proportional(13.0), Color32::WHITE);
         if resp.hovered() {
             let unknown = if known.is_none() { " · this model has no such class: right-click to choose one" } else { "" };
             state.hint = Some(format!("Segment {}: {label}{unknown} · drag to reorder, drag the right edge to resize, right-click for more", k + 1));
         }
+        self.segment_clicks(&resp, state, k);
+        self.resize_handle(ui, state, k, x1, id);
+    }
+
+    /// Selecting, selecting the frames of, moving, and the right-click menu of segment `k`.
+    fn segment_clicks(&mut self, resp: &egui::Response, state: &mut TimelineState, k: usize) {
+        let input = self.input;
         if resp.clicked() {
-            actions.push(Action::Select(Some(k)));
+            self.actions.push(Action::Select(Some(k)));
         }
         if resp.double_clicked() {
             if let Some(s) = input.spans.and_then(|s| s.get(k)) {
-                actions.push(Action::SetSelection(Some((s.start_frame, s.end_frame))));
+                self.actions.push(Action::SetSelection(Some((s.start_frame, s.end_frame))));
             }
         }
         if resp.drag_started() {
             state.drag = Some(Drag::Move { index: k });
-            actions.push(Action::Select(Some(k)));
+            self.actions.push(Action::Select(Some(k)));
         }
+        let actions = &mut self.actions;
         resp.context_menu(|ui| {
             ui.menu_button("Class", |ui| {
                 for c in input.classes {
-                    if ui.selectable_label(seg.class.eq_ignore_ascii_case(c), c).clicked() {
+                    if ui.selectable_label(input.timeline.segments[k].class.eq_ignore_ascii_case(c), c).clicked() {
                         actions.push(Action::SetClass { index: k, class: c.clone() });
                         ui.close();
                     }
@@ -234,98 +288,112 @@ pub fn timeline_ui(ui: &mut egui::Ui, state: &mut TimelineState, input: &Input) 
                 ui.close();
             }
         });
-        // The resize handle over the right edge, on top of the block.
+    }
+
+    /// The resize handle over segment `k`'s right edge (at `x1`), on top of the block.
+    fn resize_handle(&mut self, ui: &mut egui::Ui, state: &mut TimelineState, k: usize, x1: f32, id: egui::Id) {
+        let lane = self.layout.lane;
         let handle = Rect::from_min_max(pos2(x1 - 6.0, lane.top()), pos2(x1 + 3.0, lane.bottom()));
         let h = ui.interact(handle, id.with("edge"), Sense::drag()).on_hover_cursor(CursorIcon::ResizeHorizontal);
         if h.drag_started() {
             let x = h.interact_pointer_pos().map_or(x1, |p| p.x);
-            state.drag = Some(Drag::Resize { index: k, start_seconds: seg.seconds, start_x: x });
-            state.frozen_scale = Some(scale);
-            actions.push(Action::BeginEdit);
-            actions.push(Action::Select(Some(k)));
+            state.drag = Some(Drag::Resize { index: k, start_seconds: self.input.timeline.segments[k].seconds, start_x: x });
+            state.frozen_scale = Some(self.layout.scale);
+            self.actions.push(Action::BeginEdit);
+            self.actions.push(Action::Select(Some(k)));
         }
         if h.hovered() || matches!(state.drag, Some(Drag::Resize { index, .. }) if index == k) {
-            painter.line_segment([pos2(x1 - 2.0, lane.top() + 6.0), pos2(x1 - 2.0, lane.bottom() - 6.0)], Stroke::new(2.0, Color32::WHITE));
+            self.painter.line_segment([pos2(x1 - 2.0, lane.top() + 6.0), pos2(x1 - 2.0, lane.bottom() - 6.0)], Stroke::new(2.0, Color32::WHITE));
         }
     }
 
-    marks_ui(ui, state, input, &painter, [key_track, path_track], scale, &mut actions);
-    contacts_track(&painter, &visuals, input, feet_track, scale);
-
-    // Drags under way.
-    let released = ui.input(|i| !i.pointer.any_down());
-    match state.drag {
-        Some(Drag::Resize { index, start_seconds, start_x }) => {
-            if let Some(p) = pointer {
-                let seconds = ((start_seconds + (p.x - start_x) / scale) * 10.0).round() / 10.0;
+    /// The drag under way, if any, followed to the `pointer`; a release ends it.
+    fn drags(&mut self, ui: &egui::Ui, state: &mut TimelineState, pointer: Option<egui::Pos2>) {
+        let released = ui.input(|i| !i.pointer.any_down());
+        match (state.drag, pointer) {
+            (Some(Drag::Resize { index, start_seconds, start_x }), Some(p)) => {
+                let seconds = ((start_seconds + (p.x - start_x) / self.layout.scale) * 10.0).round() / 10.0;
                 let seconds = seconds.max(MIN_SECONDS);
-                if input.timeline.segments.get(index).is_some_and(|s| (s.seconds - seconds).abs() > 1e-4) {
-                    actions.push(Action::Resize { index, seconds });
+                if self.input.timeline.segments.get(index).is_some_and(|s| (s.seconds - seconds).abs() > 1e-4) {
+                    self.actions.push(Action::Resize { index, seconds });
                 }
             }
-        }
-        Some(Drag::Move { index }) => {
-            if let Some(p) = pointer {
-                // Where it would land: after every other block whose centre is left of the pointer.
-                let to = (0..input.timeline.segments.len())
-                    .filter(|&j| j != index)
-                    .filter(|&j| x_of(starts[j] + input.timeline.segments[j].seconds / 2.0) < p.x)
-                    .count();
-                let slot_x = if to == 0 { x_of(0.0) } else {
-                    let others: Vec<usize> = (0..input.timeline.segments.len()).filter(|&j| j != index).collect();
-                    let j = others[to - 1];
-                    x_of(starts[j] + input.timeline.segments[j].seconds)
-                };
-                // The insertion marker: a bar with a notch above and below.
-                let accent = Color32::from_rgb(255, 210, 80);
-                painter.line_segment([pos2(slot_x, lane.top() - 2.0), pos2(slot_x, lane.bottom() + 2.0)], Stroke::new(3.0, accent));
-                for (y, dy) in [(lane.top() - 2.0, 6.0), (lane.bottom() + 2.0, -6.0)] {
-                    painter.add(egui::Shape::convex_polygon(vec![pos2(slot_x - 6.0, y), pos2(slot_x + 6.0, y), pos2(slot_x, y + dy)], accent, Stroke::NONE));
-                }
-                state.hint = Some(format!("Release to move segment {} to position {}", index + 1, to + 1));
-                if released {
-                    if to != index {
-                        actions.push(Action::BeginEdit);
-                        actions.push(Action::Move { from: index, to });
-                    }
-                }
+            (Some(Drag::Move { index }), Some(p)) => self.move_drag(state, index, p, released),
+            (Some(Drag::Mark(mark)), Some(p)) => {
+                let fps = self.layout.fps;
+                let seconds = (((p.x - self.layout.outer.left()) / self.layout.scale).max(0.0) * fps).round() / fps;
+                self.actions.push(Action::MoveMark { mark, seconds });
             }
+            _ => {}
         }
-        Some(Drag::Mark(mark)) => {
-            if let Some(p) = pointer {
-                let seconds = (((p.x - outer.left()) / scale).max(0.0) * fps).round() / fps;
-                actions.push(Action::MoveMark { mark, seconds });
-            }
-        }
-        _ => {}
-    }
-    if released {
-        state.drag = None;
-        state.frozen_scale = None;
-    }
-
-    // Clicks on the empty lane clear the segment selection.
-    let end_x = x_of(acc);
-    if end_x < lane.right() - 4.0 {
-        let empty = Rect::from_min_max(pos2(end_x + 4.0, lane.top()), lane.max);
-        if ui.interact(empty, ui.scope_id().with("empty"), Sense::click()).clicked() {
-            actions.push(Action::Select(None));
+        if released {
+            state.drag = None;
+            state.frozen_scale = None;
         }
     }
 
-    // Selected range and cursor over everything.
-    if let Some((a, b)) = input.selection {
-        let r = Rect::from_min_max(pos2(x_of(a as f32 / fps), ruler.top()), pos2(x_of(b as f32 / fps), feet_track.bottom()));
-        painter.rect_filled(r, 0.0, Color32::from_rgba_unmultiplied(120, 180, 255, 40));
-        painter.rect_stroke(r, 0.0, Stroke::new(1.0, Color32::from_rgb(120, 180, 255)), StrokeKind::Inside);
+    /// Segment `index` dragged to the pointer at `p`: the insertion marker where it would
+    /// land, and the move once `released`.
+    fn move_drag(&mut self, state: &mut TimelineState, index: usize, p: egui::Pos2, released: bool) {
+        let (at, segments) = (&self.layout, &self.input.timeline.segments);
+        // Where it would land: after every other block whose centre is left of the pointer.
+        let others: Vec<usize> = (0..segments.len()).filter(|&j| j != index).collect();
+        let to = others.iter().filter(|&&j| at.x_of(at.starts[j] + segments[j].seconds / 2.0) < p.x).count();
+        let slot_x = if to == 0 { at.x_of(0.0) } else { at.x_of(at.starts[others[to - 1]] + segments[others[to - 1]].seconds) };
+        // The insertion marker: a bar with a notch above and below.
+        let (lane, accent) = (at.lane, Color32::from_rgb(255, 210, 80));
+        self.painter.line_segment([pos2(slot_x, lane.top() - 2.0), pos2(slot_x, lane.bottom() + 2.0)], Stroke::new(3.0, accent));
+        for (y, dy) in [(lane.top() - 2.0, 6.0), (lane.bottom() + 2.0, -6.0)] {
+            self.painter.add(egui::Shape::convex_polygon(vec![pos2(slot_x - 6.0, y), pos2(slot_x + 6.0, y), pos2(slot_x, y + dy)], accent, Stroke::NONE));
+        }
+        state.hint = Some(format!("Release to move segment {} to position {}", index + 1, to + 1));
+        if released && to != index {
+            self.actions.push(Action::BeginEdit);
+            self.actions.push(Action::Move { from: index, to });
+        }
     }
-    if input.frames > 0 {
-        let x = x_of(input.frame as f32 / fps);
-        let c = Color32::from_rgb(255, 90, 60);
-        painter.line_segment([pos2(x, ruler.top()), pos2(x, feet_track.bottom())], Stroke::new(2.0, c));
-        painter.add(egui::Shape::convex_polygon(vec![pos2(x - 5.0, ruler.top()), pos2(x + 5.0, ruler.top()), pos2(x, ruler.top() + 7.0)], c, Stroke::NONE));
+
+    /// Clicks on the empty lane after the last segment clear the segment selection.
+    fn empty_lane(&mut self, ui: &mut egui::Ui) {
+        let (lane, end_x) = (self.layout.lane, self.layout.x_of(self.layout.end));
+        if end_x < lane.right() - 4.0 {
+            let empty = Rect::from_min_max(pos2(end_x + 4.0, lane.top()), lane.max);
+            if ui.interact(empty, ui.scope_id().with("empty"), Sense::click()).clicked() {
+                self.actions.push(Action::Select(None));
+            }
+        }
     }
-    actions
+
+    /// The selected range and the playback cursor, over everything.
+    fn selection_and_cursor(&self) {
+        let (at, input) = (&self.layout, self.input);
+        let (top, bottom) = (at.ruler.top(), at.feet_track.bottom());
+        if let Some((a, b)) = input.selection {
+            let r = Rect::from_min_max(pos2(at.x_of(a as f32 / at.fps), top), pos2(at.x_of(b as f32 / at.fps), bottom));
+            self.painter.rect_filled(r, 0.0, Color32::from_rgba_unmultiplied(120, 180, 255, 40));
+            self.painter.rect_stroke(r, 0.0, Stroke::new(1.0, Color32::from_rgb(120, 180, 255)), StrokeKind::Inside);
+        }
+        if input.frames > 0 {
+            let x = at.x_of(input.frame as f32 / at.fps);
+            let c = Color32::from_rgb(255, 90, 60);
+            self.painter.line_segment([pos2(x, top), pos2(x, bottom)], Stroke::new(2.0, c));
+            self.painter.add(egui::Shape::convex_polygon(vec![pos2(x - 5.0, top), pos2(x + 5.0, top), pos2(x, top + 7.0)], c, Stroke::NONE));
+        }
+    }
+}
+
+/// A segment block's text: its class (with a question mark when the model lacks it),
+/// duration, pace and transition.
+fn segment_label(seg: &crate::synth::Segment, k: usize, known: bool) -> String {
+    let name = if known { seg.class.clone() } else { format!("{}?", seg.class) };
+    let mut label = match seg.pace {
+        Some(p) => format!("{name} · {:.1}s · pace {p:.2}", seg.seconds),
+        None => format!("{name} · {:.1}s", seg.seconds),
+    };
+    if let Some(t) = seg.transition.filter(|_| k > 0) {
+        label.push_str(&format!(" · in {t:.1}s"));
+    }
+    label
 }
 
 /// Colour of keys on their track (and in the viewport's key list).

@@ -1,5 +1,5 @@
 //! The background worker: owns the model, loads it, generates takes, builds the seed map
-//! and writes exports, so the UI thread never waits. The UI sends [`Request`]s; the worker
+//! and writes exports, so the UI thread never waits. The UI sends [`Job`]s; the worker
 //! answers with [`Reply`]s and wakes the UI with `request_repaint`.
 //!
 //! Cancelling: every generation has an id and the handle keeps the id of the one the UI
@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 
-use super::joint_mapping::{self, PreviewFor, RetargetFailure, RetargetPreview};
+use super::retarget::{self, PreviewFor, RetargetFailure, Retargeting};
 use super::tsne;
 use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
@@ -26,7 +26,7 @@ use crate::motion::contacts::FootContacts;
 use crate::synth::export::{export_with_contacts, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
-use crate::synth::{generate, GenerateOptions, InitPose, SegmentSpan};
+use crate::synth::{GenerateOptions, InitPose, Request as TakeRequest, SegmentSpan};
 
 /// What the UI knows of a loaded model.
 pub struct ModelInfo {
@@ -86,11 +86,10 @@ pub struct Take {
 }
 
 #[derive(Clone)]
-pub enum Request {
+pub enum Job {
     LoadModel(PathBuf),
-    /// `joint_map` names the joints of foreign BVH files among the start and key files.
-    Generate { id: u64, options: GenerateOptions, joint_map: Option<UserJointMap> },
-    /// Retargets a frame of a BVH file onto the model for a preview (see [`joint_mapping`]).
+    Generate { id: u64, request: TakeRequest },
+    /// Retargets a frame of a BVH file onto the model for a preview (see [`retarget`]).
     Retarget { purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap> },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
@@ -98,15 +97,15 @@ pub enum Request {
     Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
 }
 
-impl Request {
+impl Job {
     /// The reply that reports this request's failure (a panic while serving it).
     fn failure(&self, error: String) -> Reply {
         match self {
-            Request::LoadModel(dir) => Reply::ModelFailed { dir: dir.clone(), error },
-            Request::Generate { id, .. } => Reply::GenerateFailed { id: *id, error, cancelled: false },
-            Request::CheckInit(init) => Reply::InitFailed { init: init.clone(), error },
-            Request::Retarget { purpose, path, frame, .. } => Reply::RetargetFailed(Arc::new(RetargetFailure { purpose: *purpose, path: path.clone(), frame: *frame, error, joints: Default::default() })),
-            Request::Export { path, .. } => Reply::ExportFailed { path: path.clone(), error },
+            Job::LoadModel(dir) => Reply::ModelFailed { dir: dir.clone(), error },
+            Job::Generate { id, .. } => Reply::GenerateFailed { id: *id, error, cancelled: false },
+            Job::CheckInit(init) => Reply::InitFailed { init: init.clone(), error },
+            Job::Retarget { purpose, path, frame, .. } => Reply::Retarget(Retargeting::Failed(Arc::new(RetargetFailure { purpose: *purpose, path: path.clone(), frame: *frame, error, joints: Default::default() }))),
+            Job::Export { path, .. } => Reply::ExportFailed { path: path.clone(), error },
         }
     }
 }
@@ -123,17 +122,14 @@ pub enum Reply {
     Path { id: u64, path: Vec<[f32; 2]> },
     InitOk(InitPose),
     InitFailed { init: InitPose, error: String },
-    Retargeted(Arc<RetargetPreview>),
-    RetargetFailed(Arc<RetargetFailure>),
-    /// The file asked to be retargeted is on the model's own skeleton (or not a BVH).
-    NotForeign { purpose: PreviewFor, path: PathBuf, frame: usize },
+    Retarget(Retargeting),
     Exported(PathBuf),
     ExportFailed { path: PathBuf, error: String },
 }
 
 /// The UI's end of the worker.
 pub struct Worker {
-    tx: Sender<Request>,
+    tx: Sender<Job>,
     rx: Receiver<Reply>,
     wanted: Arc<AtomicU64>,
     next_id: u64,
@@ -144,7 +140,7 @@ pub struct Worker {
 }
 
 /// The worker thread, listening on `requests`.
-fn start_thread(ctx: egui::Context, wanted: Arc<AtomicU64>) -> std::io::Result<(Sender<Request>, Receiver<Reply>)> {
+fn start_thread(ctx: egui::Context, wanted: Arc<AtomicU64>) -> std::io::Result<(Sender<Job>, Receiver<Reply>)> {
     let (tx, requests) = channel();
     let (replies, rx) = channel();
     let state = WorkerState { ctx, replies, wanted, model: None, map: None, last_blocks: None };
@@ -161,7 +157,7 @@ impl Worker {
 
     /// Sends a request; if the worker thread is gone, starts a new one (without a model:
     /// the app loads it again) and counts the request as lost.
-    fn send(&mut self, request: Request) {
+    fn send(&mut self, request: Job) {
         if self.tx.send(request).is_err() {
             self.lost += 1;
             if let Ok((tx, rx)) = start_thread(self.ctx.clone(), self.wanted.clone()) {
@@ -176,14 +172,14 @@ impl Worker {
     }
 
     pub fn load_model(&mut self, dir: PathBuf) {
-        self.send(Request::LoadModel(dir));
+        self.send(Job::LoadModel(dir));
     }
 
     /// Starts a generation (cancelling any older one); returns its id.
-    pub fn generate(&mut self, options: GenerateOptions, joint_map: Option<UserJointMap>) -> u64 {
+    pub fn generate(&mut self, request: TakeRequest) -> u64 {
         let id = self.fresh_id();
         self.wanted.store(id, Ordering::SeqCst);
-        self.send(Request::Generate { id, options, joint_map });
+        self.send(Job::Generate { id, request });
         id
     }
 
@@ -194,15 +190,15 @@ impl Worker {
     }
 
     pub fn check_init(&mut self, init: InitPose) {
-        self.send(Request::CheckInit(init));
+        self.send(Job::CheckInit(init));
     }
 
     pub fn retarget(&mut self, purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap>) {
-        self.send(Request::Retarget { purpose, path, frame, joint_map });
+        self.send(Job::Retarget { purpose, path, frame, joint_map });
     }
 
     pub fn export(&mut self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton>) {
-        self.send(Request::Export { motion, segments, contacts, path, options, source });
+        self.send(Job::Export { motion, segments, contacts, path, options, source });
     }
 
     /// Every reply that has arrived.
@@ -237,7 +233,7 @@ impl WorkerState {
 
     /// Serves requests until the UI goes away. A panic while serving one is caught and
     /// reported as that request's failure; the worker keeps serving.
-    fn run(mut self, requests: &Receiver<Request>) {
+    fn run(mut self, requests: &Receiver<Job>) {
         loop {
             let request = match requests.try_recv() {
                 Ok(r) => r,
@@ -270,27 +266,27 @@ impl WorkerState {
 
     /// Serves one request; returns the reply still to send (generation and model loads
     /// send theirs on the way).
-    fn serve(&mut self, request: Request) -> Option<Reply> {
+    fn serve(&mut self, request: Job) -> Option<Reply> {
         match request {
-            Request::LoadModel(dir) => self.load(dir),
-            Request::Generate { id, options, joint_map } => {
+            Job::LoadModel(dir) => self.load(dir),
+            Job::Generate { id, request } => {
                 if self.wanted.load(Ordering::SeqCst) == id {
-                    self.generate(id, &options, joint_map.as_ref());
+                    self.generate(id, &request);
                 }
             }
-            Request::Retarget { purpose, path, frame, joint_map } => {
+            Job::Retarget { purpose, path, frame, joint_map } => {
                 let Some(model) = self.model.as_ref() else {
-                    return Some(Request::Retarget { purpose, path: path.clone(), frame, joint_map }.failure("no model is loaded".into()));
+                    return Some(Job::Retarget { purpose, path: path.clone(), frame, joint_map }.failure("no model is loaded".into()));
                 };
-                return Some(joint_mapping::preview(&model.spec, purpose, path, frame, joint_map.as_ref()));
+                return Some(Reply::Retarget(retarget::preview(&model.spec, purpose, path, frame, joint_map.as_ref())));
             }
-            Request::CheckInit(init) => {
+            Job::CheckInit(init) => {
                 return Some(match self.model.as_ref().context("no model is loaded").and_then(|m| initial_features(m, &init)) {
                     Ok(_) => Reply::InitOk(init),
                     Err(e) => Reply::InitFailed { init, error: format!("{e:#}") },
                 });
             }
-            Request::Export { motion, segments, contacts, path, options, source } => {
+            Job::Export { motion, segments, contacts, path, options, source } => {
                 let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export_with_contacts(&m, &s, Some(&contacts), &path));
                 return Some(match written {
                     Ok(()) => Reply::Exported(path),
@@ -323,23 +319,15 @@ impl WorkerState {
         }
     }
 
-    fn generate(&mut self, id: u64, options: &GenerateOptions, joint_map: Option<&UserJointMap>) {
+    fn generate(&mut self, id: u64, request: &TakeRequest) {
         let Some(model) = self.model.as_mut() else {
             self.send(Reply::GenerateFailed { id, error: "no model is loaded".into(), cancelled: false });
             return;
         };
-        // Kept until generation is over: foreign BVH files retargeted with the joint map.
-        let (engine_options, _retargeted) = match joint_mapping::with_retargeted_files(&model.spec, options, joint_map) {
-            Ok(o) => o,
-            Err(e) => {
-                self.send(Reply::GenerateFailed { id, error: format!("{e:#}"), cancelled: false });
-                return;
-            }
-        };
         let start = Instant::now();
         let (wanted, replies, ctx) = (self.wanted.clone(), self.replies.clone(), self.ctx.clone());
         let mut last_sent = 0.0f32;
-        let result = generate(model, &engine_options, &mut |fraction| {
+        let result = request.generate(model, &mut |fraction| {
             if fraction - last_sent >= 0.05 || fraction >= 1.0 {
                 last_sent = fraction;
                 let _ = replies.send(Reply::Progress { id, fraction });
@@ -368,7 +356,7 @@ impl WorkerState {
                     frame_colors: Arc::new(colors),
                     block_classes: g.block_classes,
                     path,
-                    options: options.clone(),
+                    options: request.options.clone(),
                     warnings: g.warnings,
                     contacts: Arc::new(g.contacts),
                     millis: start.elapsed().as_secs_f64() * 1e3,
@@ -438,7 +426,7 @@ pub fn typical_order(model: &GlocalModel) -> Vec<Vec<usize>> {
 }
 
 /// GloGen's encoder embedding of every seed, each under its own class.
-fn seed_embeddings(model: &mut GlocalModel) -> Result<Vec<Vec<f32>>> {
+fn seed_embeddings(model: &GlocalModel) -> Result<Vec<Vec<f32>>> {
     let seeds: Vec<(usize, Vec<f32>)> = model.seeds.iter().map(|s| (s.class, s.features.clone())).collect();
     let mut out = Vec::with_capacity(seeds.len());
     for (class, mut features) in seeds {

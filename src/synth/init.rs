@@ -10,10 +10,11 @@ use glam::Vec3;
 
 use super::plan::TakeConstraint;
 use super::raised_cosine;
-use super::rig::onto_model;
+use super::rig::{entries_for, onto_model};
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
 use crate::data::features::{FeatureLayout, Placement};
+use crate::data::joint_map::UserJointMap;
 use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::npy::{motion_from_npy, read_npy};
 use crate::data::registry::Dataset;
@@ -30,7 +31,22 @@ pub enum InitPose {
     SeedIndex(usize),
     /// A motion file (BVH, NPY (T, J, 3), or an exponential-map text of the model's
     /// dataset) from this frame on.
-    File { path: PathBuf, frame: usize },
+    File {
+        path: PathBuf,
+        frame: usize,
+        /// Joints of the file for the model's key joints where the name table does not find
+        /// them (a BVH of another skeleton): a request's joint map
+        /// ([`super::project::Request::engine_options`]), never saved with the options.
+        #[serde(skip)]
+        joint_map: Option<UserJointMap>,
+    },
+}
+
+impl InitPose {
+    /// Frame `frame` on of the file at `path`, its joints found by the name table.
+    pub fn file(path: PathBuf, frame: usize) -> Self {
+        InitPose::File { path, frame, joint_map: None }
+    }
 }
 
 impl Default for InitPose {
@@ -52,8 +68,8 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
             let seed = model.seed_of_class(k, *variant).with_context(|| format!("the seed bank has no seed of class '{class}'"))?;
             Ok((seed.features.clone(), Placement::default()))
         }
-        InitPose::File { path, frame } => {
-            let motion = read_on_model_skeleton(model, path)?;
+        InitPose::File { path, frame, joint_map } => {
+            let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
             let needed = frame.saturating_add(spec.stride * spec.block_len);
             if motion.frames() <= needed {
                 bail!(
@@ -72,9 +88,9 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
 /// frames over the starting poses, from the first to the last ([`initial_features`] takes
 /// every `stride`-th of them). None for a seed-bank start, which has only its sparse poses.
 pub fn given_frames(model: &GlocalModel, init: &InitPose) -> Result<Option<Vec<Vec3>>> {
-    let InitPose::File { path, frame } = init else { return Ok(None) };
+    let InitPose::File { path, frame, joint_map } = init else { return Ok(None) };
     let spec = &model.spec;
-    let motion = read_on_model_skeleton(model, path)?;
+    let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
     let start = FileStart::of(model, &motion, *frame);
     let frames = frame + spec.stride..=frame + spec.stride * spec.block_len;
     Ok(Some(frames.filter(|&f| f < motion.frames()).flat_map(|f| start.apply(motion.frame(f))).collect()))
@@ -171,8 +187,9 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
 }
 
 /// Reads a BVH, NPY or exponential-map file and brings it onto the model's joints and
-/// frame rate; a BVH of another humanoid skeleton is retargeted onto the model's joints.
-pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion> {
+/// frame rate; a BVH of another humanoid skeleton is retargeted onto the model's joints, its
+/// key joints found by the entries of `joint_map` that name its joints, then by name.
+pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path, joint_map: Option<&UserJointMap>) -> Result<Motion> {
     let spec = &model.spec;
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_lowercase();
@@ -191,7 +208,8 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path) -> Result<Motion
             }
             if !m.skeleton.differences(&spec.source_skeleton).is_empty() {
                 // Another humanoid skeleton: retargeted by its joint names.
-                return onto_model(spec, &m, &name, None);
+                let own = joint_map.map(|map| entries_for(map, &m.skeleton));
+                return onto_model(spec, &m, &name, own.as_ref());
             }
             m
         }

@@ -70,13 +70,13 @@ pub fn key_pose(model: &GlocalModel, key: &Key, init: &InitPose) -> Result<Vec<V
             let seed = model.seed_of_class(k, *variant).with_context(|| format!("key at {} s: the seed bank has no seed of class '{class}'", key.seconds))?;
             last_pose(&spec.layout, &seed.features)
         }
-        KeySource::Init(InitPose::File { path, frame }) => {
-            let motion = read_on_model_skeleton(model, path)?;
+        KeySource::Init(InitPose::File { path, frame, joint_map }) => {
+            let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
             if *frame >= motion.frames() {
                 bail!("{}: key frame {frame} is past the file's {} frames", path.display(), motion.frames());
             }
             match init {
-                InitPose::File { path: start_file, frame: start } if start_file == path && *start < motion.frames() => FileStart::of(model, &motion, *start).apply(motion.frame(*frame)),
+                InitPose::File { path: start_file, frame: start, .. } if start_file == path && *start < motion.frames() => FileStart::of(model, &motion, *start).apply(motion.frame(*frame)),
                 _ => {
                     // On the model's floor, as a starting clip is.
                     let lift = model.floor_height() - motion.floor_height();
@@ -322,11 +322,15 @@ mod tests {
     fn the_sparse_warp_lands_on_the_key_and_leaves_the_root_velocity() {
         let dim = ROOT_FEATURES + 3;
         let mut sparse = vec![0.0; 20 * dim];
-        let key = PlacedKey { sparse: 10, frame: 0, pose: vec![], features: vec![1.0; dim], fix_root: false };
+        let key = PlacedKey { sparse: 10, frame: 0, pose: vec![], features: vec![1.0; dim], fix_root: false, given_sparse: 2, given_frame: 0 };
         warp_sparse(&mut sparse, dim, &key, 0.4);
         assert_eq!(&sparse[10 * dim..11 * dim], &[1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
         // Five poses of reach before and after at 0.4 s a step: the fifth away is untouched.
         assert!(sparse[6 * dim] > 0.0 && sparse[5 * dim] == 0.0 && sparse[15 * dim] == 0.0);
         assert!(sparse[8 * dim] > sparse[7 * dim]);
+        // A key two poses after the starting poses reaches only the pose between.
+        let mut sparse = vec![0.0; 20 * dim];
+        warp_sparse(&mut sparse, dim, &PlacedKey { given_sparse: 8, ..key }, 0.4);
+        assert!(sparse[9 * dim] > 0.0 && sparse[8 * dim] == 0.0, "the warp moved the last starting pose");
     }
 }

@@ -7,9 +7,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
-use std::io::Write;
-
-use crate::data::bvh::{read_bvh, write_bvh};
+use crate::data::bvh::read_bvh;
 use crate::data::joint_map::{key_joints, UserJointMap};
 use crate::model::spec::ModelSpec;
 use crate::motion::{Key, KeyJoints, Motion, Retarget, Skeleton};
@@ -29,13 +27,10 @@ pub fn onto_model(spec: &ModelSpec, motion: &Motion, file: &str, user: Option<&U
     Ok(retarget.apply(motion).resample(spec.fps))
 }
 
-/// [`onto_model`] written to a temporary BVH file, which the model reads as a take of its own
-/// (for an initial pose or a key from a foreign file, mapped with the user's joint map).
-pub fn onto_model_file(spec: &ModelSpec, motion: &Motion, file: &str, user: &UserJointMap) -> Result<tempfile::NamedTempFile> {
-    let on_model = onto_model(spec, motion, file, Some(user))?;
-    let mut temp = tempfile::Builder::new().suffix(".bvh").tempfile()?;
-    temp.write_all(write_bvh(&on_model, None).as_bytes())?;
-    Ok(temp)
+/// The entries of `map` that name joints of `skeleton`: one project mapping serves every
+/// file, and a file without some of its joints is mapped by the name table there.
+pub fn entries_for(map: &UserJointMap, skeleton: &Skeleton) -> UserJointMap {
+    UserJointMap { entries: map.entries.iter().filter(|(joint, _)| skeleton.index_of(joint).is_some()).cloned().collect() }
 }
 
 /// `take` on the skeleton of the BVH file `skeleton_path` (its hierarchy and rest pose), same

@@ -194,11 +194,11 @@ fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, 
     let last_given = (t - 1) * s;
     let key_frame = last_given + gap;
     let seconds = key_frame as f32 / spec.fps;
-    let key = Key { seconds, source: KeySource::Init(InitPose::File { path: file.to_path_buf(), frame: first + s + key_frame }), fix_root: true };
+    let key = Key { seconds, source: KeySource::Init(InitPose::file(file.to_path_buf(), first + s + key_frame)), fix_root: true };
     let class = spec.classes[track.class].clone();
     let opts = GenerateOptions {
         timeline: Timeline { segments: vec![Segment::new(class, seconds + AFTER_KEY_SECONDS)] },
-        init: InitPose::File { path: file.to_path_buf(), frame: first },
+        init: InitPose::file(file.to_path_buf(), first),
         keys: vec![key],
         ..generation.clone()
     };

@@ -1,0 +1,79 @@
+//! The editing state: the document, its undo history, what was last saved, and what is
+//! selected in it.
+
+use std::path::PathBuf;
+
+use super::project::{History, Project};
+use super::timeline::Mark;
+use crate::synth::Request as TakeRequest;
+
+pub struct Editing {
+    pub(super) doc: Project,
+    pub(super) history: History,
+    /// The document as last saved, opened or started: unsaved work is what differs from it.
+    pub(super) saved: Project,
+    /// Where the document was last saved or opened from.
+    pub(super) project_path: Option<PathBuf>,
+    /// An edit (e.g. a drag) is under way and has been recorded in the history.
+    pub(super) edit_open: bool,
+    /// The selected segment.
+    pub(super) selected: Option<usize>,
+    /// The key or waypoint selected on its track.
+    pub(super) selected_mark: Option<Mark>,
+}
+
+impl Editing {
+    /// `doc` to edit; `saved` is what counts as no unsaved work.
+    pub fn new(doc: Project, saved: Project, project_path: Option<PathBuf>) -> Self {
+        Self { doc, history: History::default(), saved, project_path, edit_open: false, selected: None, selected_mark: None }
+    }
+
+    /// Replaces the document by `f(doc)` as one undoable edit.
+    pub fn edit(&mut self, f: impl FnOnce(&mut Project)) {
+        let before = self.doc.clone();
+        f(&mut self.doc);
+        if self.doc.options != before.options {
+            self.history.record(before);
+        }
+    }
+
+    /// Steps the document back; false when there is nothing to undo.
+    pub fn undo(&mut self) -> bool {
+        let stepped = self.history.undo(&mut self.doc);
+        if stepped {
+            self.after_history_step();
+        }
+        stepped
+    }
+
+    /// Steps the document forward again; false when there is nothing to redo.
+    pub fn redo(&mut self) -> bool {
+        let stepped = self.history.redo(&mut self.doc);
+        if stepped {
+            self.after_history_step();
+        }
+        stepped
+    }
+
+    /// Keeps the selection to what the document still has.
+    fn after_history_step(&mut self) {
+        let n = self.doc.options.timeline.segments.len();
+        self.selected = self.selected.filter(|&k| k < n);
+        self.selected_mark = None;
+    }
+
+    /// What the engine is asked to generate: the document's request, where a path of one
+    /// waypoint (while it is being drawn) is no path yet.
+    pub fn take_request(&self) -> TakeRequest {
+        let mut request = self.doc.request();
+        if request.options.path.as_ref().is_some_and(|p| p.waypoints.len() < 2) {
+            request.options.path = None;
+        }
+        request
+    }
+
+    /// Whether the document differs from what was last saved, opened or started.
+    pub fn has_unsaved_work(&self) -> bool {
+        !self.doc.same_take(&self.saved)
+    }
+}

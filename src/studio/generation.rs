@@ -1,0 +1,297 @@
+//! The engine's side of the app: asking the worker for takes when the document changed,
+//! and what its replies change (takes, models, seed maps, initial-pose checks), classes
+//! and starts carried over to a newly loaded model.
+
+use std::sync::Arc;
+
+use super::app::StudioApp;
+use super::engine::{DEBOUNCE, PREVIOUS_TAKE_COLOR};
+use super::messages::{first_line, Level, Topic};
+use super::panels::{InitTab, MappingNote};
+use super::project::{self, Project};
+use super::worker::{ModelInfo, Reply, Take};
+use crate::synth::class_map::ClassMap;
+use crate::synth::{Document, InitPose};
+
+impl StudioApp {
+    /// Takes in what the worker sent since the last frame.
+    pub(super) fn handle_replies(&mut self) {
+        if self.engine.worker.take_lost() > 0 {
+            self.messages.set(Topic::Generation, Level::Error, "The background worker had stopped and was started again; the model is loading again");
+            self.engine.pending = None;
+            let dir = self.editing.doc.model.clone();
+            self.load_model(dir);
+        }
+        for reply in self.engine.worker.poll() {
+            match reply {
+                Reply::ModelLoaded(info) => self.model_loaded(info),
+                Reply::ModelFailed { dir, error } => self.model_failed(&dir, &error),
+                Reply::Map(map) => {
+                    if self.engine.model.as_ref().is_some_and(|m| m.dir == map.model_dir) {
+                        self.engine.map = Some(map);
+                    }
+                }
+                Reply::MapFailed(e) => self.engine.map_error = Some(e),
+                Reply::Progress { id, fraction } => {
+                    if let Some((pid, p)) = self.engine.pending.as_mut() {
+                        if *pid == id {
+                            *p = fraction;
+                        }
+                    }
+                }
+                Reply::Generated(take) => self.take_generated(take),
+                Reply::GenerateFailed { id, error, cancelled } => self.generation_failed(id, error, cancelled),
+                Reply::Path { id, path } => self.place_take(id, path),
+                Reply::InitOk(init) => self.init_checked(init),
+                Reply::InitFailed { error, .. } if self.engine.init_after_switch => self.init_does_not_fit(&error),
+                Reply::InitFailed { error, .. } => {
+                    self.messages.set(Topic::Init, Level::Error, format!("That file cannot start a take: {}", first_line(&error)));
+                }
+                Reply::Retarget(retargeting) => self.retarget_reply(retargeting),
+                Reply::Exported(path) => self.messages.set(Topic::Export, Level::Info, format!("Exported {}", project::shown_path(&path))),
+                Reply::ExportFailed { path, error } => self.messages.set(Topic::Export, Level::Error, format!("Could not export {}: {error}", project::shown_path(&path))),
+            }
+        }
+    }
+
+    /// A model that did not load: the current one, if any, stays.
+    fn model_failed(&mut self, dir: &std::path::Path, error: &str) {
+        self.engine.model_loading = None;
+        let keep = match &self.engine.model {
+            Some(m) => format!(" The current model ({}) stays loaded, with its take.", m.spec.dataset),
+            None => String::new(),
+        };
+        self.messages.set(Topic::Model, Level::Error, format!("Could not load the model {}: {}.{keep}", project::shown_path(dir), first_line(error)));
+        if let Some(m) = &self.engine.model {
+            self.panels.fields.model_path = m.dir.display().to_string();
+        }
+    }
+
+    /// A new take on screen; the one before it kept for comparison.
+    fn take_generated(&mut self, take: Arc<Take>) {
+        if self.engine.pending.is_some_and(|(id, _)| id == take.id) {
+            self.engine.pending = None;
+        }
+        self.engine.generation_error = None;
+        self.messages.resolve(Topic::Generation);
+        self.messages.resolve(Topic::Stale);
+        let frames = take.motion.frames();
+        self.show_warnings(&take.warnings);
+        if let Some(old) = self.engine.take.replace(take) {
+            let white = Arc::new(vec![PREVIOUS_TAKE_COLOR; old.motion.frames()]);
+            self.engine.previous = Some((old, white));
+        }
+        self.playback.clamp(frames);
+    }
+
+    fn generation_failed(&mut self, id: u64, error: String, cancelled: bool) {
+        if self.engine.pending.is_some_and(|(p, _)| p == id) {
+            self.engine.pending = None;
+        }
+        if !cancelled {
+            let shown = if self.engine.take.is_some() { " The viewport shows the previous take, marked out of date." } else { "" };
+            self.messages.set(Topic::Generation, Level::Error, format!("Generation failed: {error}.{shown}"));
+            self.engine.generation_error = Some(error);
+        }
+    }
+
+    /// The seed-map path of take `id`, made once the map exists.
+    fn place_take(&mut self, id: u64, path: Vec<[f32; 2]>) {
+        if let Some(t) = self.engine.take.as_mut().filter(|t| t.id == id) {
+            if let Some(t) = Arc::get_mut(t) {
+                t.path = path;
+            } else {
+                *t = Arc::new(Take { path, ..clone_take(t) });
+            }
+        }
+    }
+
+    /// An initial-pose file that starts a take on this model: the take starts from it.
+    fn init_checked(&mut self, init: InitPose) {
+        let name = match &init {
+            InitPose::File { path, frame, .. } => format!("{} from frame {frame}", project::shown_path(path)),
+            _ => String::new(),
+        };
+        self.engine.init_after_switch = false;
+        self.edit(|d| d.options.init = init);
+        self.panels.init_tab = InitTab::File;
+        self.messages.set(Topic::Init, Level::Info, format!("Initial pose: {name}"));
+    }
+
+    /// The initial-pose file does not fit the model just loaded: the take starts from a
+    /// typical pose of its first segment's class instead.
+    fn init_does_not_fit(&mut self, error: &str) {
+        self.engine.init_after_switch = false;
+        let dataset = self.engine.model.as_ref().map_or_else(String::new, |m| m.spec.dataset.clone());
+        let first = self.editing.doc.options.timeline.segments.first().and_then(|s| self.engine.model.as_ref().and_then(|m| m.spec.class_index(&s.class).ok())).unwrap_or(0);
+        self.set_init_class(first, 0);
+        let class = match &self.editing.doc.options.init {
+            InitPose::SeedClass { class, .. } => class.clone(),
+            _ => String::new(),
+        };
+        self.messages.set(Topic::Init, Level::Info, format!("The initial-pose file does not fit the {dataset} model ({}): the take now starts from a typical '{class}' pose", first_line(error)));
+    }
+
+    fn model_loaded(&mut self, info: Arc<ModelInfo>) {
+        let previous = self.engine.model.take();
+        self.engine.model_loading = None;
+        self.engine.map = None;
+        self.engine.map_error = None;
+        self.editing.doc.model = info.dir.clone();
+        self.panels.fields.model_path = info.dir.display().to_string();
+        if self.editing.doc.options.timeline.segments.is_empty() {
+            self.editing.doc.options.timeline = Document::default_timeline(&info.spec.classes);
+        }
+        if previous.is_none() && self.editing.saved.options.timeline.segments.is_empty() {
+            // The first model of a fresh start: its default timeline is not unsaved work.
+            self.editing.saved = self.editing.doc.clone();
+        }
+        self.carry_classes(&info);
+        self.carry_init(&info);
+        self.panels.fields.new_class = self.panels.fields.new_class.min(info.spec.classes.len().saturating_sub(1));
+        self.panels.fields.seed_index = self.panels.fields.seed_index.min(info.seeds.len().saturating_sub(1));
+        if previous.is_some() {
+            self.messages.set(Topic::Model, Level::Info, format!("Loaded model {} ({})", project::shown_path(&info.dir), info.spec.dataset));
+        } else {
+            self.messages.resolve(Topic::Model);
+        }
+        self.engine.model = Some(info);
+        self.engine.previous = None;
+        self.engine.requested = None;
+        self.engine.generation_error = None;
+        self.engine.regen_at = Some(self.now);
+    }
+
+    /// Retags segments whose class the new model does not have (by [`ClassMap`]), in the
+    /// document and its history, and says what was mapped.
+    fn carry_classes(&mut self, info: &ModelInfo) {
+        let classes = &info.spec.classes;
+        let mut unknown: Vec<String> = Vec::new();
+        for s in &self.editing.doc.options.timeline.segments {
+            if info.spec.class_index(&s.class).is_err() && !unknown.contains(&s.class) {
+                unknown.push(s.class.clone());
+            }
+        }
+        if unknown.is_empty() || classes.is_empty() {
+            return;
+        }
+        let table: Vec<(String, String)> = self.storage.class_table.iter().cloned().chain(ClassMap::shipped_table()).collect();
+        let map = ClassMap::build(&unknown, classes, &table);
+        let described = map.describe(&self.editing.doc.options.timeline);
+        let segments = map.pairs.iter().map(|p| self.editing.doc.options.timeline.segments.iter().enumerate().filter(|(_, s)| s.class == p.from).map(|(k, _)| k).collect()).collect();
+        let (timeline, changed) = map.apply(&self.editing.doc.options.timeline);
+        self.editing.doc.options.timeline = timeline;
+        let carry = |p: &mut Project| {
+            p.options.timeline = map.apply(&p.options.timeline).0;
+            if let InitPose::SeedClass { class, .. } = &mut p.options.init {
+                if let Some(to) = map.get(class) {
+                    *class = to.to_string();
+                }
+            }
+        };
+        self.editing.history.map_states(carry);
+        self.messages.set(
+            Topic::Classes,
+            Level::Info,
+            format!("Classes carried over to {}: {described} ({changed} segments, durations kept). Edit > Class mapping… changes a pairing.", info.spec.dataset),
+        );
+        self.panels.mapping = Some(MappingNote { map, classes: classes.clone(), segments, timeline: self.editing.doc.options.timeline.clone() });
+    }
+
+    /// Keeps the initial pose meaningful on a new model: a class start moves to the mapped
+    /// class's typical window, a seed index out of range is reset, and a file is checked
+    /// again (and reset with a message if it does not fit).
+    fn carry_init(&mut self, info: &ModelInfo) {
+        match self.editing.doc.options.init.clone() {
+            InitPose::SeedClass { class, variant } => {
+                let k = match info.spec.class_index(&class) {
+                    Ok(k) => k,
+                    Err(_) => self.panels.mapping.as_ref().and_then(|m| m.map.get(&class)).and_then(|c| info.spec.class_index(c).ok()).unwrap_or(0),
+                };
+                let variant = if info.spec.classes[k] == class { variant } else { info.typical_variant(k, 0) };
+                self.editing.doc.options.init = InitPose::SeedClass { class: info.spec.classes[k].clone(), variant };
+            }
+            InitPose::SeedIndex(i) if i >= info.seeds.len() => {
+                self.editing.doc.options.init = InitPose::SeedIndex(0);
+                self.messages.set(Topic::Init, Level::Info, format!("Seed {i} does not exist in the {} model: the take starts from seed 0", info.spec.dataset));
+            }
+            InitPose::SeedIndex(_) => {}
+            init @ InitPose::File { .. } => {
+                self.engine.init_after_switch = true;
+                self.engine.worker.check_init(init);
+            }
+        }
+    }
+
+    /// Changes the counterpart of `from` in the last model switch's mapping: the segments it
+    /// retagged get `to` (while the timeline is as the switch left it), and the pairing is
+    /// remembered for later switches.
+    pub fn set_mapping(&mut self, from: &str, to: &str) {
+        let Some(note) = self.panels.mapping.as_mut() else { return };
+        let Some(k) = note.map.pairs.iter().position(|p| p.from == from) else { return };
+        note.map.set(from, to);
+        self.storage.class_table.retain(|(a, _)| a != from);
+        self.storage.class_table.insert(0, (from.to_string(), to.to_string()));
+        if self.editing.doc.options.timeline.segments.len() == note.timeline.segments.len() {
+            let indices = note.segments[k].clone();
+            self.edit(|d| indices.iter().for_each(|&i| d.options.timeline.segments[i].class = to.to_string()));
+            if let Some(note) = self.panels.mapping.as_mut() {
+                note.timeline = self.editing.doc.options.timeline.clone();
+            }
+        }
+        self.save_state();
+    }
+
+    /// Asks for a new take when the options changed and the pause is over.
+    pub(super) fn schedule(&mut self, ctx: &egui::Context) {
+        let Some(model) = &self.engine.model else { return };
+        // Not while another model loads (the request would reach it), nor before the
+        // initial-pose file has been checked against a new model.
+        if model.dir != self.editing.doc.model || self.engine.model_loading.is_some() || self.engine.init_after_switch {
+            return;
+        }
+        let options = self.editing.take_request().options;
+        if self.engine.requested.as_ref() != Some(&options) && self.engine.auto_regen && self.engine.regen_at.is_none() {
+            self.engine.regen_at = Some(self.now + DEBOUNCE);
+        }
+        if let Some(at) = self.engine.regen_at {
+            if self.now >= at {
+                self.engine.regen_at = None;
+                if self.engine.requested.as_ref() != Some(&options) || self.engine.take.is_none() {
+                    self.regenerate();
+                }
+            } else {
+                ctx.request_repaint_after(std::time::Duration::from_secs_f64(at - self.now));
+            }
+        }
+    }
+
+    /// Generates now with the document's request.
+    pub fn regenerate(&mut self) {
+        if self.engine.model.is_none() {
+            return;
+        }
+        let request = self.editing.take_request();
+        self.engine.generate(request);
+    }
+
+    pub fn cancel(&mut self) {
+        self.engine.cancel();
+    }
+}
+
+fn clone_take(t: &Take) -> Take {
+    Take {
+        id: t.id,
+        model_dir: t.model_dir.clone(),
+        motion: t.motion.clone(),
+        segments: t.segments.clone(),
+        frame_colors: t.frame_colors.clone(),
+        block_classes: t.block_classes.clone(),
+        path: t.path.clone(),
+        options: t.options.clone(),
+        warnings: t.warnings.clone(),
+        contacts: t.contacts.clone(),
+        millis: t.millis,
+    }
+}

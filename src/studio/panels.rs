@@ -1,0 +1,124 @@
+//! What the panels remember between frames, apart from the document: typed paths, tabs,
+//! which windows are open, the timeline widget's drag, the dialogs and the retarget preview.
+//! The panels themselves (`menu`, `sidebar`, `bottom`, `central`, `map_panel`, `keys`,
+//! `joint_mapping`) each draw one part of the window from it.
+
+use std::path::PathBuf;
+
+use super::dialogs::Dialogs;
+use super::retarget::RigState;
+use super::timeline::TimelineState;
+use crate::synth::class_map::ClassMap;
+use crate::synth::export::ExportOptions;
+use crate::synth::InitPose;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExportRange {
+    Whole,
+    Selection,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InitTab {
+    Class,
+    Seed,
+    File,
+}
+
+impl InitTab {
+    pub fn of(init: &InitPose) -> Self {
+        match init {
+            InitPose::SeedClass { .. } => InitTab::Class,
+            InitPose::SeedIndex(_) => InitTab::Seed,
+            InitPose::File { .. } => InitTab::File,
+        }
+    }
+}
+
+/// Actions that would discard unsaved work, held until the user answers.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Guarded {
+    New,
+    Open(PathBuf),
+}
+
+/// The classes carried over at the last model switch, for the mapping window.
+pub struct MappingNote {
+    pub map: ClassMap,
+    pub classes: Vec<String>,
+    /// The segments each pair retagged (indices at the time of the switch).
+    pub segments: Vec<Vec<usize>>,
+    /// The timeline right after the switch: edits apply to it only while it is unchanged.
+    pub timeline: crate::synth::Timeline,
+}
+
+/// Text fields of the UI (typed paths and the like).
+pub struct Fields {
+    pub model_path: String,
+    pub project_path: String,
+    pub export_path: String,
+    pub init_path: String,
+    pub init_frame: usize,
+    pub new_class: usize,
+    /// The seed the Seed tab offers.
+    pub seed_index: usize,
+    /// The seed "Key from seed pose" keys.
+    pub key_seed: usize,
+    /// The file and frame the last "Key from file" used.
+    pub key_path: String,
+    pub key_frame: usize,
+}
+
+/// The furthest "from frame" the UI accepts for an initial-pose file (a day at 120 fps).
+pub const MAX_INIT_FRAME: usize = 120 * 86_400;
+
+/// The panels' state.
+pub struct Panels {
+    pub(super) fields: Fields,
+    pub(super) init_tab: InitTab,
+    pub(super) export_range: ExportRange,
+    pub(super) export_options: ExportOptions,
+    /// An action that would discard unsaved work, waiting for the user's answer.
+    pub(super) confirm: Option<Guarded>,
+    pub(super) timeline_state: TimelineState,
+    /// Clicks on the viewport's ground add path waypoints.
+    pub(super) path_edit: bool,
+    /// The previous take drawn over the current one.
+    pub(super) compare: bool,
+    /// The advice last given (a message is posted when it changes).
+    pub(super) advised: Option<String>,
+    /// The classes carried over at the last model switch, and whether its window is open.
+    pub(super) mapping: Option<MappingNote>,
+    pub(super) show_mapping: bool,
+    pub(super) show_map: bool,
+    pub(super) show_side: bool,
+    pub(super) show_help: bool,
+    pub(super) show_log: bool,
+    pub(super) dialogs: Dialogs,
+    /// A foreign BVH's retarget preview, failure and mapping editor.
+    pub(super) rig: RigState,
+}
+
+impl Panels {
+    pub fn new(fields: Fields, init: &InitPose, system_dialogs: bool) -> Self {
+        Self {
+            fields,
+            init_tab: InitTab::of(init),
+            export_range: ExportRange::Whole,
+            export_options: ExportOptions::default(),
+            confirm: None,
+            timeline_state: TimelineState::default(),
+            path_edit: false,
+            compare: false,
+            advised: None,
+            mapping: None,
+            show_mapping: false,
+            show_map: true,
+            show_side: true,
+            show_help: false,
+            show_log: false,
+            dialogs: Dialogs::new(system_dialogs),
+            rig: RigState::default(),
+        }
+    }
+}
