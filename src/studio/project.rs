@@ -129,7 +129,7 @@ pub fn keep_broken_autosave(path: &Path) -> Result<PathBuf> {
     let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let stem = path.file_stem().map_or_else(|| "autosave".into(), |s| s.to_string_lossy().into_owned());
     let kept = path.with_file_name(format!("{stem}.broken-{stamp}.json"));
-    std::fs::rename(path, &kept).with_context(|| format!("cannot move {} aside", path.display()))?;
+    crate::data::write::move_aside(path, &kept)?;
     Ok(kept)
 }
 

@@ -9,7 +9,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::foot_lock::{foot_lock, FootLocked, Travel};
-use super::init::{given_frames, initial_features, GivenStart};
+use super::given::GivenStart;
+use super::init::{given_frames, initial_features};
 use super::keys::{place_keys, KeyConstraint, PlacedKey};
 use super::options::{GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};

@@ -8,18 +8,16 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use glam::Vec3;
 
-use super::plan::TakeConstraint;
-use super::raised_cosine;
 use super::rig::{entries_for, onto_model};
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
-use crate::data::features::{FeatureLayout, Placement};
+use crate::data::features::Placement;
 use crate::data::joint_map::UserJointMap;
 use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::npy::{motion_from_npy, read_npy};
 use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
-use crate::motion::{solve_local_poses, Motion, Skeleton};
+use crate::motion::{Motion, Skeleton};
 use super::export::in_units;
 
 /// Where the first sparse poses come from.
@@ -94,42 +92,6 @@ pub fn given_frames(model: &GlocalModel, init: &InitPose) -> Result<Option<Vec<V
     let start = FileStart::of(model, &motion, *frame);
     let frames = frame + spec.stride..=frame + spec.stride * spec.block_len;
     Ok(Some(frames.filter(|&f| f < motion.frames()).flat_map(|f| start.apply(motion.frame(f))).collect()))
-}
-
-/// Seconds over which the difference between a given start and the generated take fades
-/// out after the start's last frame.
-const GIVEN_BLEND_SECONDS: f32 = 0.5;
-
-/// The given frames of a file start as a constraint: the finished take shows them as given
-/// (after the foot lock and the other constraints), and the difference they make at their
-/// last frame fades out over the frames after it, ending before `until` (the first key).
-pub(super) struct GivenStart {
-    pub frames: Vec<Vec3>,
-    pub until: usize,
-}
-
-impl TakeConstraint for GivenStart {
-    fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
-        let (j, frames) = (layout.joints(), motion.frames());
-        let given = self.frames.len() / j;
-        if given == 0 || frames <= given {
-            return motion;
-        }
-        let mut positions = motion.positions().to_vec();
-        let last = given - 1;
-        let residual: Vec<Vec3> = (0..j).map(|k| self.frames[last * j + k] - positions[last * j + k]).collect();
-        positions[..given * j].copy_from_slice(&self.frames);
-        let blend = ((GIVEN_BLEND_SECONDS * motion.fps).round() as usize).min(self.until.saturating_sub(given));
-        let end = frames.min(given + blend);
-        for f in given..end {
-            let w = raised_cosine((f - last) as f32 / (blend + 1) as f32);
-            positions[f * j..(f + 1) * j].iter_mut().zip(&residual).for_each(|(p, r)| *p += w * *r);
-        }
-        let skeleton = motion.skeleton.clone();
-        let Some(mut poses) = motion.local_poses else { return Motion::from_positions(skeleton, motion.fps, positions) };
-        poses.splice(0..end, solve_local_poses(&skeleton, &positions[..end * j]));
-        Motion::from_local_poses(skeleton, motion.fps, poses)
-    }
 }
 
 /// Where a take started from frame `frame` of a motion file puts the file's world: that

@@ -5,6 +5,7 @@ pub mod constraints;
 pub mod export;
 pub mod foot_lock;
 pub mod generate;
+mod given;
 pub mod gltf;
 pub mod init;
 pub mod joint_names;
