@@ -49,6 +49,8 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
         bail!("class strength must be between 0 and {MAX_CLASS_STRENGTH}, got {class_strength}");
     }
     let (dim, total) = (spec.layout.dim(), timeline.total());
+    // The start first: a file that cannot start the take is named before anything else.
+    let (mut sparse, start) = initial_features(model, &opts.init)?;
     let keys = place_keys(&timeline, model, &opts.keys, &opts.init)?;
     // GloGen's own poses are warped onto keys unless the ablation warps the dense frames alone.
     let key_poses: Vec<usize> = if opts.key_method == KeyMethod::DenseWarp { Vec::new() } else { keys.iter().map(|k| k.sparse).collect() };
@@ -57,7 +59,6 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
     targets.sort_by_key(|k| k.sparse);
     let constraints = take_constraints(model, opts, &timeline, keys)?;
 
-    let (mut sparse, start) = initial_features(model, &opts.init)?;
     spec.sparse_norm.normalize(&mut sparse);
     let mut steps = TakeSteps {
         model,

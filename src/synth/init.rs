@@ -110,7 +110,8 @@ impl FileStart {
     /// The start of a take from `frame` of `motion` (on the model's skeleton and frame rate).
     pub fn of(model: &GlocalModel, motion: &Motion, frame: usize) -> Self {
         let spec = &model.spec;
-        let used = motion.slice(frame, (frame + spec.stride * spec.block_len + 1).min(motion.frames()));
+        let frame = frame.min(motion.frames().saturating_sub(1));
+        let used = motion.slice(frame, frame.saturating_add(spec.stride * spec.block_len + 1).min(motion.frames()));
         Self { place: spec.layout.placement(motion.frame(frame)), lift: model.floor_height() - used.floor_height() }
     }
 

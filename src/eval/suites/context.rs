@@ -29,7 +29,7 @@ pub struct SuiteOptions {
     /// None: each model's own ([`crate::model::spec::ModelSpec::class_strength`]).
     pub class_strength: Option<f32>,
     pub keep_alive: bool,
-    /// GloGen's blocks joined at their seams ([`crate::model::glocal::GlocalModel::rollout_block`]).
+    /// GloGen's blocks joined at their seams ([`crate::model::glogen::GloGen::rollout_block`]).
     pub join_seams: bool,
     /// Applied over the fields above: `Preset::Paper` is `glocal eval --paper`.
     pub preset: Preset,
