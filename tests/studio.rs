@@ -18,6 +18,7 @@ use egui_kittest::{Harness, SnapshotOptions};
 use glocal::studio::viewport::Viewport;
 use glocal::studio::{StudioApp, StudioOptions};
 use glocal::synth::render::class_color;
+use glocal::synth::Preset;
 
 const MODEL: &str = "models/h36m";
 
@@ -899,4 +900,20 @@ fn a_foreign_bvh_is_mapped_in_the_editor_previewed_and_starts_the_take() {
     assert!(h.state_mut().save_project(&project));
     let saved = glocal::studio::project::Project::load(&project).unwrap();
     assert_eq!(saved.joint_map, Some(map));
+}
+
+/// The Generation section's "The paper's method" sets the one paper preset that `glocal
+/// generate --paper` and `glocal eval --paper` apply, as one undoable edit.
+#[test]
+fn the_papers_method_is_the_one_paper_preset() {
+    let mut h = harness("paper-preset");
+    wait_ready(&mut h);
+    let before = h.state().project().options.clone();
+    assert_ne!(Preset::Paper.apply(before.clone()), before, "the shipped options are not the paper's already");
+    h.get_by_label("The paper's method").click();
+    h.run_ok();
+    assert_eq!(h.state().project().options, Preset::Paper.apply(before.clone()));
+    h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    h.step();
+    assert_eq!(h.state().project().options, before, "Ctrl+Z brings the shipped options back");
 }

@@ -14,7 +14,7 @@ use crate::model::spec::DEFAULT_CLASS_STRENGTH;
 use crate::synth::export::Units;
 use crate::synth::render::class_color;
 use crate::synth::timeline::{MAX_PACE, MAX_TRANSITION_SECONDS, MIN_PACE};
-use crate::synth::{InitPose, Transition};
+use crate::synth::{InitPose, Preset, Transition};
 
 fn section(ui: &mut egui::Ui, title: &str, add: impl FnOnce(&mut egui::Ui)) {
     egui::CollapsingHeader::new(RichText::new(title).strong()).default_open(true).show(ui, add);
@@ -207,6 +207,9 @@ impl StudioApp {
             ui.selectable_value(&mut self.editing.doc.options.transition, Transition::Cut, "Cut")
                 .on_hover_text("The activity switches at the boundary; the previous motion's momentum can carry on (the paper's method)");
         });
+        if ui.button("The paper's method").on_hover_text("GlocalNet as the paper generates: cut transitions, class strength 1, no keep-alive, no seam join, no foot lock (glocal generate --paper); Ctrl+Z undoes it").clicked() {
+            self.edit(|p| p.options = Preset::Paper.apply(p.options.clone()));
+        }
         ui.add(Slider::new(&mut self.editing.doc.options.transition_seconds, 0.0..=MAX_TRANSITION_SECONDS).text("transition length (s)"))
             .on_hover_text("Seconds over which each class change happens, centred on its boundary (0: a cut). A segment can have its own: select it on the timeline");
         // Until it is moved, the slider shows (and takes are made with) the model's own strength.
