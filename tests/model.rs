@@ -28,7 +28,7 @@ fn shipped_models_load_generate_and_beat_zero_velocity() {
         model.glogen().block(&mut BlockWorkspace::default(), &input, &class, 1.0, &mut out);
         assert!(out.iter().all(|v| v.is_finite()));
         assert_ne!(out, input, "{name}: GloGen returned its input");
-        let record = model.spec.glogen_training.clone().expect("training record");
+        let record = model.spec.training.glogen.clone().expect("training record");
         assert!(
             record.val_error < record.baseline_error,
             "{name}: GloGen {} against zero-velocity {}",
@@ -57,7 +57,7 @@ fn train_command(out: &Path, steps: usize, resume: bool) -> Command {
 }
 
 fn steps_done(dir: &Path) -> usize {
-    ModelSpec::read(dir).ok().and_then(|s| s.glogen_training).map_or(0, |r| r.steps)
+    ModelSpec::read(dir).ok().and_then(|s| s.training.glogen).map_or(0, |r| r.steps)
 }
 
 /// A run killed mid-way and resumed ends with the same weights as a run never interrupted.
@@ -123,7 +123,7 @@ fn residual_glogen_starts_where_its_context_leaves_off() {
     };
     let spec = ModelSpec::read(&residual).unwrap();
     assert!(spec.glogen.residual, "model.json does not say the GloGen is residual");
-    let record = spec.glogen_training.unwrap();
+    let record = spec.training.glogen.unwrap();
     assert!(record.val_error < record.baseline_error, "residual GloGen {} against zero-velocity {}", record.val_error, record.baseline_error);
     let (a, r) = (first_step(&absolute), first_step(&residual));
     assert!(r < a, "first forecast pose {r:.3} units from the last observed one (residual) against {a:.3} (absolute)");

@@ -252,7 +252,7 @@ fn m3_m6_l13_l14_checkpoints_resume_exactly_and_interrupts_save() {
         "stopped and resumed training differs from an uninterrupted run"
     );
     let spec = ModelSpec::read_verified(&part).unwrap();
-    assert_eq!(spec.locgen_training.unwrap().steps, 6);
+    assert_eq!(spec.training.locgen.unwrap().steps, 6);
 
     {
         let _held = FolderLock::acquire(&part).unwrap();
@@ -276,7 +276,7 @@ fn m3_m6_l13_l14_checkpoints_resume_exactly_and_interrupts_save() {
     assert_eq!(out.status.code(), Some(130), "{stderr}");
     assert!(stderr.contains("checkpoint at step") && !stderr.contains("panicked"), "{stderr}");
     assert!(std::fs::metadata(&state).unwrap().modified().unwrap() > written, "no checkpoint saved on Ctrl-C");
-    let steps = ModelSpec::read_verified(&part).unwrap().locgen_training.unwrap().steps;
+    let steps = ModelSpec::read_verified(&part).unwrap().training.locgen.unwrap().steps;
     assert!(steps > 6, "Ctrl-C saved step {steps}");
     assert!(temp_files(&part).is_empty());
 }
@@ -369,7 +369,7 @@ fn l9_l10_rounded_durations_are_noted_and_a_closed_pipe_is_no_panic() {
 fn l11_damaged_weights_fail_their_checksum_and_an_old_model_json_still_loads() {
     let (_t, model) = model_copy("bandai");
     let spec = ModelSpec::read(&model).unwrap();
-    assert!(spec.weights_sha256.contains_key("glogen.safetensors"), "the shipped model carries its checksums");
+    assert!(spec.training.weights_sha256.contains_key("glogen.safetensors"), "the shipped model carries its checksums");
     let weights = model.join("glogen.safetensors");
     let good = std::fs::read(&weights).unwrap();
     let mut flipped = good.clone();

@@ -72,6 +72,14 @@ pub struct GenerateArgs {
     /// Leave planted feet as the network made them (no contact locking with leg IK).
     #[arg(long)]
     pub no_foot_lock: bool,
+    #[command(flatten)]
+    pub output: OutputArgs,
+}
+
+/// The file a take is written to, and on which skeleton, in which units, at which frame
+/// rate and with which joint names.
+#[derive(Args, Debug)]
+pub struct OutputArgs {
     /// Output file: .bvh, .json, .npy, or .glb (a skinned glTF character).
     #[arg(long)]
     pub out: PathBuf,
@@ -117,8 +125,9 @@ pub fn parse_init(s: &str) -> Result<InitPose> {
 }
 
 pub fn run_generate(args: GenerateArgs) -> Result<()> {
-    ExportFormat::from_path(&args.out)?;
-    if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
+    let output = &args.output;
+    ExportFormat::from_path(&output.out)?;
+    if let Some(fps) = output.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
         bail!("--fps {fps}: expected a frame rate from 1 to 1000");
     }
     let model = GlocalModel::load(&args.model)?;
@@ -129,15 +138,15 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     };
     // Every file the take reads: the output may be none of them.
     let inputs: Vec<&Path> = args.project.iter().map(PathBuf::as_path).chain(input_files(&request.options)).collect();
-    check_output(&args.out, &inputs)?;
-    if let Some(path) = &args.joint_map {
+    check_output(&output.out, &inputs)?;
+    if let Some(path) = &output.joint_map {
         request.joint_map = Some(UserJointMap::read(path)?);
     }
     request.options = Preset::from_paper_flag(args.paper).apply(request.options);
     let start = Instant::now();
     let bar = ProgressBar::new(1000);
     bar.set_style(ProgressStyle::with_template("{bar:30} {percent}% {elapsed}")?);
-    if args.json {
+    if output.json {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
     let take = request.generate(&model, &mut |f| {
@@ -146,20 +155,20 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     })?;
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    let motion = match &args.retarget_to {
+    let motion = match &output.retarget_to {
         Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, request.joint_map.as_ref())?,
         None => take.motion.clone(),
     };
-    let options = ExportOptions { units: args.units.into(), fps: args.fps, source_root: false };
+    let options = ExportOptions { units: output.units.into(), fps: output.fps, source_root: false };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
-    let m = JointNames::from(args.joint_names).apply(&m, request.joint_map.as_ref())?;
-    export_with_contacts(&m, &segments, Some(&take.contacts), &args.out)?;
+    let m = JointNames::from(output.joint_names).apply(&m, request.joint_map.as_ref())?;
+    export_with_contacts(&m, &segments, Some(&take.contacts), &output.out)?;
     note_rounded_durations(&request.options, &take.segments, take.motion.fps);
     for warning in &take.warnings {
         eprintln!("warning: {warning}");
     }
     let m = &m;
-    if args.json {
+    if output.json {
         let summary = serde_json::json!({
             "frames": m.frames(),
             "fps": m.fps,
@@ -167,11 +176,11 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
             "segments": segments,
             "elapsed_ms": elapsed.as_secs_f64() * 1e3,
             "warnings": take.warnings,
-            "out": args.out,
+            "out": output.out,
         });
         say!("{summary}");
     } else {
-        say!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, args.out.display());
+        say!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, output.out.display());
         for s in &segments {
             say!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
         }

@@ -10,7 +10,7 @@ use crate::data::archive::DataRoot;
 use crate::data::features::Interpolation;
 use super::args::{LossArg, StageArg};
 use crate::model::spec::SeamJoin;
-use crate::model::train::{train, Stage, TrainOptions};
+use crate::model::train::{train, ModelShape, Stage, TrainOptions};
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -32,6 +32,23 @@ pub struct TrainArgs {
     data: Option<PathBuf>,
     #[arg(long, default_value_t = 64)]
     batch: usize,
+    #[command(flatten)]
+    shape: ShapeArgs,
+    #[arg(long, default_value_t = 250)]
+    eval_every: usize,
+    #[arg(long, default_value_t = 250)]
+    checkpoint_every: usize,
+    /// Start from the trained weights of this stage in DIR (a fresh optimiser): fine-tuning.
+    #[arg(long, value_name = "DIR")]
+    init_from: Option<PathBuf>,
+    /// Fine-tune the stage already trained in --out (the same as --init-from OUT).
+    #[arg(long)]
+    fine_tune: bool,
+}
+
+/// The flags that shape the model a run trains.
+#[derive(Args, Debug)]
+struct ShapeArgs {
     #[arg(long, default_value_t = 200)]
     hidden: usize,
     #[arg(long, value_enum, default_value = "j+mf")]
@@ -65,16 +82,32 @@ pub struct TrainArgs {
     /// Dense frames between sparse poses (the paper's M + 1).
     #[arg(long, default_value_t = 5)]
     stride: usize,
-    #[arg(long, default_value_t = 250)]
-    eval_every: usize,
-    #[arg(long, default_value_t = 250)]
-    checkpoint_every: usize,
-    /// Start from the trained weights of this stage in DIR (a fresh optimiser): fine-tuning.
-    #[arg(long, value_name = "DIR")]
-    init_from: Option<PathBuf>,
-    /// Fine-tune the stage already trained in --out (the same as --init-from OUT).
-    #[arg(long)]
-    fine_tune: bool,
+}
+
+impl ShapeArgs {
+    /// Gives `shape` these flags' settings, `--paper` last.
+    fn apply(&self, shape: &mut ModelShape) -> Result<()> {
+        shape.hidden = self.hidden;
+        shape.loss = self.loss.into();
+        shape.use_class = !self.no_class;
+        shape.rollout_blocks = self.rollout;
+        shape.class_dropout = self.class_dropout;
+        shape.residual = self.residual;
+        shape.joined = self.joined;
+        shape.seam_join = if self.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
+        shape.target = self.target;
+        shape.stride = self.stride;
+        if self.paper {
+            if self.residual || self.joined || self.two_sided_join || self.target {
+                bail!("--paper trains the paper's GloGen, which has neither --residual, --joined, --two-sided-join nor --target");
+            }
+            shape.class_in_decoder = false;
+            shape.class_dropout = 0.0;
+            shape.rollout_blocks = 1;
+            shape.interpolation = Interpolation::Linear;
+        }
+        Ok(())
+    }
 }
 
 /// The first Ctrl-C asks training to stop after the current step and save a checkpoint; a
@@ -97,29 +130,11 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.steps = args.steps;
     opts.seed = args.seed;
     opts.resume = args.resume;
-    opts.batch = args.batch;
-    opts.hidden = args.hidden;
-    opts.loss = args.loss.into();
-    opts.use_class = !args.no_class;
-    opts.rollout_blocks = args.rollout;
-    opts.class_dropout = args.class_dropout;
-    opts.residual = args.residual;
-    opts.joined = args.joined;
-    opts.seam_join = if args.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
-    opts.target = args.target;
-    opts.stride = args.stride;
+    opts.optimiser.batch = args.batch;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
-    if args.paper {
-        if args.residual || args.joined || args.two_sided_join || args.target {
-            bail!("--paper trains the paper's GloGen, which has neither --residual, --joined, --two-sided-join nor --target");
-        }
-        opts.class_in_decoder = false;
-        opts.class_dropout = 0.0;
-        opts.rollout_blocks = 1;
-        opts.interpolation = Interpolation::Linear;
-    }
+    args.shape.apply(&mut opts.shape)?;
     if let Some(dir) = &opts.init_from {
         eprintln!("fine-tuning {:?} from the trained weights in {}", opts.stage, dir.display());
     }

@@ -157,10 +157,21 @@ pub struct ModelSpec {
     pub class_strength: f32,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
-    #[serde(default)]
-    pub glogen_training: Option<StageRecord>,
-    #[serde(default)]
-    pub locgen_training: Option<StageRecord>,
+    #[serde(flatten)]
+    pub training: TrainingRecords,
+}
+
+/// What training wrote beside a stage's weights: its record (none before the stage is
+/// trained) and the weights' checksums. In model.json these are fields of the model itself;
+/// serde reads flattened fields after the others, so a wrong type in one is reported at the
+/// end of the file rather than at its line, which is why only fields that training writes
+/// are grouped here and the ones tuned by hand (`foot_lock`, `class_strength`) are not.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct TrainingRecords {
+    #[serde(default, rename = "glogen_training")]
+    pub glogen: Option<StageRecord>,
+    #[serde(default, rename = "locgen_training")]
+    pub locgen: Option<StageRecord>,
     /// SHA-256 of each weight file (by file name), written with it and checked at load.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub weights_sha256: BTreeMap<String, String>,
@@ -293,7 +304,7 @@ impl ModelSpec {
     /// they existed) is accepted as it is.
     pub fn read_verified(dir: &Path) -> Result<Self, Error> {
         let spec = Self::read(dir)?;
-        for (file, expected) in &spec.weights_sha256 {
+        for (file, expected) in &spec.training.weights_sha256 {
             let path = dir.join(file);
             let Ok(bytes) = read_bytes(&path, MAX_WEIGHTS_BYTES) else { continue };
             let found = sha256_hex(&bytes);
@@ -332,7 +343,7 @@ impl ModelSpec {
         whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;
         validate_block("locgen.block", &self.locgen.block, dim, 0)?;
         whole_in_range("locgen.window", self.locgen.window, 1, MAX_LOCGEN_WINDOW)?;
-        for file in self.weights_sha256.keys() {
+        for file in self.training.weights_sha256.keys() {
             if ![GLOGEN_FILE, LOCGEN_FILE].contains(&file.as_str()) {
                 return Err(E::field("weights_sha256", format!("names '{}', which is not a weight file of a model", clipped(file))));
             }
@@ -408,4 +419,36 @@ pub struct Seed {
     pub clip: String,
     pub frame: usize,
     pub features: Vec<f32>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
+
+    /// Whether `written` has every field of `read` with its value (and maybe the defaults of
+    /// fields `read` was saved without).
+    fn holds(written: &Value, read: &Value) -> bool {
+        match (written, read) {
+            (Value::Object(w), Value::Object(r)) => r.iter().all(|(k, v)| w.get(k).is_some_and(|w| holds(w, v))),
+            (Value::Array(w), Value::Array(r)) => w.len() == r.len() && w.iter().zip(r).all(|(w, r)| holds(w, r)),
+            _ => written == read,
+        }
+    }
+
+    /// The fields in sub-structs are flattened into model.json: a shipped model's file,
+    /// checksums verified, writes back every value it was read with.
+    #[test]
+    fn a_shipped_model_json_writes_back_every_value_it_read() {
+        let json = |dir: &Path| -> Value { serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap() };
+        for model in ["h36m", "bandai"] {
+            let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(model);
+            let out = tempfile::tempdir().unwrap();
+            ModelSpec::read_verified(&dir).unwrap().write(out.path()).unwrap();
+            let (read, written) = (json(&dir), json(out.path()));
+            for (field, value) in read.as_object().unwrap() {
+                assert!(written.get(field).is_some_and(|w| holds(w, value)), "{model}: {field}");
+            }
+        }
+    }
 }

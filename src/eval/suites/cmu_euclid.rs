@@ -55,7 +55,7 @@ const CMU_WINDOWS_PER_CLASS: usize = 64;
 
 fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
     let dir = opts.cache.join(format!("glogen-{}{}", dataset.name(), variant.suffix));
-    let done = ModelSpec::read(&dir).ok().and_then(|s| s.glogen_training).is_some_and(|r| r.steps >= CMU_GLOGEN_STEPS);
+    let done = ModelSpec::read(&dir).ok().and_then(|s| s.training.glogen).is_some_and(|r| r.steps >= CMU_GLOGEN_STEPS);
     if done {
         return Ok(dir);
     }
@@ -66,17 +66,17 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     let mut t = TrainOptions::new(dataset, Stage::Glogen, dir.clone());
     t.data = opts.data.clone();
     t.steps = CMU_GLOGEN_STEPS;
-    t.stride = CMU_STRIDE;
-    t.block_len = 10;
-    t.hidden = 128;
-    t.batch = 32;
-    t.loss = variant.loss;
-    t.use_class = variant.use_class;
-    t.residual = variant.residual;
+    t.shape.stride = CMU_STRIDE;
+    t.shape.block_len = 10;
+    t.shape.hidden = 128;
+    t.optimiser.batch = 32;
+    t.shape.loss = variant.loss;
+    t.shape.use_class = variant.use_class;
+    t.shape.residual = variant.residual;
     if variant.paper {
-        t.class_in_decoder = false;
-        t.class_dropout = 0.0;
-        t.rollout_blocks = 1;
+        t.shape.class_in_decoder = false;
+        t.shape.class_dropout = 0.0;
+        t.shape.rollout_blocks = 1;
     }
     t.resume = true;
     t.eval_every = 500;

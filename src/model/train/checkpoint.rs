@@ -43,7 +43,7 @@ pub(super) fn checkpoint(
 /// Writes the stage's weights and model.json (its record and the weights' checksum).
 pub(super) fn publish(varmap: &VarMap, spec: &mut ModelSpec, opts: &TrainOptions, record: &StageRecord, weights_path: &Path) -> Result<()> {
     let bytes = save_weights(varmap, weights_path)?;
-    spec.weights_sha256.insert(opts.stage.file().to_string(), sha256_hex(&bytes));
+    spec.training.weights_sha256.insert(opts.stage.file().to_string(), sha256_hex(&bytes));
     *opts.stage.record_mut(spec) = Some(record.clone());
     spec.write(&opts.out)
 }

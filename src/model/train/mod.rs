@@ -24,7 +24,7 @@ use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
 use super::glocal::{load_weights, SEEDS_FILE};
-use super::spec::{GloGenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, FORMAT_VERSION};
+use super::spec::{GloGenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{Interpolation, Normalizer};
 use crate::data::registry::Dataset;
@@ -49,15 +49,15 @@ impl Stage {
     /// The record of the stage's training in `spec`.
     pub fn record(self, spec: &ModelSpec) -> Option<&StageRecord> {
         match self {
-            Stage::Glogen => spec.glogen_training.as_ref(),
-            Stage::Locgen => spec.locgen_training.as_ref(),
+            Stage::Glogen => spec.training.glogen.as_ref(),
+            Stage::Locgen => spec.training.locgen.as_ref(),
         }
     }
 
     fn record_mut(self, spec: &mut ModelSpec) -> &mut Option<StageRecord> {
         match self {
-            Stage::Glogen => &mut spec.glogen_training,
-            Stage::Locgen => &mut spec.locgen_training,
+            Stage::Glogen => &mut spec.training.glogen,
+            Stage::Locgen => &mut spec.training.locgen,
         }
     }
 
@@ -78,6 +78,8 @@ impl Stage {
     }
 }
 
+/// One training run of one stage: what it trains on, where it writes, how long and how
+/// often it checks itself.
 #[derive(Clone, Debug)]
 pub struct TrainOptions {
     pub dataset: Dataset,
@@ -87,8 +89,27 @@ pub struct TrainOptions {
     pub out: PathBuf,
     pub seed: u64,
     pub resume: bool,
+    pub eval_every: usize,
+    pub checkpoint_every: usize,
+    /// Start the stage from this folder's trained weights (with a fresh optimiser) instead
+    /// of random ones: fine-tuning, e.g. after a change to the data.
+    pub init_from: Option<PathBuf>,
+    pub optimiser: OptimiserOptions,
+    pub shape: ModelShape,
+}
+
+/// The optimiser's settings.
+#[derive(Clone, Debug)]
+pub struct OptimiserOptions {
+    /// Training windows per step.
     pub batch: usize,
     pub lr: f32,
+}
+
+/// The model a run describes in a new model.json (and in the stage it trains): its
+/// networks, what they read and learn from, and the windows of data they see.
+#[derive(Clone, Debug)]
+pub struct ModelShape {
     pub hidden: usize,
     pub loss: LossKind,
     pub use_class: bool,
@@ -108,11 +129,6 @@ pub struct TrainOptions {
     pub locgen_window: usize,
     /// Classes with fewer training clips are left out.
     pub min_clips: usize,
-    pub eval_every: usize,
-    pub checkpoint_every: usize,
-    /// Start the stage from this folder's trained weights (with a fresh optimiser) instead
-    /// of random ones: fine-tuning, e.g. after a change to the data.
-    pub init_from: Option<PathBuf>,
     /// The interpolation a new LocGen refines.
     pub interpolation: Interpolation,
 }
@@ -127,26 +143,27 @@ impl TrainOptions {
             out,
             seed: 0,
             resume: false,
-            batch: 64,
-            lr: 0.002,
-            hidden: 200,
-            loss: LossKind::JointFlow,
-            use_class: true,
-            class_in_decoder: true,
-            class_dropout: 0.1,
-            rollout_blocks: 2,
-            residual: false,
-            joined: false,
-            seam_join: SeamJoin::OneSided,
-            target: false,
-            stride: 5,
-            block_len: 10,
-            locgen_window: 10,
-            min_clips: 3,
             eval_every: 250,
             checkpoint_every: 250,
             init_from: None,
-            interpolation: Interpolation::CatmullRom,
+            optimiser: OptimiserOptions { batch: 64, lr: 0.002 },
+            shape: ModelShape {
+                hidden: 200,
+                loss: LossKind::JointFlow,
+                use_class: true,
+                class_in_decoder: true,
+                class_dropout: 0.1,
+                rollout_blocks: 2,
+                residual: false,
+                joined: false,
+                seam_join: SeamJoin::OneSided,
+                target: false,
+                stride: 5,
+                block_len: 10,
+                locgen_window: 10,
+                min_clips: 3,
+                interpolation: Interpolation::CatmullRom,
+            },
         }
     }
 }
@@ -171,25 +188,25 @@ impl TrainOptions {
             Ok(())
         };
         whole("steps", self.steps, 1, 100_000_000)?;
-        whole("batch", self.batch, 1, 4096)?;
-        whole("hidden", self.hidden, 1, 4096)?;
-        whole("stride", self.stride, 1, 100)?;
-        whole("rollout", self.rollout_blocks, 1, 100)?;
+        whole("batch", self.optimiser.batch, 1, 4096)?;
+        whole("hidden", self.shape.hidden, 1, 4096)?;
+        whole("stride", self.shape.stride, 1, 100)?;
+        whole("rollout", self.shape.rollout_blocks, 1, 100)?;
         whole("eval-every", self.eval_every, 1, usize::MAX)?;
         whole("checkpoint-every", self.checkpoint_every, 1, usize::MAX)?;
-        whole("block-len", self.block_len, 1, 1000)?;
-        whole("locgen-window", self.locgen_window, 1, 1000)?;
-        if !(self.class_dropout.is_finite() && (0.0..=1.0).contains(&self.class_dropout)) {
-            bail!("--class-dropout must be a probability between 0 and 1, got {}", self.class_dropout);
+        whole("block-len", self.shape.block_len, 1, 1000)?;
+        whole("locgen-window", self.shape.locgen_window, 1, 1000)?;
+        if !(self.shape.class_dropout.is_finite() && (0.0..=1.0).contains(&self.shape.class_dropout)) {
+            bail!("--class-dropout must be a probability between 0 and 1, got {}", self.shape.class_dropout);
         }
-        if !(self.lr.is_finite() && self.lr > 0.0) {
-            bail!("the learning rate must be a positive number, got {}", self.lr);
+        if !(self.optimiser.lr.is_finite() && self.optimiser.lr > 0.0) {
+            bail!("the learning rate must be a positive number, got {}", self.optimiser.lr);
         }
         if self.out.is_file() {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
-        let two_sided = self.seam_join == SeamJoin::TwoSided;
-        if self.stage == Stage::Locgen && (self.residual || self.joined || two_sided || self.target) {
+        let two_sided = self.shape.seam_join == SeamJoin::TwoSided;
+        if self.stage == Stage::Locgen && (self.shape.residual || self.shape.joined || two_sided || self.shape.target) {
             bail!("--residual, --joined, --two-sided-join and --target shape GloGen's blocks; they do not apply to --stage locgen");
         }
         Ok(())
@@ -221,9 +238,9 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
             state_path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
         );
     }
-    let corpus = Corpus::load(opts.dataset, &opts.data, opts.stride, opts.min_clips)?;
+    let corpus = Corpus::load(opts.dataset, &opts.data, opts.shape.stride, opts.shape.min_clips)?;
     if corpus.classes.is_empty() || corpus.train.is_empty() {
-        bail!("{} has no class with at least {} training clips", opts.dataset, opts.min_clips);
+        bail!("{} has no class with at least {} training clips", opts.dataset, opts.shape.min_clips);
     }
     std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
     let _lock = FolderLock::acquire(&opts.out)?;
@@ -237,7 +254,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         load_widened(&from, &varmap).with_context(|| format!("cannot fine-tune from {}", from.display()))?;
     }
     let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
-    let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.lr as f64, ..Default::default() })?;
+    let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.optimiser.lr as f64, ..Default::default() })?;
     let mut record = StageRecord { seed: opts.seed, ..Default::default() };
     if opts.resume {
         if state_path.exists() {
@@ -326,29 +343,30 @@ fn load_widened(path: &Path, varmap: &VarMap) -> Result<()> {
 fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
     let dim = corpus.layout.dim();
     let classes = corpus.classes.len();
+    let shape = &opts.shape;
     let mut glogen = GloGenSpec {
         block: BlockConfig {
             in_dim: dim,
             cond_dim: 0,
-            cond_in_decoder: opts.use_class && opts.class_in_decoder,
-            hidden: opts.hidden,
+            cond_in_decoder: shape.use_class && shape.class_in_decoder,
+            hidden: shape.hidden,
             out_dim: dim,
             dropout: 0.25,
         },
-        use_class: opts.use_class,
-        class_dropout: if opts.use_class { opts.class_dropout } else { 0.0 },
-        rollout_blocks: opts.rollout_blocks.max(1),
-        loss: opts.loss,
-        residual: opts.residual,
-        joined: opts.joined,
-        seam_join: opts.seam_join,
-        target: opts.target,
+        use_class: shape.use_class,
+        class_dropout: if shape.use_class { shape.class_dropout } else { 0.0 },
+        rollout_blocks: shape.rollout_blocks.max(1),
+        loss: shape.loss,
+        residual: shape.residual,
+        joined: shape.joined,
+        seam_join: shape.seam_join,
+        target: shape.target,
     };
     glogen.block.cond_dim = glogen.cond_len(classes, dim);
     let locgen = LocGenSpec {
-        block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: opts.hidden, out_dim: dim, dropout: 0.25 },
-        window: opts.locgen_window,
-        interpolation: opts.interpolation,
+        block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.25 },
+        window: shape.locgen_window,
+        interpolation: shape.interpolation,
     };
     if opts.out.join("model.json").exists() {
         let mut spec = ModelSpec::read(&opts.out)?;
@@ -370,8 +388,8 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         split: split_description(opts.dataset).to_string(),
         classes: corpus.classes.clone(),
         fps: corpus.fps,
-        stride: opts.stride,
-        block_len: opts.block_len,
+        stride: shape.stride,
+        block_len: shape.block_len,
         layout: corpus.layout.clone(),
         source_skeleton: source,
         source_joints: corpus.source_joints.clone(),
@@ -383,9 +401,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         class_strength: DEFAULT_CLASS_STRENGTH,
         glogen,
         locgen,
-        glogen_training: None,
-        locgen_training: None,
-        weights_sha256: Default::default(),
+        training: TrainingRecords::default(),
     };
     spec.write(&opts.out)?;
     write_seed_bank(&opts.out, &spec, corpus)?;

@@ -72,7 +72,7 @@ impl TrainingData<'_> {
     /// frame, and each window's class vector (zeroed with the class-dropout probability, then
     /// zeros for the rest of the block's conditioning) and where it was drawn from.
     fn batch<'t>(&'t self, block: &Seq2SeqBlock, span: usize, target_blocks: usize, rng: &mut StdRng, window: impl Fn(&Track, usize) -> (Vec<f32>, Vec<f32>)) -> Result<Batch<'t>> {
-        let (dim, b, cond_dim) = (self.layout().dim(), self.opts.batch, block.cfg.cond_dim);
+        let (dim, b, cond_dim) = (self.layout().dim(), self.opts.optimiser.batch, block.cfg.cond_dim);
         let (mut xs, mut ys, mut conds, mut drawn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..b {
             let (track, start) = sample_window(&self.corpus.train, self.corpus.classes.len(), span + self.spec.stride, rng).context("no training clip is long enough")?;
