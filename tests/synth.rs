@@ -7,7 +7,7 @@ use glocal::data::bvh::read_bvh_with_unit;
 use glocal::eval::metrics::window_stats;
 use glocal::model::corpus::mean_joint_speed;
 use glocal::model::glocal::GlocalModel;
-use glocal::synth::export::export;
+use glocal::synth::export::{export, prepare, ExportOptions};
 use glocal::synth::{generate, GenerateOptions, InitPose};
 
 fn model(name: &str) -> GlocalModel {
@@ -208,6 +208,29 @@ fn an_exported_take_starts_the_next_at_the_same_height() {
     let unit = first.motion.skeleton.meters_per_unit();
     let gap = (hips(&next.motion, 0) - hips(&first.motion, m.spec.stride)).abs() * unit;
     assert!(gap < 0.05, "the next take starts {gap} m off the first's height");
+}
+
+/// `clip:FILE@N` is the file's own frame N: the same take exported at the model's rate and
+/// at twice it starts the same take from frame N of the first and frame 2N of the second
+/// (within a centimetre, the resampling's), and a frame past the file's end is named as the
+/// file's.
+#[test]
+fn a_start_frame_is_the_files_own() {
+    let m = model("h36m");
+    let first = generate(&m, &opts("walking:8"), &mut |_| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let (slow, fast) = (dir.path().join("model-rate.bvh"), dir.path().join("double-rate.bvh"));
+    export(&first.motion, &first.segments, &slow).unwrap();
+    let double = ExportOptions { fps: Some(2.0 * m.spec.fps), ..Default::default() };
+    let (motion, segments) = prepare(&first.motion, &first.segments, &double, &m.spec.source_skeleton).unwrap();
+    export(&motion, &segments, &fast).unwrap();
+    let from = |path: &std::path::Path, frame: usize| generate(&m, &GenerateOptions { init: InitPose::file(path.to_path_buf(), frame), ..opts("walking:4") }, &mut |_| true).unwrap().motion;
+    let gap = largest_difference(&from(&slow, 30), &from(&fast, 60));
+    assert!(gap < 0.01, "frame 60 of the double-rate file starts a take {gap} m from frame 30 of the model-rate one");
+    let frames = motion.frames();
+    let past = GenerateOptions { init: InitPose::file(fast.clone(), frames + 5), ..opts("walking:4") };
+    let e = format!("{:#}", generate(&m, &past, &mut |_| true).err().expect("a frame past the end is refused"));
+    assert!(e.contains(&format!("frame {} is past the file's {frames} frames", frames + 5)), "{e}");
 }
 
 /// Largest distance between two takes' joints over all frames, in metres.

@@ -28,7 +28,7 @@ pub enum InitPose {
     /// A seed-bank entry by index.
     SeedIndex(usize),
     /// A motion file (BVH, NPY (T, J, 3), or an exponential-map text of the model's
-    /// dataset) from this frame on.
+    /// dataset) from this frame on: the file's own frame number, at its own frame rate.
     File {
         path: PathBuf,
         frame: usize,
@@ -67,16 +67,19 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
             Ok((seed.features.clone(), Placement::default()))
         }
         InitPose::File { path, frame, joint_map } => {
-            let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
-            let needed = frame.saturating_add(spec.stride * spec.block_len);
+            let file = read_on_model_skeleton(model, path, joint_map.as_ref())?;
+            let at = file.frame_of(*frame)?;
+            let motion = &file.motion;
+            let needed = at + spec.stride * spec.block_len;
             if motion.frames() <= needed {
+                let seconds = (spec.stride * spec.block_len) as f32 / spec.fps;
                 bail!(
-                    "{}: {} frames at {} fps from frame {frame} are too few: a start needs {} frames ({} sparse poses {} frames apart)",
-                    path.display(), motion.frames(), spec.fps, spec.stride * spec.block_len + 1, spec.block_len, spec.stride
+                    "{}: {:.2} s from frame {frame} (of {} at {} fps) are too few: a start needs {seconds:.2} s ({} sparse poses {} frames apart at the model's {} fps)",
+                    path.display(), (motion.frames() - at) as f32 / spec.fps, file.file_frames, file.file_fps, spec.block_len, spec.stride, spec.fps
                 );
             }
-            let motion = motion.translated(Vec3::new(0.0, FileStart::of(model, &motion, *frame).lift, 0.0));
-            let start = frame + spec.stride;
+            let motion = motion.translated(Vec3::new(0.0, FileStart::of(model, motion, at).lift, 0.0));
+            let start = at + spec.stride;
             Ok((spec.layout.encode_motion(&motion, start, spec.stride, spec.block_len), Placement::default()))
         }
     }
@@ -88,9 +91,10 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
 pub fn given_frames(model: &GlocalModel, init: &InitPose) -> Result<Option<Vec<Vec3>>> {
     let InitPose::File { path, frame, joint_map } = init else { return Ok(None) };
     let spec = &model.spec;
-    let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
-    let start = FileStart::of(model, &motion, *frame);
-    let frames = frame + spec.stride..=frame + spec.stride * spec.block_len;
+    let file = read_on_model_skeleton(model, path, joint_map.as_ref())?;
+    let (motion, at) = (&file.motion, file.frame_of(*frame)?);
+    let start = FileStart::of(model, motion, at);
+    let frames = at + spec.stride..=at + spec.stride * spec.block_len;
     Ok(Some(frames.filter(|&f| f < motion.frames()).flat_map(|f| start.apply(motion.frame(f))).collect()))
 }
 
@@ -149,12 +153,42 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     in_units(&file, model.meters_per_unit())
 }
 
+/// A motion file brought onto the model's joints and frame rate, with what frame numbers
+/// mean in the file itself: `clip:FILE@N` is the file's own frame N (line N of a 50 fps
+/// dataset text, frame N of a 120 fps BVH), whatever the model's rate.
+pub struct FileMotion {
+    pub motion: Motion,
+    /// The file's frame rate and frame count (an NPY has no rate: the model's is assumed).
+    pub file_fps: f32,
+    pub file_frames: usize,
+    name: String,
+}
+
+impl FileMotion {
+    /// The model-rate frame of the file's frame `frame`, or an error naming the file when it
+    /// has no such frame.
+    pub fn frame_of(&self, frame: usize) -> Result<usize> {
+        if frame >= self.file_frames {
+            bail!("{}: frame {frame} is past the file's {} frames", self.name, self.file_frames);
+        }
+        let at = (frame as f64 * self.motion.fps as f64 / self.file_fps as f64).round() as usize;
+        Ok(at.min(self.motion.frames().saturating_sub(1)))
+    }
+}
+
 /// Reads a BVH, NPY or exponential-map file and brings it onto the model's joints and
 /// frame rate; a BVH of another humanoid skeleton is retargeted onto the model's joints, its
 /// key joints found by the entries of `joint_map` that name its joints, then by name.
-pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path, joint_map: Option<&UserJointMap>) -> Result<Motion> {
-    let spec = &model.spec;
+pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path, joint_map: Option<&UserJointMap>) -> Result<FileMotion> {
     let name = path.display().to_string();
+    let (motion, file_fps, file_frames) = read_onto_model(model, path, &name, joint_map)?;
+    Ok(FileMotion { motion, file_fps, file_frames, name })
+}
+
+/// [`read_on_model_skeleton`]'s motion, with the file's own frame rate and count.
+fn read_onto_model(model: &GlocalModel, path: &Path, name: &str, joint_map: Option<&UserJointMap>) -> Result<(Motion, f32, usize)> {
+    let spec = &model.spec;
+    let name = name.to_string();
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_lowercase();
     let source = Arc::new(spec.source_skeleton.clone());
     let m = match ext.as_str() {
@@ -163,16 +197,17 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path, joint_map: Optio
             let m = read_bvh_with_unit(&text, &name, spec.source_skeleton.meters_per_unit())?;
             let m = in_model_units(m, &spec.source_skeleton)?;
             check_plausible(&m, &name, &spec.source_skeleton)?;
+            let file = (m.fps, m.frames());
             // A take this model exported is on its own joints already.
             if m.skeleton.differences(&spec.layout.skeleton).is_empty() {
                 let mut m = m.resample(spec.fps);
                 m.skeleton = spec.layout.skeleton.clone();
-                return Ok(m);
+                return Ok((m, file.0, file.1));
             }
             if !m.skeleton.differences(&spec.source_skeleton).is_empty() {
                 // Another humanoid skeleton: retargeted by its joint names.
                 let own = joint_map.map(|map| entries_for(map, &m.skeleton));
-                return onto_model(spec, &m, &name, own.as_ref());
+                return Ok((onto_model(spec, &m, &name, own.as_ref())?, file.0, file.1));
             }
             m
         }
@@ -190,7 +225,8 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path, joint_map: Optio
             let m = motion_from_npy(&bytes, &name, skeleton, spec.fps)?;
             check_plausible(&m, &name, &m.skeleton)?;
             if on_model {
-                return Ok(m);
+                let frames = m.frames();
+                return Ok((m, spec.fps, frames));
             }
             m
         }
@@ -207,7 +243,8 @@ pub fn read_on_model_skeleton(model: &GlocalModel, path: &Path, joint_map: Optio
         }
         _ => bail!("{name}: unsupported file type '{ext}' (use .bvh, .npy or an exponential-map .txt)"),
     };
+    let file = (m.fps, m.frames());
     let mut m = m.resample(spec.fps).subset(&spec.source_joints);
     m.skeleton = spec.layout.skeleton.clone();
-    Ok(m)
+    Ok((m, file.0, file.1))
 }

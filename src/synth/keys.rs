@@ -71,16 +71,17 @@ pub fn key_pose(model: &GlocalModel, key: &Key, init: &InitPose) -> Result<Vec<V
             last_pose(&spec.layout, &seed.features)
         }
         KeySource::Init(InitPose::File { path, frame, joint_map }) => {
-            let motion = read_on_model_skeleton(model, path, joint_map.as_ref())?;
-            if *frame >= motion.frames() {
-                bail!("{}: key frame {frame} is past the file's {} frames", path.display(), motion.frames());
-            }
+            let file = read_on_model_skeleton(model, path, joint_map.as_ref())?;
+            let at = file.frame_of(*frame).with_context(|| format!("key at {} s", key.seconds))?;
+            let motion = &file.motion;
             match init {
-                InitPose::File { path: start_file, frame: start, .. } if start_file == path && *start < motion.frames() => FileStart::of(model, &motion, *start).apply(motion.frame(*frame)),
+                InitPose::File { path: start_file, frame: start, .. } if start_file == path && *start < file.file_frames => {
+                    FileStart::of(model, motion, file.frame_of(*start)?).apply(motion.frame(at))
+                }
                 _ => {
                     // On the model's floor, as a starting clip is.
                     let lift = model.floor_height() - motion.floor_height();
-                    motion.frame(*frame).iter().map(|p| *p + Vec3::Y * lift).collect()
+                    motion.frame(at).iter().map(|p| *p + Vec3::Y * lift).collect()
                 }
             }
         }
