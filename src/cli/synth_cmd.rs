@@ -13,26 +13,29 @@ use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOp
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::{JointNamesArg, TransitionArg, UnitsArg};
 use crate::synth::joint_names::JointNames;
-use crate::synth::{Document, GenerateOptions, InitPose, Key, KeySource, Preset, Request, RootPath, SegmentSpan, DEFAULT_TRANSITION_SECONDS};
+use crate::synth::{Document, GenerateOptions, InitPose, Key, KeySource, Preset, Request, RootPath, SegmentSpan, Timeline, DEFAULT_TRANSITION_SECONDS};
 
 #[derive(Args, Debug)]
 pub struct GenerateArgs {
-    /// Model folder (default: models/h36m).
-    #[arg(long, default_value = "models/h36m")]
-    pub model: PathBuf,
+    /// Model folder (default: the project's model with --project, else the shipped h36m
+    /// model: models/h36m in the working folder, beside the executable or in the checkout it
+    /// was built in).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     /// Segments as CLASS:SECONDS[@PACE][~TRANSITION], comma-separated, e.g.
     /// "sitting:3,eating:5,walking:10~0.5" (TRANSITION: seconds into that segment).
     #[arg(long, required_unless_present = "project")]
     pub timeline: Option<String>,
-    /// A studio project (.glocal): the take it describes, with its activities, keys, path and
-    /// generation settings as saved (--model still picks the model).
+    /// A studio project (.glocal): the take it describes, with its model, activities, keys,
+    /// path and generation settings as saved (--model picks another model).
     #[arg(long, conflicts_with_all = ["timeline", "keys", "path"])]
     pub project: Option<PathBuf>,
     #[arg(long, default_value_t = 1.0)]
     pub pace: f32,
-    /// seed:CLASS, seed:N, or clip:PATH@FRAME (a BVH, NPY or exponential-map file).
-    #[arg(long, default_value = "seed:0")]
-    pub init: String,
+    /// seed:CLASS, seed:N, or clip:PATH@FRAME (a BVH, NPY or exponential-map file; FRAME the
+    /// file's own). Default: the first seed-bank window of the first segment's class.
+    #[arg(long)]
+    pub init: Option<String>,
     /// Plain interpolation between sparse poses instead of LocGen.
     #[arg(long)]
     pub no_locgen: bool,
@@ -130,9 +133,15 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     if let Some(fps) = output.fps.filter(|f| !(f.is_finite() && (1.0..=1000.0).contains(f))) {
         bail!("--fps {fps}: expected a frame rate from 1 to 1000");
     }
-    let model = GlocalModel::load(&args.model)?;
-    let mut request = match (&args.project, &args.timeline) {
-        (Some(project), _) => Document::load(project)?.request(),
+    let document = args.project.as_deref().map(Document::load).transpose()?;
+    let model_dir = match (&args.model, &document) {
+        (Some(dir), _) => dir.clone(),
+        (None, Some(document)) => crate::model::project_model(&document.model),
+        (None, None) => crate::model::shipped_model("h36m"),
+    };
+    let model = GlocalModel::load(&model_dir)?;
+    let mut request = match (document, &args.timeline) {
+        (Some(document), _) => document.request(),
         (None, Some(timeline)) => Request { options: options_from_args(&args, timeline)?, joint_map: None },
         (None, None) => bail!("--timeline or --project is needed"),
     };
@@ -190,10 +199,16 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
 
 /// The generation options the command line's flags ask for.
 fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOptions> {
+    let timeline: Timeline = timeline.parse()?;
+    // A take starts in its first activity unless told otherwise.
+    let init = match &args.init {
+        Some(init) => parse_init(init)?,
+        None => InitPose::SeedClass { class: timeline.segments.first().map(|s| s.class.clone()).unwrap_or_default(), variant: 0 },
+    };
     Ok(GenerateOptions {
-        timeline: timeline.parse()?,
+        timeline,
         pace: args.pace,
-        init: parse_init(&args.init)?,
+        init,
         locgen: !args.no_locgen,
         transition: args.transition.into(),
         transition_seconds: args.transition_seconds,

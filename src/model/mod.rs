@@ -14,7 +14,46 @@ pub mod spec;
 pub mod target;
 pub mod train;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// Where shipped models are looked for, in order: beside the executable (an installed
+/// studio, or `target/<profile>/` two levels below a checkout), the crate's own `models/`
+/// (where it was built), and the working folder. Duplicates are dropped.
+pub fn model_roots() -> Vec<PathBuf> {
+    let exe_dir = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf));
+    let mut roots: Vec<PathBuf> = Vec::new();
+    if let Some(dir) = &exe_dir {
+        roots.push(dir.join("models"));
+        roots.extend(dir.ancestors().nth(2).map(|d| d.join("models")));
+    }
+    roots.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("models"));
+    if let Ok(cwd) = std::env::current_dir() {
+        roots.push(cwd.join("models"));
+    }
+    let mut seen = Vec::new();
+    roots.retain(|r| {
+        let key = r.canonicalize().unwrap_or_else(|_| r.clone());
+        let new = !seen.contains(&key);
+        seen.push(key);
+        new
+    });
+    roots
+}
+
+/// The shipped model folder `name` (`h36m`, `bandai`) where [`model_roots`] finds one, or
+/// `models/NAME` in the working folder (which then says it is missing).
+pub fn shipped_model(name: &str) -> PathBuf {
+    model_roots().into_iter().map(|r| r.join(name)).find(|d| d.join("model.json").is_file()).unwrap_or_else(|| Path::new("models").join(name))
+}
+
+/// A model folder a project names: as saved when it is there, else the shipped model of that
+/// folder's name (a project made on another machine or checkout).
+pub fn project_model(saved: &Path) -> PathBuf {
+    if saved.join("model.json").is_file() {
+        return saved.to_path_buf();
+    }
+    saved.file_name().and_then(|n| n.to_str()).map_or_else(|| saved.to_path_buf(), shipped_model)
+}
 
 /// What goes wrong reading a model folder: its model.json, its checksums, its weight files
 /// and its seed bank. Each message names the file and what is wrong with it.

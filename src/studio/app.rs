@@ -34,36 +34,12 @@ pub struct StudioOptions {
 }
 
 impl Default for StudioOptions {
-    /// The shipped models wherever they are found ([`model_roots`]), h36m first.
+    /// The shipped models wherever they are found ([`crate::model::model_roots`]), h36m first.
     fn default() -> Self {
-        let model_roots = model_roots();
-        let model_dir = model_roots.iter().map(|r| r.join("h36m")).find(|d| d.join("model.json").is_file()).unwrap_or_else(|| PathBuf::from("models/h36m"));
+        let model_roots = crate::model::model_roots();
+        let model_dir = crate::model::shipped_model("h36m");
         Self { model_dir, model_roots, autosave: Some(project::default_autosave_path()), restore_autosave: true, system_dialogs: dialogs::system_dialog_available() }
     }
-}
-
-/// Where shipped models are looked for, in order: beside the executable (an installed
-/// studio, or `target/<profile>/` two levels below a checkout), the crate's own `models/`
-/// (where it was built), and the working folder. Duplicates are dropped.
-pub fn model_roots() -> Vec<PathBuf> {
-    let exe_dir = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf));
-    let mut roots: Vec<PathBuf> = Vec::new();
-    if let Some(dir) = &exe_dir {
-        roots.push(dir.join("models"));
-        roots.extend(dir.ancestors().nth(2).map(|d| d.join("models")));
-    }
-    roots.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("models"));
-    if let Ok(cwd) = std::env::current_dir() {
-        roots.push(cwd.join("models"));
-    }
-    let mut seen = Vec::new();
-    roots.retain(|r| {
-        let key = r.canonicalize().unwrap_or_else(|_| r.clone());
-        let new = !seen.contains(&key);
-        seen.push(key);
-        new
-    });
-    roots
 }
 
 /// The studio: the editing state, the engine, the panels' state and where things are kept;
