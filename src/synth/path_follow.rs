@@ -125,8 +125,12 @@ impl TakeConstraint for PathConstraint {
     }
 }
 
+/// Metres past a path's last waypoint a take may end without a word (its last step).
+const PAST_THE_END_M: f32 = 0.1;
+
 /// Lays the take (`joints` per frame, `fps`) along `path`; returns a sentence per stretch
-/// where the path's times ask a speed the take cannot walk.
+/// where the path's times ask a speed the take cannot walk, and one when the take walks on
+/// past the path's end.
 pub fn follow_path(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, path: &GroundPath, units_per_metre: f32) -> Vec<String> {
     let j = layout.joints();
     let frames = positions.len() / j;
@@ -136,7 +140,8 @@ pub fn follow_path(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, pat
     let root: Vec<Vec2> = (0..frames).map(|f| Vec2::new(positions[f * j].x, positions[f * j].z)).collect();
     let centre = moving_average(&root, (CENTRE_SMOOTH_SECONDS * fps).round() as usize);
     let natural = arc_lengths(&centre);
-    let (arc, warnings) = schedule(path, &natural, fps, units_per_metre);
+    let (arc, mut warnings) = schedule(path, &natural, fps, units_per_metre);
+    warnings.extend(walked_past_the_end(path, &arc, fps, units_per_metre));
     let turns = turns(path, &centre, &arc, MIN_TRAVEL_M_S * units_per_metre / fps, (TURN_SMOOTH_SECONDS * fps).round() as usize);
     for f in 0..frames {
         let (point, _) = path.at(arc[f]);
@@ -149,6 +154,19 @@ pub fn follow_path(positions: &mut [Vec3], layout: &FeatureLayout, fps: f32, pat
         }
     }
     warnings
+}
+
+/// A path the take walks beyond (its segment lasts longer than the path takes to walk) says
+/// so: past its last waypoint the take goes on in the last leg's direction.
+fn walked_past_the_end(path: &GroundPath, arc: &[f32], fps: f32, units_per_metre: f32) -> Option<String> {
+    let end = path.length() + PAST_THE_END_M * units_per_metre;
+    let first = arc.iter().position(|&s| s > end)?;
+    let beyond = (arc.last()? - path.length()) / units_per_metre;
+    Some(format!(
+        "the take walks {beyond:.2} m past the path's end ({:.1} m) from {:.1} s on: lengthen the path or shorten the walk",
+        path.length() / units_per_metre,
+        first as f32 / fps
+    ))
 }
 
 fn moving_average<T>(values: &[T], half: usize) -> Vec<T>
