@@ -553,7 +553,7 @@ fn switching_models_maps_classes_keeps_durations_and_says_so() {
     assert_eq!(h.state().project().options.timeline.segments[1].class, "bow");
 
     // Bandai in centimetres at 60 fps with its source root joint.
-    *h.state_mut().export_options_mut() = glocal::synth::export::ExportOptions { units: glocal::synth::export::Units::Centimetres, fps: Some(60.0), source_root: true };
+    *h.state_mut().export_options_mut() = glocal::synth::export::ExportOptions { units: glocal::synth::export::Units::Centimetres, fps: Some(60.0), source_root: true, ..Default::default() };
     let out = dir.join("bandai.bvh");
     h.state_mut().export_to(out.clone());
     wait(&mut h, "the bandai export", |_| out.exists());

@@ -4,6 +4,7 @@ use crate::model::spec::LossKind;
 use crate::model::train::Stage;
 use crate::synth::export::Units;
 use crate::synth::joint_names::JointNames;
+use crate::motion::RootMotion;
 use crate::synth::Transition;
 
 /// How the class changes at a segment boundary (see [`Transition`]).
@@ -80,6 +81,27 @@ impl From<UnitsArg> for Units {
             UnitsArg::Metres => Units::Metres,
             UnitsArg::Centimetres => Units::Centimetres,
             UnitsArg::Native => Units::Native,
+        }
+    }
+}
+
+/// Where an exported take's travel goes (see [`RootMotion`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RootMotionArg {
+    /// The hips travel and turn, as generated.
+    Travel,
+    /// The hips' travel and turning taken out: the body moves in place.
+    InPlace,
+    /// An added `root` joint on the floor under the hips carries the travel and turning.
+    RootBone,
+}
+
+impl From<RootMotionArg> for RootMotion {
+    fn from(r: RootMotionArg) -> Self {
+        match r {
+            RootMotionArg::Travel => RootMotion::Travel,
+            RootMotionArg::InPlace => RootMotion::InPlace,
+            RootMotionArg::RootBone => RootMotion::RootBone,
         }
     }
 }

@@ -11,7 +11,7 @@ use crate::model::glocal::GlocalModel;
 use crate::synth::rig::onto_skeleton_file;
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
-use super::args::{JointNamesArg, TransitionArg, UnitsArg};
+use super::args::{JointNamesArg, RootMotionArg, TransitionArg, UnitsArg};
 use crate::synth::joint_names::JointNames;
 use crate::synth::{Document, GenerateOptions, InitPose, Key, KeySource, Preset, Request, RootPath, SegmentSpan, Timeline, DEFAULT_TRANSITION_SECONDS};
 
@@ -107,6 +107,11 @@ pub struct OutputArgs {
     /// mannequin or Unity's Humanoid avatar recognise, given by each joint's role.
     #[arg(long, value_enum, default_value = "native")]
     pub joint_names: JointNamesArg,
+    /// Where the take's travel goes: the hips (travel), nowhere (in-place: the body moves on
+    /// the spot), or an added root joint on the floor (root-bone: Unreal's and Unity's root
+    /// motion).
+    #[arg(long, value_enum, default_value = "travel")]
+    pub root_motion: RootMotionArg,
 }
 
 /// `seed:CLASS`, `seed:N` or `clip:PATH@FRAME`.
@@ -168,7 +173,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, request.joint_map.as_ref())?,
         None => take.motion.clone(),
     };
-    let options = ExportOptions { units: output.units.into(), fps: output.fps, source_root: false };
+    let options = ExportOptions { units: output.units.into(), fps: output.fps, source_root: false, root_motion: output.root_motion.into() };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
     let m = JointNames::from(output.joint_names).apply(&m, request.joint_map.as_ref())?;
     export_with_contacts(&m, &segments, Some(&take.contacts), &output.out)?;

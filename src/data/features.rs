@@ -66,14 +66,7 @@ impl FeatureLayout {
 
     /// Heading angle of a frame: 0 when facing +z, positive turning towards +x.
     pub fn heading(&self, frame: &[Vec3]) -> f32 {
-        let lateral = frame[self.right_hip] - frame[self.left_hip];
-        // Facing +z, the right hip lies at -x: up x (right - left) points forward.
-        let forward = Vec3::Y.cross(lateral);
-        if forward.x.abs() + forward.z.abs() < 1e-8 {
-            0.0
-        } else {
-            forward.x.atan2(forward.z)
-        }
+        crate::motion::facing(frame, self.left_hip, self.right_hip)
     }
 
     /// Features of `frames` (each `joints` long) taken `stride` frames apart; the first

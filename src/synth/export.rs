@@ -17,7 +17,7 @@ use crate::model::spec::ModelSpec;
 use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::write::write_atomic;
 use crate::motion::contacts::FootContacts;
-use crate::motion::{LocalPose, Motion, Skeleton};
+use crate::motion::{with_root_motion, LocalPose, Motion, RootMotion, Skeleton};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExportFormat {
@@ -191,11 +191,14 @@ pub struct ExportOptions {
     pub fps: Option<f32>,
     /// Put back the source skeleton's root joint the model dropped (Bandai's `joint_Root`).
     pub source_root: bool,
+    /// Where the take's travel goes: the hips, nowhere (in place), or an added root bone.
+    #[serde(default)]
+    pub root_motion: RootMotion,
 }
 
 impl Default for ExportOptions {
     fn default() -> Self {
-        Self { units: Units::Metres, fps: None, source_root: false }
+        Self { units: Units::Metres, fps: None, source_root: false, root_motion: RootMotion::Travel }
     }
 }
 
@@ -277,7 +280,10 @@ pub fn prepare(motion: &Motion, segments: &[SegmentSpan], options: &ExportOption
     if let Some(fps) = options.fps.filter(|f| (f - motion.fps).abs() > 1e-3) {
         (m, spans) = resampled(&m, &spans, fps)?;
     }
-    if options.source_root {
+    // A root bone carries the travel the source's placement handle would.
+    if options.root_motion != RootMotion::Travel {
+        m = with_root_motion(&m, options.root_motion)?;
+    } else if options.source_root {
         if let Some(rooted) = with_source_root(&m, source)? {
             m = rooted;
         }
