@@ -74,3 +74,36 @@ fn khronos_validator(glb: &Path) {
     println!("{report}");
     assert!(out.status.success() && report.contains(" 0 errors, 0 warnings"), "the validator on the Mixamo-named glb:\n{report}");
 }
+
+/// `--root-motion in-place` and `root-bone` exports read by Blender's BVH and glTF importers,
+/// every joint where the same take's JSON export puts it (tests/blender/check_*_import.py),
+/// and the glTF valid.
+#[test]
+fn root_motion_exports_import_in_blender() {
+    let python = blender_python();
+    let dir = tempfile::tempdir().unwrap();
+    let mut pairs = [Vec::new(), Vec::new()];
+    for mode in ["in-place", "root-bone"] {
+        for ext in ["json", "bvh", "glb"] {
+            let out = dir.path().join(format!("{mode}.{ext}"));
+            let run = Command::new(env!("CARGO_BIN_EXE_glocal"))
+                .current_dir(env!("CARGO_MANIFEST_DIR"))
+                .args(["generate", "--model", "models/h36m", "--timeline", "walking:4", "--init", "seed:walking", "--root-motion", mode, "--out"])
+                .arg(&out)
+                .output()
+                .expect("glocal runs");
+            assert!(run.status.success(), "--root-motion {mode} --out {}: {}", out.display(), String::from_utf8_lossy(&run.stderr));
+        }
+        khronos_validator(&dir.path().join(format!("{mode}.glb")));
+        for (k, ext) in ["bvh", "glb"].iter().enumerate() {
+            pairs[k].push(dir.path().join(format!("{mode}.{ext}")));
+            pairs[k].push(dir.path().join(format!("{mode}.json")));
+        }
+    }
+    for (script, files) in ["tests/blender/check_bvh_import.py", "tests/blender/check_gltf_import.py"].iter().zip(&pairs) {
+        let out = Command::new(&python).arg(crate_path(script)).args(files).output().expect("the Blender Python runs");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        println!("{script}:\n{stdout}");
+        assert!(out.status.success(), "{script} failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    }
+}

@@ -917,3 +917,19 @@ fn the_papers_method_is_the_one_paper_preset() {
     h.step();
     assert_eq!(h.state().project().options, before, "Ctrl+Z brings the shipped options back");
 }
+
+/// The Export section's "root bone" exports the take with a `root` joint on the floor above
+/// the hips, as `--root-motion root-bone` does.
+#[test]
+fn the_export_section_chooses_the_root_motion() {
+    let mut h = harness("root-motion");
+    wait_ready(&mut h);
+    h.get_by_label("root bone").click_accesskit();
+    h.run_ok();
+    assert_eq!(h.state_mut().export_options_mut().root_motion, glocal::motion::RootMotion::RootBone);
+    let out = temp_dir("root-motion").join("take.bvh");
+    h.state_mut().export_to(out.clone());
+    wait(&mut h, "the export", |_| out.exists());
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("ROOT root") && text.contains("JOINT Hips"), "no root bone above the hips:\n{}", &text[..300.min(text.len())]);
+}

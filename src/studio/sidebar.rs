@@ -11,6 +11,7 @@ use super::dialogs::Purpose;
 use super::timeline::color32;
 use super::worker::ModelInfo;
 use crate::model::spec::DEFAULT_CLASS_STRENGTH;
+use crate::motion::RootMotion;
 use crate::synth::export::Units;
 use crate::synth::render::class_color;
 use crate::synth::timeline::{MAX_PACE, MAX_TRANSITION_SECONDS, MIN_PACE};
@@ -271,7 +272,7 @@ impl StudioApp {
         self.export_buttons(ui);
     }
 
-    /// Units, frame rate and the source root joint of the export.
+    /// Units, frame rate, the source root joint and the root motion of the export.
     fn export_format(&mut self, ui: &mut egui::Ui) {
         let (native_unit, native_fps, root) = match &self.engine.model {
             Some(m) => {
@@ -312,7 +313,19 @@ impl StudioApp {
             Some(r) => format!("Adds the source skeleton's root '{r}' above the hips, on the ground under them, as in the original data"),
             None => "This model's skeleton already has the source's root joint".to_string(),
         };
-        ui.add_enabled(root.is_some(), egui::Checkbox::new(&mut o.source_root, "Keep the source root joint")).on_hover_text(&tip).on_disabled_hover_text(&tip);
+        let travel = o.root_motion == RootMotion::Travel;
+        ui.add_enabled(root.is_some() && travel, egui::Checkbox::new(&mut o.source_root, "Keep the source root joint")).on_hover_text(&tip).on_disabled_hover_text(&tip);
+        ui.horizontal(|ui| {
+            ui.label("Root motion");
+            let modes = [
+                (RootMotion::Travel, "travel", "The hips travel and turn, as generated"),
+                (RootMotion::InPlace, "in place", "The hips' travel and turning taken out: the body moves on the spot (a game's locomotion cycle)"),
+                (RootMotion::RootBone, "root bone", "An added 'root' joint on the floor under the hips carries the travel and turning, as Unreal's and Unity's root-motion import expects"),
+            ];
+            for (mode, label, tip) in modes {
+                ui.selectable_value(&mut o.root_motion, mode, label).on_hover_text(tip);
+            }
+        });
     }
 
     /// Whole take or range, and the export buttons (off while the take is out of date).
