@@ -387,6 +387,36 @@ fn l11_damaged_weights_fail_their_checksum_and_an_old_model_json_still_loads() {
     GlocalModel::load(&model).unwrap();
 }
 
+/// A seed bank with a value no f32 holds (read as infinity) or one beyond any pose is
+/// refused at load, naming the file, the seed and the feature; it used to panic in a clamp.
+#[test]
+fn l11_a_seed_bank_with_a_non_finite_or_huge_value_is_refused_by_name() {
+    let (t, model) = model_copy("bandai");
+    let seeds_path = model.join("seeds.json");
+    let good = std::fs::read_to_string(&seeds_path).unwrap();
+    let out = t.path().join("out.bvh");
+    for (bad, shown) in [("1e39", "inf"), ("-3e30", "-3e30")] {
+        let mut v: Value = serde_json::from_str(&good).unwrap();
+        v[2]["features"][5] = Value::Null;
+        let text = v.to_string().replacen("null", bad, 1);
+        std::fs::write(&seeds_path, text).unwrap();
+        refused(&["generate", "--model", s(&model), "--timeline", "walk:3", "--out", s(&out)], &["seeds.json", "seed 2: feature 5 is", shown, "finite"]);
+    }
+}
+
+/// A project file of a newer format is called that, whichever name its version field has
+/// (`format_version`, as model.json spells it, was called a file with no version).
+#[test]
+fn l11_a_newer_project_file_says_it_is_newer() {
+    let t = tempfile::tempdir().unwrap();
+    let out = t.path().join("out.bvh");
+    for field in ["version", "format_version"] {
+        let project = t.path().join(format!("{field}.glocal.json"));
+        std::fs::write(&project, format!(r#"{{"{field}": 99, "model": "models/h36m", "options": {{}}}}"#)).unwrap();
+        refused(&["generate", "--project", s(&project), "--out", s(&out)], &[&format!("{field}.glocal.json is a version 99 project, made by a newer version of glocal")]);
+    }
+}
+
 #[test]
 fn l12_fifos_and_devices_are_not_read() {
     let (t, model) = model_copy("bandai");

@@ -273,8 +273,8 @@ fn projects_save_load_and_refuse_bad_files() {
     assert!(!h.state_mut().open_project(&newer));
     h.run_ok();
     assert_eq!(h.state().project().options.timeline, current);
-    assert!(has_error(h.state(), "newer than this studio understands"));
-    assert!(shows(&h, "newer than this studio understands"));
+    assert!(has_error(h.state(), "made by a newer version of glocal"));
+    assert!(shows(&h, "made by a newer version of glocal"));
 }
 
 #[test]
@@ -479,12 +479,7 @@ fn new_and_open_ask_before_discarding_unsaved_work() {
     assert!(!h.state().has_unsaved_work(), "a fresh start has nothing to lose");
     h.state_mut().add_segment();
     h.run_ok();
-    let menu = |h: &mut Harness<'_, StudioApp>| {
-        h.get_all_by_label("File").next().unwrap().click();
-        h.run_ok();
-        h.get_by_label("New project").click();
-        h.run_ok();
-    };
+    let menu = file_new;
     menu(&mut h);
     assert!(shows(&h, "Unsaved changes"), "New asks");
     assert_eq!(h.state().project().options.timeline.segments.len(), 3, "nothing is discarded yet");
@@ -507,9 +502,110 @@ fn new_and_open_ask_before_discarding_unsaved_work() {
     assert!(shows(&h, "Unsaved changes"), "Open asks");
     h.get_by_label("Save first").click();
     h.run_ok();
+    // A project never saved asks where to save, starting from the typed path.
+    let field = h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Path");
+    assert_eq!(field.value().as_deref(), Some(mine.display().to_string().as_str()));
+    h.get_by_label("OK").click();
+    h.run_ok();
     assert_eq!(glocal::studio::project::Project::load(&mine).unwrap().options.timeline.segments.len(), 3, "the work was saved");
     assert_eq!(h.state().project().options.timeline.segments.len(), 2, "then the other project opened");
     assert!(has_message(h.state(), &format!("Opened {}", other.display())), "{:?}", h.state().messages().all());
+}
+
+/// File > New project.
+fn file_new(h: &mut Harness<'_, StudioApp>) {
+    h.get_all_by_label("File").next().unwrap().click();
+    h.run_ok();
+    h.get_by_label("New project").click();
+    h.run_ok();
+}
+
+/// Types `text` over what the focused in-app path dialog holds, and presses OK.
+fn answer_path_dialog(h: &mut Harness<'_, StudioApp>, text: &str) {
+    h.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Path").type_text(text);
+    h.run_ok();
+    h.get_by_label("OK").click();
+    h.run_ok();
+}
+
+fn segments_in(path: &Path) -> usize {
+    glocal::studio::project::Project::load(path).unwrap().options.timeline.segments.len()
+}
+
+/// Issue 40, items 1 and 2, as a session: work restored after a kill is unsaved (so New
+/// asks, and Save first writes it to its own project file); "Save first" before opening a
+/// file never writes that file (a never-saved project asks where to save, and refuses the
+/// file being opened); nothing is lost on the way.
+#[test]
+fn restored_work_is_unsaved_and_save_first_never_writes_the_file_being_opened() {
+    let _g = serial();
+    let dir = temp_dir("traps");
+    let storage = StudioOptions { restore_autosave: true, ..options("traps") };
+    let autosave = storage.autosave.clone().unwrap();
+    let mut h = harness_with(storage.clone(), egui::vec2(1280.0, 800.0));
+    wait_take(&mut h);
+    let mine = dir.join("mine.glocal.json");
+    assert!(h.state_mut().save_project(&mine));
+    h.state_mut().add_segment();
+    wait(&mut h, "the autosave of the edit", |_| glocal::studio::project::Project::load(&autosave).is_ok_and(|p| p.options.timeline.segments.len() == 3));
+    drop(h);
+
+    // Restarted: the edit is back, with its path, and counted as unsaved.
+    let mut h = harness_with(storage.clone(), egui::vec2(1280.0, 800.0));
+    wait_take(&mut h);
+    assert_eq!(h.state().project().options.timeline.segments.len(), 3, "the autosave is restored");
+    assert_eq!(h.state().project_path(), Some(mine.as_path()), "with its project's path");
+    assert_eq!(segments_in(&mine), 2, "the project file lacks the edit");
+    assert!(h.state().has_unsaved_work(), "restored work is unsaved");
+    assert!(shows(&h, "unsaved changes"));
+    file_new(&mut h);
+    assert!(shows(&h, "Unsaved changes"), "New asks");
+    h.get_by_label("Save first").click();
+    h.run_ok();
+    assert_eq!(segments_in(&mine), 3, "Save first wrote the restored work to its own file");
+    assert_eq!(h.state().project().options.timeline.segments.len(), 2, "then a new project");
+
+    // A never-saved project, the path of an existing project typed, Open, Save first.
+    h.state_mut().add_segment();
+    h.state_mut().add_segment();
+    h.run_ok();
+    let before = std::fs::read(&mine).unwrap();
+    h.state_mut().fields_mut().project_path = mine.display().to_string();
+    h.get_by_label("Open").click_accesskit();
+    h.run_ok();
+    assert!(shows(&h, "Unsaved changes"), "Open asks");
+    h.get_by_label("Save first").click();
+    h.run_ok();
+    assert_eq!(std::fs::read(&mine).unwrap(), before, "the file being opened is not written");
+    let field = h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Path");
+    assert_eq!(field.value().as_deref(), Some(dir.join("untitled.glocal.json").display().to_string().as_str()), "a save-as dialog, not on the file being opened");
+    // Choosing the file being opened is refused: nothing written, nothing opened.
+    answer_path_dialog(&mut h, &mine.display().to_string());
+    assert_eq!(std::fs::read(&mine).unwrap(), before, "the file being opened is still not written");
+    assert!(has_error(h.state(), "is the project being opened"), "{:?}", h.state().messages().all());
+    assert_eq!(h.state().project().options.timeline.segments.len(), 4, "the work is still there");
+    assert!(h.state().has_unsaved_work());
+    // Again, saved elsewhere: then the project opens.
+    h.get_by_label("Open").click_accesskit();
+    h.run_ok();
+    h.get_by_label("Save first").click();
+    h.run_ok();
+    let new = dir.join("new.glocal.json");
+    answer_path_dialog(&mut h, &new.display().to_string());
+    assert_eq!(segments_in(&new), 4, "the new project was saved where asked");
+    assert_eq!(std::fs::read(&mine).unwrap(), before, "the opened file is as it was");
+    assert_eq!(h.state().project().options.timeline.segments.len(), 3, "and it opened");
+    assert!(has_message(h.state(), &format!("Opened {}", mine.display())));
+    assert!(!h.state().has_unsaved_work());
+    wait(&mut h, "the autosave of the opened project", |_| glocal::studio::project::Project::load(&autosave).is_ok_and(|p| p.options.timeline.segments.len() == 3));
+    drop(h);
+
+    // Restarted on work its project file holds: saved.
+    let mut h = harness_with(storage, egui::vec2(1280.0, 800.0));
+    wait_take(&mut h);
+    assert_eq!(h.state().project_path(), Some(mine.as_path()));
+    assert!(!h.state().has_unsaved_work(), "restored work its project file holds is saved");
 }
 
 fn has_message(app: &StudioApp, text: &str) -> bool {

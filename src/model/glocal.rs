@@ -15,9 +15,17 @@ use super::rollout::{rollout, OneClass};
 use super::spec::{ModelSpec, Seed, GLOGEN_FILE, LOCGEN_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement};
+use crate::data::input::read_text;
 use crate::motion::{floor_height, Motion};
 
 pub const SEEDS_FILE: &str = "seeds.json";
+
+/// A seed bank larger than this is not one (the shipped ones are about 1 MB).
+const MAX_SEEDS_BYTES: u64 = 256 << 20;
+
+/// The largest magnitude a seed's feature may have: a kilometre in millimetres, far beyond
+/// any pose, and far from where squaring or summing features overflows f32.
+const MAX_SEED_FEATURE: f32 = 1e6;
 
 /// LocGen windows per batch: 256 windows (102 s at 25 fps) keep its workspace near 20 MB.
 const LOCGEN_CHUNK: usize = 256;
@@ -38,14 +46,7 @@ impl GlocalModel {
         let glogen = GloGen::new(load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?, &spec);
         let locgen_path = dir.join(LOCGEN_FILE);
         let locgen = if locgen_path.exists() { Some(load_block(&locgen_path, &spec.locgen.block)?.freeze()?) } else { None };
-        let seeds_path = dir.join(SEEDS_FILE);
-        let text = std::fs::read_to_string(&seeds_path).map_err(|e| file_error(format!("model folder has no readable {}", seeds_path.display()), e))?;
-        let seeds: Vec<Seed> = serde_json::from_str(&text).map_err(|e| file_error(format!("{} is not a valid seed bank", seeds_path.display()), e))?;
-        let width = spec.block_len * spec.layout.dim();
-        if let Some(bad) = seeds.iter().position(|s| s.features.len() != width || s.class >= spec.classes.len()) {
-            let problem = format!("seed {bad} does not fit the model ({} sparse poses of {} features, {} classes)", spec.block_len, spec.layout.dim(), spec.classes.len());
-            return Err(Error::Mismatch { path: seeds_path, problem });
-        }
+        let seeds = read_seed_bank(&dir.join(SEEDS_FILE), &spec)?;
         Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen })
     }
 
@@ -185,6 +186,25 @@ impl GlocalModel {
         // The first frame's features carry no displacement, so decoding starts where it stands.
         layout.decode(&feats, layout.placement(refs[0])).0
     }
+}
+
+/// The seed bank at `path`, every seed checked against the model: its shape, its class and
+/// its values (model.json's checksums cover the weights only, so a damaged seed bank is
+/// caught here, before a non-finite pose reaches the generator).
+fn read_seed_bank(path: &Path, spec: &ModelSpec) -> Result<Vec<Seed>, Error> {
+    let text = read_text(path, MAX_SEEDS_BYTES).map_err(|cause| Error::File { what: format!("model folder has no readable {}", path.display()), cause })?;
+    let seeds: Vec<Seed> = serde_json::from_str(&text).map_err(|e| file_error(format!("{} is not a valid seed bank", path.display()), e))?;
+    let width = spec.block_len * spec.layout.dim();
+    let mismatch = |problem: String| Error::Mismatch { path: path.to_path_buf(), problem };
+    for (k, seed) in seeds.iter().enumerate() {
+        if seed.features.len() != width || seed.class >= spec.classes.len() {
+            return Err(mismatch(format!("seed {k} does not fit the model ({} sparse poses of {} features, {} classes)", spec.block_len, spec.layout.dim(), spec.classes.len())));
+        }
+        if let Some(i) = seed.features.iter().position(|v| !(v.is_finite() && v.abs() <= MAX_SEED_FEATURE)) {
+            return Err(mismatch(format!("seed {k}: feature {i} is {:e}; a seed's features are finite and within ±{MAX_SEED_FEATURE:e}", seed.features[i])));
+        }
+    }
+    Ok(seeds)
 }
 
 /// Builds a block and fills it from a safetensors file.

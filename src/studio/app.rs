@@ -84,7 +84,7 @@ impl StudioApp {
             key_path: String::new(),
             key_frame: 0,
         };
-        let saved = if restored { Project::new(doc.model.clone()) } else { doc.clone() };
+        let saved = if restored { state.project_path.as_deref().and_then(|p| Project::load(p).ok()) } else { Some(doc.clone()) };
         Self {
             engine: Engine::new(Worker::spawn(ctx.clone()), doc.model.clone()),
             panels: Panels::new(fields, &doc.options.init, options.system_dialogs),
@@ -213,7 +213,8 @@ fn on_panel_background<R>(ui: &mut egui::Ui, add: impl FnOnce(&mut egui::Ui) -> 
 }
 
 /// The autosave's document when the options ask for it and it reads (else a new one on the
-/// options' model), and whether it was restored.
+/// options' model), and whether it was restored. Restored work counts as saved only as far
+/// as its project file (the one last saved or opened, which it keeps) holds it.
 fn restore_autosave(options: &StudioOptions, messages: &mut Messages) -> (Project, bool) {
     if let Some(path) = options.autosave.as_ref().filter(|p| options.restore_autosave && p.exists()) {
         match Project::load(path) {

@@ -11,7 +11,9 @@ pub struct Editing {
     pub(super) doc: Project,
     pub(super) history: History,
     /// The document as last saved, opened or started: unsaved work is what differs from it.
-    pub(super) saved: Project,
+    /// None when no file holds the document (work restored from the autosave that its
+    /// project file lacks): all of it is unsaved until it is saved.
+    pub(super) saved: Option<Project>,
     /// Where the document was last saved or opened from.
     pub(super) project_path: Option<PathBuf>,
     /// An edit (e.g. a drag) is under way and has been recorded in the history.
@@ -24,7 +26,7 @@ pub struct Editing {
 
 impl Editing {
     /// `doc` to edit; `saved` is what counts as no unsaved work.
-    pub fn new(doc: Project, saved: Project, project_path: Option<PathBuf>) -> Self {
+    pub fn new(doc: Project, saved: Option<Project>, project_path: Option<PathBuf>) -> Self {
         Self { doc, history: History::default(), saved, project_path, edit_open: false, selected: None, selected_mark: None }
     }
 
@@ -74,6 +76,11 @@ impl Editing {
 
     /// Whether the document differs from what was last saved, opened or started.
     pub fn has_unsaved_work(&self) -> bool {
-        !self.doc.same_take(&self.saved)
+        self.saved.as_ref().is_none_or(|saved| !self.doc.same_take(saved))
+    }
+
+    /// The document as it is now counts as saved (it was saved, or is a fresh start).
+    pub fn mark_saved(&mut self) {
+        self.saved = Some(self.doc.clone());
     }
 }

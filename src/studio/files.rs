@@ -52,7 +52,7 @@ impl StudioApp {
             *d = Project::new(model);
             d.options.timeline = Document::default_timeline(&classes);
         });
-        self.editing.saved = self.editing.doc.clone();
+        self.editing.mark_saved();
         self.editing.project_path = None;
         self.panels.fields.project_path = project::default_work_folder().join("project.glocal.json").display().to_string();
         self.editing.selected = None;
@@ -67,7 +67,7 @@ impl StudioApp {
             Ok(()) => {
                 self.editing.project_path = Some(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
                 self.panels.fields.project_path = shown.clone();
-                self.editing.saved = self.editing.doc.clone();
+                self.editing.mark_saved();
                 self.save_state();
                 self.messages.set(Topic::Project, Level::Info, format!("Saved {shown}"));
                 true
@@ -87,8 +87,8 @@ impl StudioApp {
                 let model_changed = p.model != self.editing.doc.model || self.engine.model.is_none();
                 self.editing.history.record(self.editing.doc.clone());
                 let current_model = self.editing.doc.model.clone();
+                self.editing.saved = Some(p.clone());
                 self.editing.doc = p;
-                self.editing.saved = self.editing.doc.clone();
                 self.editing.project_path = Some(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
                 self.panels.fields.project_path = shown.clone();
                 self.editing.selected = None;
@@ -96,7 +96,6 @@ impl StudioApp {
                 if model_changed {
                     // The project's model replaces the current one only once it has loaded.
                     let wanted = std::mem::replace(&mut self.editing.doc.model, current_model);
-                    self.editing.saved.model = wanted.clone();
                     self.load_model(wanted);
                 }
                 self.save_state();
@@ -170,11 +169,22 @@ impl StudioApp {
 
     fn suggested_path(&self, purpose: Purpose) -> Option<PathBuf> {
         match purpose {
-            Purpose::SaveProject | Purpose::OpenProject => Some(PathBuf::from(&self.panels.fields.project_path)),
+            Purpose::SaveProject => Some(self.save_suggestion()),
+            Purpose::OpenProject => Some(PathBuf::from(&self.panels.fields.project_path)),
             Purpose::Export => Some(PathBuf::from(&self.panels.fields.export_path)),
             Purpose::InitFile => Some(PathBuf::from(&self.panels.fields.init_path)).filter(|p| !p.as_os_str().is_empty()),
             Purpose::KeyFile => Some(PathBuf::from(&self.panels.fields.key_path)).filter(|p| !p.as_os_str().is_empty()),
             Purpose::OpenModel => Some(PathBuf::from(&self.panels.fields.model_path)),
+        }
+    }
+
+    /// Where a save is suggested: the typed project path, unless it is the file that
+    /// waits to be opened (then a new file beside it).
+    fn save_suggestion(&self) -> PathBuf {
+        let typed = PathBuf::from(self.panels.fields.project_path.trim());
+        match &self.panels.save_before {
+            Some(action) if action.opens(&typed) => typed.with_file_name("untitled.glocal.json"),
+            _ => typed,
         }
     }
 
@@ -197,7 +207,12 @@ impl StudioApp {
         for (purpose, outcome) in done {
             match outcome {
                 Outcome::Chosen(path) => self.dialog_chosen(purpose, path),
-                Outcome::Cancelled => self.messages.resolve(Topic::Dialog),
+                Outcome::Cancelled => {
+                    self.messages.resolve(Topic::Dialog);
+                    if purpose == Purpose::SaveProject {
+                        self.panels.save_before = None;
+                    }
+                }
                 Outcome::Unavailable => {
                     let suggested = self.suggested_path(purpose);
                     self.prompt_for_path(purpose, suggested);
@@ -211,9 +226,7 @@ impl StudioApp {
         match purpose {
             Purpose::OpenModel => self.load_model(path),
             Purpose::OpenProject => self.request(Guarded::Open(path)),
-            Purpose::SaveProject => {
-                self.save_project(&path);
-            }
+            Purpose::SaveProject => self.save_chosen(&path),
             Purpose::Export => self.export_to(path),
             Purpose::InitFile => {
                 self.panels.fields.init_path = path.display().to_string();
@@ -261,6 +274,40 @@ impl StudioApp {
         }
     }
 
+    /// "Save first": saves to the project's own file, then runs `action`. It never writes
+    /// the file `action` opens: a project with no file of its own, or whose file is that
+    /// one, asks where to save, and `action` waits for that save.
+    fn save_first(&mut self, action: Guarded, ctx: &egui::Context) {
+        self.panels.confirm = None;
+        match self.editing.project_path.clone().filter(|p| !action.opens(p)) {
+            Some(own) => {
+                if self.save_project(&own) {
+                    self.run_guarded(action);
+                }
+            }
+            None => {
+                self.panels.save_before = Some(action);
+                self.open_dialog(Purpose::SaveProject, ctx);
+            }
+        }
+    }
+
+    /// Saves where a dialog chose, then runs the action waiting for that save (if any);
+    /// the file that action opens is refused, and the action dropped, with the work kept.
+    fn save_chosen(&mut self, path: &Path) {
+        let waiting = self.panels.save_before.take();
+        if waiting.as_ref().is_some_and(|action| action.opens(path)) {
+            let shown = project::shown_path(path);
+            self.messages.set(Topic::Project, Level::Error, format!("Not saved, and nothing opened: {shown} is the project being opened; saving there would overwrite it"));
+            return;
+        }
+        if self.save_project(path) {
+            if let Some(action) = waiting {
+                self.run_guarded(action);
+            }
+        }
+    }
+
     /// The question before New or Open discards unsaved work.
     pub(super) fn confirm_ui(&mut self, ctx: &egui::Context) {
         let Some(action) = self.panels.confirm.clone() else { return };
@@ -286,13 +333,7 @@ impl StudioApp {
             });
         });
         match answer {
-            Some(0) => {
-                if self.save_shortcut(ctx) {
-                    self.run_guarded(action);
-                } else {
-                    self.panels.confirm = None;
-                }
-            }
+            Some(0) => self.save_first(action, ctx),
             Some(1) => self.run_guarded(action),
             Some(_) => self.panels.confirm = None,
             None => {}

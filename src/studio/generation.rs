@@ -142,9 +142,9 @@ impl StudioApp {
         if self.editing.doc.options.timeline.segments.is_empty() {
             self.editing.doc.options.timeline = Document::default_timeline(&info.spec.classes);
         }
-        if previous.is_none() && self.editing.saved.options.timeline.segments.is_empty() {
+        if previous.is_none() && self.editing.saved.as_ref().is_some_and(|s| s.options.timeline.segments.is_empty()) {
             // The first model of a fresh start: its default timeline is not unsaved work.
-            self.editing.saved = self.editing.doc.clone();
+            self.editing.mark_saved();
         }
         self.carry_classes(&info);
         self.carry_init(&info);

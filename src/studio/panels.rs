@@ -3,9 +3,10 @@
 //! The panels themselves (`menu`, `sidebar`, `bottom`, `central`, `map_panel`, `keys`,
 //! `joint_mapping`) each draw one part of the window from it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::dialogs::Dialogs;
+use super::project::same_file;
 use super::retarget::RigState;
 use super::timeline::TimelineState;
 use crate::synth::class_map::ClassMap;
@@ -40,6 +41,13 @@ impl InitTab {
 pub enum Guarded {
     New,
     Open(PathBuf),
+}
+
+impl Guarded {
+    /// Whether this action opens the file at `path` (which saving first must not write).
+    pub fn opens(&self, path: &Path) -> bool {
+        matches!(self, Guarded::Open(target) if same_file(target, path))
+    }
 }
 
 /// The classes carried over at the last model switch, for the mapping window.
@@ -80,6 +88,9 @@ pub struct Panels {
     pub(super) export_options: ExportOptions,
     /// An action that would discard unsaved work, waiting for the user's answer.
     pub(super) confirm: Option<Guarded>,
+    /// An action waiting for the project to be saved where the user chooses ("Save first"
+    /// on a project with no file of its own, or whose file is the one being opened).
+    pub(super) save_before: Option<Guarded>,
     pub(super) timeline_state: TimelineState,
     /// Clicks on the viewport's ground add path waypoints.
     pub(super) path_edit: bool,
@@ -107,6 +118,7 @@ impl Panels {
             export_range: ExportRange::Whole,
             export_options: ExportOptions::default(),
             confirm: None,
+            save_before: None,
             timeline_state: TimelineState::default(),
             path_edit: false,
             compare: false,

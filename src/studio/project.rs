@@ -123,6 +123,13 @@ pub fn shown_path(path: &Path) -> String {
     std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()).display().to_string()
 }
 
+/// Whether `a` and `b` name the same file, through links and relative forms (as far as
+/// they exist; a path that does not is compared in its absolute form).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let key = |p: &Path| p.canonicalize().or_else(|_| std::path::absolute(p)).unwrap_or_else(|_| p.to_path_buf());
+    key(a) == key(b)
+}
+
 /// Moves an autosave that could not be read aside (`autosave.broken-<unix seconds>.json`
 /// beside it), so the next autosave does not overwrite it; returns where it went.
 pub fn keep_broken_autosave(path: &Path) -> Result<PathBuf> {

@@ -67,6 +67,9 @@ fn files_mut(options: &mut GenerateOptions) -> impl Iterator<Item = &mut InitPos
 /// of the file (the studio's view settings) are left to whoever reads them.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Document {
+    /// The file format's version; read as `format_version` too (model.json's name for it),
+    /// so a newer file spelled that way is still recognised as newer.
+    #[serde(alias = "format_version")]
     pub version: u32,
     /// Model folder.
     pub model: PathBuf,
@@ -140,12 +143,13 @@ impl Document {
     /// anything else so a newer file says so instead of failing on an unknown field; a
     /// version 1 file is migrated.
     pub fn from_value(value: &serde_json::Value, name: &str) -> Result<Self> {
-        let version = value
-            .get("version")
+        let version = ["version", "format_version"]
+            .iter()
+            .find_map(|field| value.get(field))
             .and_then(serde_json::Value::as_u64)
             .with_context(|| format!("{name} is not a Glocal Studio project: it has no \"version\" field"))?;
         if version > u64::from(PROJECT_VERSION) {
-            bail!("{name} is a version {version} project, newer than this studio understands (version {PROJECT_VERSION}); update Glocal Studio to open it");
+            bail!("{name} is a version {version} project, made by a newer version of glocal (this one reads versions 1 to {PROJECT_VERSION}); update glocal to open it");
         }
         let document: Document = if version == 1 {
             DocumentV1::deserialize(value).with_context(|| format!("{name} is not a valid version 1 project file"))?.into()
@@ -219,6 +223,8 @@ mod tests {
         assert_eq!(Document::from_json(&to_json(&d), "p").unwrap(), d);
         let newer = to_json(&d).replace("\"version\": 2", "\"version\": 99");
         assert!(format!("{:#}", Document::from_json(&newer, "p").unwrap_err()).contains("newer"));
+        let spelled_as_models_do = to_json(&d).replace("\"version\": 2", "\"format_version\": 99");
+        assert!(format!("{:#}", Document::from_json(&spelled_as_models_do, "p").unwrap_err()).contains("version 99 project, made by a newer version of glocal"));
         assert!(Document::from_json("{ not json", "p").is_err());
         assert!(format!("{:#}", Document::from_json("{}", "p").unwrap_err()).contains("version"));
         let bad_map = to_json(&d).replacen('{', "{\"joint_map\": {\"a\": \"Elbow\"},", 1);
