@@ -287,7 +287,7 @@ fn l3_l4_l5_l6_l16_flags_out_of_range_are_refused() {
     let start = take(&model, t.path(), "start.bvh");
     let out = t.path().join("out.bvh");
     let init = format!("clip:{}@18446744073709551615", s(&start));
-    refused(&["generate", "--model", s(&model), "--init", &init, "--timeline", "walk:3", "--out", s(&out)], &["too few"]);
+    refused(&["generate", "--model", s(&model), "--init", &init, "--timeline", "walk:3", "--out", s(&out)], &["start.bvh", "is past the file's"]);
     let fresh = t.path().join("fresh");
     for (flag, value) in [("--eval-every", "0"), ("--checkpoint-every", "0"), ("--batch", "0"), ("--stride", "0"), ("--hidden", "0"), ("--class-dropout", "nan"), ("--class-dropout", "2")] {
         let args = ["train", "--dataset", "bandai", "--stage", "glogen", "--steps", "5", "--out", s(&fresh), flag, value];

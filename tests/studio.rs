@@ -458,7 +458,7 @@ fn ctrl_z_in_a_text_field_undoes_the_typing_only() {
     wait_take(&mut h);
     h.state_mut().add_segment();
     h.run_ok();
-    let field = "Export file (.bvh, .json or .npy)";
+    let field = "Export file (.bvh, .json, .npy or .glb)";
     h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).focus();
     h.run_ok();
     h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).type_text("xyz");
@@ -1028,4 +1028,32 @@ fn the_export_section_chooses_the_root_motion() {
     wait(&mut h, "the export", |_| out.exists());
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("ROOT root") && text.contains("JOINT Hips"), "no root bone above the hips:\n{}", &text[..300.min(text.len())]);
+}
+
+/// The Export section offers GLB beside BVH, JSON and NPY, and 60 fps is a click away at
+/// 1280x800 (the popup it was in was clipped below the sidebar).
+#[test]
+fn the_export_section_offers_glb_and_60_fps() {
+    let mut h = harness("glb-60");
+    wait_ready(&mut h);
+    h.get_by_label("GLB").click_accesskit();
+    h.get_by_label("60").click_accesskit();
+    h.run_ok();
+    assert!(h.state_mut().fields_mut().export_path.ends_with(".glb"), "{}", h.state_mut().fields_mut().export_path);
+    assert_eq!(h.state_mut().export_options_mut().fps, Some(60.0));
+}
+
+/// The window's title names the project and marks unsaved work.
+#[test]
+fn the_title_names_the_project_and_marks_unsaved_work() {
+    let dir = temp_dir("title");
+    let mut h = harness("title");
+    wait_ready(&mut h);
+    assert!(h.state().window_title().starts_with("untitled"), "{}", h.state().window_title());
+    h.state_mut().edit(|p| p.options.pace = 1.5);
+    h.run_ok();
+    assert!(h.state().window_title().contains('•'), "an edit marks the title: {}", h.state().window_title());
+    assert!(h.state_mut().save_project(&dir.join("scene.glocal.json")), "saved");
+    h.run_ok();
+    assert_eq!(h.state().window_title(), "scene.glocal.json — Glocal Studio");
 }

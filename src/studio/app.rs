@@ -164,6 +164,14 @@ impl StudioApp {
         self.editing.has_unsaved_work()
     }
 
+    /// The window's title: the project's file name ("untitled" before it has one), marked
+    /// while it has unsaved work.
+    pub fn window_title(&self) -> String {
+        let name = self.project_path().and_then(Path::file_name).map_or_else(|| "untitled".into(), |n| n.to_string_lossy().into_owned());
+        let mark = if self.has_unsaved_work() { " •" } else { "" };
+        format!("{name}{mark} — Glocal Studio")
+    }
+
     /// Why the take on screen is not the document's, if it is not: an edit not generated
     /// yet, a generation under way or failed, or another model.
     pub fn stale_reason(&self) -> Option<String> {
@@ -242,6 +250,11 @@ impl eframe::App for StudioApp {
         self.handle_dialogs(&ctx);
         self.rig_windows(&ctx);
         self.shortcuts(&ctx);
+        let title = self.window_title();
+        if title != self.panels.title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.panels.title = title;
+        }
         let before = self.editing.doc.clone();
 
         // Side panels give way on a small window so the viewport keeps some room.

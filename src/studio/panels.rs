@@ -108,6 +108,8 @@ pub struct Panels {
     pub(super) dialogs: Dialogs,
     /// A foreign BVH's retarget preview, failure and mapping editor.
     pub(super) rig: RigState,
+    /// The window title last sent (it is sent again only when it changes).
+    pub(super) title: String,
 }
 
 impl Panels {
@@ -123,6 +125,7 @@ impl Panels {
             path_edit: false,
             compare: false,
             advised: None,
+            title: String::new(),
             mapping: None,
             show_mapping: false,
             show_map: true,

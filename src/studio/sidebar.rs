@@ -258,9 +258,9 @@ impl StudioApp {
     }
 
     fn export_section(&mut self, ui: &mut egui::Ui) {
-        path_field(ui, "Export file (.bvh, .json or .npy)", &mut self.panels.fields.export_path, "take.bvh");
+        path_field(ui, "Export file (.bvh, .json, .npy or .glb)", &mut self.panels.fields.export_path, "take.bvh");
         ui.horizontal(|ui| {
-            for (ext, name) in [("bvh", "BVH"), ("json", "JSON"), ("npy", "NPY")] {
+            for (ext, name) in [("bvh", "BVH"), ("json", "JSON"), ("npy", "NPY"), ("glb", "GLB")] {
                 let current = PathBuf::from(&self.panels.fields.export_path);
                 let is = current.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
                 if ui.selectable_label(is, name).clicked() {
@@ -288,26 +288,20 @@ impl StudioApp {
             None => ("native".to_string(), 25.0, None),
         };
         let o = &mut self.panels.export_options;
+        // Units and frame rates side by side: a popup below the sidebar's last rows was
+        // clipped at 1280x800 and 60 fps could not be chosen.
         ui.horizontal(|ui| {
             ui.label("Units");
-            egui::ComboBox::from_id_salt("export_units")
-                .selected_text(match o.units {
-                    Units::Metres => "metres".to_string(),
-                    Units::Centimetres => "centimetres".to_string(),
-                    Units::Native => format!("model's ({native_unit})"),
-                })
-                .show_ui(ui, |ui| {
-                    ui.selectable_value(&mut o.units, Units::Metres, "metres").on_hover_text("What game engines and Blender expect");
-                    ui.selectable_value(&mut o.units, Units::Centimetres, "centimetres");
-                    ui.selectable_value(&mut o.units, Units::Native, format!("model's ({native_unit})"));
-                });
+            ui.selectable_value(&mut o.units, Units::Metres, "metres").on_hover_text("What game engines and Blender expect");
+            ui.selectable_value(&mut o.units, Units::Centimetres, "centimetres");
+            ui.selectable_value(&mut o.units, Units::Native, format!("model's ({native_unit})"));
+        });
+        ui.horizontal(|ui| {
             ui.label("fps");
-            egui::ComboBox::from_id_salt("export_fps").selected_text(o.fps.map_or_else(|| format!("{native_fps} (model)"), |f| format!("{f}"))).show_ui(ui, |ui| {
-                ui.selectable_value(&mut o.fps, None, format!("{native_fps} (model)"));
-                for f in [24.0, 30.0, 60.0] {
-                    ui.selectable_value(&mut o.fps, Some(f), format!("{f}"));
-                }
-            });
+            ui.selectable_value(&mut o.fps, None, format!("{native_fps} (model)"));
+            for f in [24.0, 30.0, 60.0] {
+                ui.selectable_value(&mut o.fps, Some(f), format!("{f}"));
+            }
         });
         let tip = match &root {
             Some(r) => format!("Adds the source skeleton's root '{r}' above the hips, on the ground under them, as in the original data"),
