@@ -1057,3 +1057,26 @@ fn the_title_names_the_project_and_marks_unsaved_work() {
     h.run_ok();
     assert_eq!(h.state().window_title(), "scene.glocal.json — Glocal Studio");
 }
+
+/// A segment with its own pace that does not divide into whole sparse steps says what length
+/// the take makes of it (4 s at pace 1.5 made 3.92 s while the block said 4.0 s), and ticking
+/// "own pace" leaves the widgets after it where they were (the slider it added took the
+/// next click).
+#[test]
+fn a_segment_says_the_length_its_pace_makes() {
+    let mut h = harness("own-pace");
+    wait_ready(&mut h);
+    h.get_by_label("Segment 2: directions").click();
+    h.run_ok();
+    h.event(egui::Event::PointerMoved(egui::pos2(640.0, 300.0)));
+    h.run_ok();
+    let before = h.get_by_label("own transition").rect();
+    h.get_by_label("own pace").click_accesskit();
+    h.run_ok();
+    assert_eq!(h.get_by_label("own transition").rect(), before, "ticking own pace moved the row");
+    h.state_mut().edit(|p| p.options.timeline.segments[1].pace = Some(1.5));
+    wait(&mut h, "the paced take", |a| a.take().is_some_and(|t| t.options.timeline.segments[1].pace == Some(1.5)) && a.stale_reason().is_none() && !a.is_busy());
+    h.get_by_label("Segment 2: directions").hover();
+    h.run_ok();
+    assert!(shows(&h, "4.0s (makes 3.9"), "the block does not say the length the take makes");
+}

@@ -136,8 +136,13 @@ impl StudioApp {
             if ui.checkbox(&mut own, "own pace").on_hover_text("This segment's pace replaces the global pace (it does not multiply it)").changed() {
                 seg.pace = own.then_some(global_pace);
             }
+            // The slider is always there (greyed without a pace of its own), so ticking the box
+            // does not move the widgets after it under the next click.
+            let mut shown = seg.pace.unwrap_or(global_pace);
+            ui.add_enabled(seg.pace.is_some(), Slider::new(&mut shown, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true))
+                .on_disabled_hover_text("The global pace; tick \"own pace\" to give this segment its own");
             if let Some(p) = seg.pace.as_mut() {
-                ui.add(Slider::new(p, MIN_PACE..=4.0f32.min(MAX_PACE)).logarithmic(true));
+                *p = shown;
             }
             if k > 0 {
                 // The transition into this segment, from the one before it.

@@ -231,7 +231,8 @@ impl Pass<'_> {
         let rect = Rect::from_min_max(pos2(x0 + 1.0, lane.top() + 2.0), pos2(x1 - 1.0, lane.bottom() - 2.0));
         let known = class_index(input.classes, &seg.class);
         let fill = known.map_or(UNKNOWN_FILL, |c| color32(class_color(c)));
-        let label = segment_label(seg, k, known.is_some());
+        let made = input.spans.and_then(|spans| spans.get(k)).map(|span| (span.end_frame - span.start_frame) as f32 / input.fps);
+        let label = segment_label(seg, k, known.is_some(), made);
         let id = ui.scope_id().with(("segment", k));
         let resp = ui.interact(rect, id, Sense::click_and_drag());
         resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, format!("Segment {}: {}", k + 1, seg.class)));
@@ -383,12 +384,17 @@ impl Pass<'_> {
 }
 
 /// A segment block's text: its class (with a question mark when the model lacks it),
-/// duration, pace and transition.
-fn segment_label(seg: &crate::synth::Segment, k: usize, known: bool) -> String {
+/// duration (and the take's, `made`, where the rounding to whole sparse steps at its pace
+/// changed it), pace and transition.
+fn segment_label(seg: &crate::synth::Segment, k: usize, known: bool, made: Option<f32>) -> String {
     let name = if known { seg.class.clone() } else { format!("{}?", seg.class) };
+    let mut length = format!("{:.1}s", seg.seconds);
+    if let Some(made) = made.filter(|m| (m - seg.seconds).abs() >= 0.05) {
+        length.push_str(&format!(" (makes {made:.2}s)"));
+    }
     let mut label = match seg.pace {
-        Some(p) => format!("{name} · {:.1}s · pace {p:.2}", seg.seconds),
-        None => format!("{name} · {:.1}s", seg.seconds),
+        Some(p) => format!("{name} · {length} · pace {p:.2}"),
+        None => format!("{name} · {length}"),
     };
     if let Some(t) = seg.transition.filter(|_| k > 0) {
         label.push_str(&format!(" · in {t:.1}s"));
