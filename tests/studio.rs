@@ -1080,3 +1080,40 @@ fn a_segment_says_the_length_its_pace_makes() {
     h.run_ok();
     assert!(shows(&h, "4.0s (makes 3.9"), "the block does not say the length the take makes");
 }
+
+/// A right-click selects the block its menu is about, and a shift-drag on the ruler starts
+/// its range at the frame where the button went down (it started 1-4 frames on).
+#[test]
+fn right_click_selects_and_a_range_starts_at_the_press() {
+    let mut h = harness("right-click");
+    wait_ready(&mut h);
+    h.get_by_label("Segment 2: directions").click_secondary();
+    h.run_ok();
+    h.key_press(Key::Escape);
+    // Off the timeline, the row under it shows the selected segment's settings.
+    h.event(egui::Event::PointerMoved(egui::pos2(640.0, 300.0)));
+    h.run_ok();
+    assert!(h.query_by_label("Segment 2").is_some(), "the right-clicked segment's row is not shown");
+    let ruler = h.get_by_label("Timeline ruler").rect();
+    let press = egui::pos2(ruler.left() + 0.3 * ruler.width(), ruler.center().y);
+    h.get_by_label("Timeline ruler").hover();
+    h.event(egui::Event::PointerMoved(press));
+    h.event(egui::Event::PointerButton { pos: press, button: egui::PointerButton::Primary, pressed: true, modifiers: Default::default() });
+    h.event(egui::Event::PointerButton { pos: press, button: egui::PointerButton::Primary, pressed: false, modifiers: Default::default() });
+    h.run_ok();
+    let at_press = h.state().frame();
+    h.event(egui::Event::ModifiersChanged(Modifiers::SHIFT));
+    h.event(egui::Event::PointerButton { pos: press, button: egui::PointerButton::Primary, pressed: true, modifiers: Modifiers::SHIFT });
+    h.step();
+    for dx in [3.0, 6.0, 20.0, 60.0] {
+        h.event(egui::Event::PointerMoved(press + egui::vec2(dx, 0.0)));
+        h.step();
+    }
+    h.event(egui::Event::PointerButton { pos: press + egui::vec2(60.0, 0.0), button: egui::PointerButton::Primary, pressed: false, modifiers: Modifiers::SHIFT });
+    h.step();
+    h.event(egui::Event::ModifiersChanged(Modifiers::NONE));
+    h.run_ok();
+    let (start, end) = h.state().selection().expect("the shift-drag selects a range");
+    assert_eq!(start, at_press, "the range starts {} frames after the press", start as i64 - at_press as i64);
+    assert!(end > start + 5, "{start}..{end}");
+}

@@ -198,9 +198,13 @@ impl Pass<'_> {
             state.hint = Some("Ruler: click or drag to scrub; shift-drag to select a range".into());
         }
         let Some(pos) = ruler_resp.interact_pointer_pos() else { return };
-        let f = at.frame_at(pos.x).min(self.input.frames.saturating_sub(1));
+        let last = self.input.frames.saturating_sub(1);
+        let f = at.frame_at(pos.x).min(last);
         if ruler_resp.drag_started() || ruler_resp.clicked() {
-            state.drag = Some(if ui.input(|i| i.modifiers.shift) { Drag::Range { anchor: f } } else { Drag::Scrub });
+            // A range starts where the button went down: by the time egui calls it a drag
+            // the pointer has moved a few pixels (1-4 frames) on.
+            let pressed = ui.input(|i| i.pointer.press_origin()).map_or(f, |p| at.frame_at(p.x).min(last));
+            state.drag = Some(if ui.input(|i| i.modifiers.shift) { Drag::Range { anchor: pressed } } else { Drag::Scrub });
         }
         match state.drag {
             Some(Drag::Range { anchor }) => {
@@ -258,7 +262,8 @@ impl Pass<'_> {
     /// Selecting, selecting the frames of, moving, and the right-click menu of segment `k`.
     fn segment_clicks(&mut self, resp: &egui::Response, state: &mut TimelineState, k: usize) {
         let input = self.input;
-        if resp.clicked() {
+        // A right-click selects the block its menu is about, as a left click does.
+        if resp.clicked() || resp.secondary_clicked() {
             self.actions.push(Action::Select(Some(k)));
         }
         if resp.double_clicked() {
