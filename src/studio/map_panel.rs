@@ -12,6 +12,9 @@ use crate::synth::render::class_color;
 use super::worker::Take;
 use crate::synth::InitPose;
 
+/// The share of the points' height kept free below them for the legend.
+const LEGEND_ROOM: f32 = 0.8;
+
 impl StudioApp {
     pub(super) fn map_panel(&mut self, ui: &mut egui::Ui) {
         ui.add_space(4.0);
@@ -42,8 +45,13 @@ impl StudioApp {
                 egui_plot::HoverPosition::Elsewhere { .. } => None,
             }
         };
+        // Room below the points for the legend, which covered them: the panel is tall, so the
+        // cloud moves up rather than shrinks.
+        let (low, high) = map.points.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), p| (l.min(p[1]), h.max(p[1])));
+        let legend_room = if low.is_finite() { f64::from(low - LEGEND_ROOM * (high - low)) } else { 0.0 };
         let resp = Plot::new("seed_map")
             .data_aspect(1.0)
+            .include_y(legend_room)
             .legend(Legend::default().position(egui_plot::Corner::LeftBottom))
             .show_axes(false)
             .show_grid(false)
