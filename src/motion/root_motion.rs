@@ -75,8 +75,16 @@ fn ground_track(motion: &Motion) -> Result<Vec<(Vec3, f32)>, RootMotionError> {
         .collect())
 }
 
+/// `skeleton` under a new root joint `name` at its origin: the old root its child.
+pub fn under_new_root(skeleton: &Skeleton, name: &str) -> Result<Arc<Skeleton>, SkeletonError> {
+    let names = std::iter::once(name.to_string()).chain(skeleton.names().iter().cloned()).collect();
+    let parents = std::iter::once(None).chain(skeleton.parents().iter().map(|p| Some(p.map_or(0, |p| p + 1)))).collect();
+    let offsets = std::iter::once(Vec3::ZERO).chain(skeleton.offsets().iter().copied()).collect();
+    Ok(Arc::new(Skeleton::new(names, parents, offsets, skeleton.meters_per_unit())?))
+}
+
 /// The take's local poses, solved from its positions when it has none.
-fn local_poses(motion: &Motion) -> Vec<LocalPose> {
+pub fn local_poses(motion: &Motion) -> Vec<LocalPose> {
     match &motion.local_poses {
         Some(poses) if poses.len() == motion.frames() => poses.clone(),
         _ => solve_local_poses(&motion.skeleton, motion.positions()),
@@ -110,10 +118,7 @@ fn with_root_bone(motion: &Motion) -> Result<Motion, RootMotionError> {
         return Err(RootMotionError::RootTaken);
     }
     let track = ground_track(motion)?;
-    let names = std::iter::once(ROOT_BONE.to_string()).chain(s.names().iter().cloned()).collect();
-    let parents = std::iter::once(None).chain(s.parents().iter().map(|p| Some(p.map_or(0, |p| p + 1)))).collect();
-    let offsets = std::iter::once(Vec3::ZERO).chain(s.offsets().iter().copied()).collect();
-    let skeleton = Arc::new(Skeleton::new(names, parents, offsets, s.meters_per_unit())?);
+    let skeleton = under_new_root(s, ROOT_BONE)?;
     let poses = local_poses(motion)
         .into_iter()
         .zip(&track)

@@ -17,7 +17,7 @@ use crate::model::spec::ModelSpec;
 use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTES};
 use crate::data::write::write_atomic;
 use crate::motion::contacts::FootContacts;
-use crate::motion::{with_root_motion, LocalPose, Motion, RootMotion, Skeleton};
+use crate::motion::{local_poses, under_new_root, with_root_motion, LocalPose, Motion, RootMotion, Skeleton};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExportFormat {
@@ -244,19 +244,8 @@ pub fn with_source_root(motion: &Motion, source: &Skeleton) -> Result<Option<Mot
     if source.names()[0] == s.names()[root] {
         return Ok(None);
     }
-    let names = std::iter::once(source.names()[0].clone()).chain(s.names().iter().cloned()).collect();
-    let parents = std::iter::once(None).chain(s.parents().iter().map(|p| Some(p.map_or(0, |p| p + 1)))).collect();
-    let offsets = std::iter::once(Vec3::ZERO).chain(s.offsets().iter().copied()).collect();
-    let skeleton = Arc::new(Skeleton::new(names, parents, offsets, s.meters_per_unit())?);
-    let solved;
-    let poses = match &motion.local_poses {
-        Some(p) if p.len() == motion.frames() => p,
-        _ => {
-            solved = crate::motion::solve_local_poses(s, motion.positions());
-            &solved
-        }
-    };
-    let poses = poses
+    let skeleton = under_new_root(s, &source.names()[0])?;
+    let poses = local_poses(motion)
         .iter()
         .enumerate()
         .map(|(t, p)| {
