@@ -75,6 +75,10 @@ pub struct GenerateArgs {
     /// Leave planted feet as the network made them (no contact locking with leg IK).
     #[arg(long)]
     pub no_foot_lock: bool,
+    /// Cut the take (one activity) to a cycle of about its duration whose end joins its
+    /// start in pose and velocity, for a game engine's loop; the travel per cycle is printed.
+    #[arg(long = "loop")]
+    pub cycle: bool,
     #[command(flatten)]
     pub output: OutputArgs,
 }
@@ -181,6 +185,9 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     for warning in &take.warnings {
         eprintln!("warning: {warning}");
     }
+    if let Some(cycle) = &take.cycle {
+        say!("{}", cycle.summary(take.motion.fps, take.motion.skeleton.meters_per_unit()));
+    }
     let m = &m;
     if output.json {
         let summary = serde_json::json!({
@@ -224,6 +231,7 @@ fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOpti
         foot_lock: !args.no_foot_lock,
         keys: args.keys.iter().map(|k| Key::parse(k, parse_init)).collect::<Result<_>>()?,
         path: args.path.as_deref().map(RootPath::read).transpose()?,
+        cycle: args.cycle,
         ..Default::default()
     }
     .varied(args.seed))

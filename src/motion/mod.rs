@@ -3,6 +3,7 @@
 //! positions in the skeleton's own unit (see [`Skeleton::meters_per_unit`]).
 
 pub mod contacts;
+pub mod cycle;
 pub mod ik;
 mod keys;
 mod kinematics;

@@ -101,7 +101,7 @@ impl StudioApp {
             if let Some(t) = Arc::get_mut(t) {
                 t.path = path;
             } else {
-                *t = Arc::new(Take { path, ..clone_take(t) });
+                *t = Arc::new(Take { path, ..Take::clone(t) });
             }
         }
     }
@@ -280,18 +280,3 @@ impl StudioApp {
     }
 }
 
-fn clone_take(t: &Take) -> Take {
-    Take {
-        id: t.id,
-        model_dir: t.model_dir.clone(),
-        motion: t.motion.clone(),
-        segments: t.segments.clone(),
-        frame_colors: t.frame_colors.clone(),
-        block_classes: t.block_classes.clone(),
-        path: t.path.clone(),
-        options: t.options.clone(),
-        warnings: t.warnings.clone(),
-        contacts: t.contacts.clone(),
-        millis: t.millis,
-    }
-}

@@ -320,6 +320,24 @@ impl StudioApp {
                 ui.selectable_value(&mut o.root_motion, mode, label).on_hover_text(tip);
             }
         });
+        self.loop_toggle(ui);
+    }
+
+    /// Loop: the take (one activity) cut to a cycle whose end joins its start, and what one
+    /// play of it does.
+    fn loop_toggle(&mut self, ui: &mut egui::Ui) {
+        let mut looping = self.editing.doc.options.cycle;
+        let one_activity = self.editing.doc.options.timeline.segments.len() == 1;
+        let tip = "Cut the take to a cycle of about its length whose end joins its start in pose and velocity, for a game engine's loop (with 'in place' for a locomotion cycle on the spot)";
+        let why = "A loop is one activity: keep one segment on the timeline";
+        let toggle = ui.add_enabled(one_activity || looping, egui::Checkbox::new(&mut looping, "Loop")).on_hover_text(tip).on_disabled_hover_text(why);
+        if toggle.changed() {
+            self.edit(|p| p.options.cycle = looping);
+        }
+        let cycle = self.engine.take.as_ref().and_then(|t| t.cycle.as_ref().map(|c| c.summary(t.motion.fps, t.motion.skeleton.meters_per_unit())));
+        if let Some(summary) = cycle {
+            ui.label(RichText::new(summary).weak().small());
+        }
     }
 
     /// Whole take or range, and the export buttons (off while the take is out of date).

@@ -23,6 +23,7 @@ use crate::model::glocal::GlocalModel;
 use crate::model::spec::ModelSpec;
 use crate::motion::{Motion, Skeleton};
 use crate::motion::contacts::FootContacts;
+use crate::motion::cycle::Cycle;
 use crate::synth::export::{export_with_contacts, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
@@ -66,6 +67,7 @@ pub struct SeedMap {
 }
 
 /// A generated take, ready to show.
+#[derive(Clone)]
 pub struct Take {
     pub id: u64,
     /// The model folder it was generated with.
@@ -82,6 +84,8 @@ pub struct Take {
     pub warnings: Vec<String>,
     /// Each foot's contacts as the foot lock planted them (or as found, with the lock off).
     pub contacts: Arc<FootContacts>,
+    /// A looping take's cycle (see [`crate::synth::Generated::cycle`]).
+    pub cycle: Option<Cycle>,
     pub millis: f64,
 }
 
@@ -359,6 +363,7 @@ impl WorkerState {
                     options: request.options.clone(),
                     warnings: g.warnings,
                     contacts: Arc::new(g.contacts),
+                    cycle: g.cycle,
                     millis: start.elapsed().as_secs_f64() * 1e3,
                 };
                 self.send(Reply::Generated(Arc::new(take)));

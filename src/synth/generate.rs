@@ -11,6 +11,7 @@ use rand::{Rng, SeedableRng};
 use super::foot_lock::{foot_lock, FootLocked, Travel};
 use super::given::GivenStart;
 use super::init::{given_frames, initial_features};
+use super::looping::generate_loop;
 use super::keys::{place_keys, KeyConstraint, PlacedKey};
 use super::options::{GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
@@ -24,6 +25,7 @@ use crate::model::rollout::{rollout, RolloutSteps};
 use crate::model::spec::MAX_CLASS_STRENGTH;
 use crate::model::target::{target_condition, Target};
 use crate::motion::contacts::FootContacts;
+use crate::motion::cycle::Cycle;
 use crate::motion::{solve_local_poses, Motion};
 
 pub struct Generated {
@@ -38,10 +40,15 @@ pub struct Generated {
     /// What the take could not do as asked (a path faster than its class walks), for the
     /// user to see.
     pub warnings: Vec<String>,
+    /// A looping take's cycle: where it was cut and how far one play of it travels.
+    pub cycle: Option<Cycle>,
 }
 
 /// Generates a take. `progress` gets the fraction done and returns false to cancel.
 pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
+    if opts.cycle {
+        return generate_loop(model, opts, progress);
+    }
     let spec = &model.spec;
     let timeline = SparseTimeline::new(model, opts)?;
     let class_strength = opts.class_strength_for(spec);
@@ -99,7 +106,7 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
     let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, &spec.layout));
     progress(1.0);
     let block_classes = plans.iter().map(|p| p.target).collect();
-    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts, warnings })
+    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts, warnings, cycle: None })
 }
 
 /// The take's constraints in the order they apply: the root path lays the take out, the keys

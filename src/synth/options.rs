@@ -78,6 +78,9 @@ pub struct GenerateOptions {
     /// A path on the ground the take's locomotion follows.
     pub path: Option<RootPath>,
     pub key_method: KeyMethod,
+    /// A one-activity take cut to a closed cycle for looping (see [`super::looping`]).
+    #[serde(rename = "loop")]
+    pub cycle: bool,
 }
 
 impl Default for GenerateOptions {
@@ -99,6 +102,7 @@ impl Default for GenerateOptions {
             keys: Vec::new(),
             path: None,
             key_method: KeyMethod::default(),
+            cycle: false,
         }
     }
 }
