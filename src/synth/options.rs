@@ -79,7 +79,7 @@ pub struct GenerateOptions {
     pub path: Option<RootPath>,
     pub key_method: KeyMethod,
     /// A one-activity take cut to a closed cycle for looping (see [`super::looping`]).
-    #[serde(rename = "loop")]
+    #[serde(rename = "loop", skip_serializing_if = "std::ops::Not::not")]
     pub cycle: bool,
 }
 
