@@ -163,7 +163,11 @@ impl Steering {
         // the search would decide nothing.)
         let leaning = self.easing.as_ref().is_some_and(|e| !e.change);
         let looping = may_keep_alive && (self.easing.is_none() || leaning) && repeats_earlier(sparse, dim, t / 2, t, LOOP_TOLERANCE * self.bank.typical[plan.target]);
-        if (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
+        // A class change starts at once, even over the easing into the class before it: a short
+        // segment (a 6 s walk at pace 2 between two at pace 0.5) would otherwise be eased
+        // towards the class before it throughout and never change.
+        let eased_into_another = self.easing.as_ref().is_some_and(|e| e.change) && switching;
+        if eased_into_another || (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
             // A take slow for seconds starts its next block from (nearly) a lively window, one
             // block only: twice from the same context gives the same block twice.
             let (blocks, strength) = if switching {
