@@ -35,6 +35,12 @@ pub struct BlockPlan {
     pub ease_blocks: usize,
     /// The keys whose sparse pose this block produces (indices into the placed keys).
     pub keys: Vec<usize>,
+    /// Blocks from this one on that aim at `target` (this one included): a class change
+    /// that waited for the easing before it would leave a short segment none.
+    pub run: usize,
+    /// The block's segment holds more sparse poses than a block: an activity, not a passing
+    /// moment (h36m's 2 s sittingdown before a sit) that a change may let go by.
+    pub lasting: bool,
 }
 
 /// The sparse poses of each segment and where its boundaries fall.
@@ -125,7 +131,7 @@ impl SparseTimeline {
                 0
             }
         };
-        (0..blocks)
+        let mut plans = (0..blocks)
             .map(|b| {
                 let mut class = vec![0.0; model.class_vector(0).len()];
                 for i in t + b * t..t + (b + 1) * t {
@@ -147,9 +153,15 @@ impl SparseTimeline {
                 let ease_blocks = ease_of(segment);
                 let produced = t + b * t..t + (b + 1) * t;
                 let keys = (0..key_poses.len()).filter(|&k| produced.contains(&key_poses[k])).collect();
-                BlockPlan { class, target, ease_blocks, keys }
+                BlockPlan { class, target, ease_blocks, keys, run: 1, lasting: self.counts[segment] > t }
             })
-            .collect()
+            .collect::<Vec<_>>();
+        for b in (0..plans.len().saturating_sub(1)).rev() {
+            if plans[b + 1].target == plans[b].target {
+                plans[b].run = plans[b + 1].run + 1;
+            }
+        }
+        plans
     }
 
     /// Where each segment falls in the paced take.
