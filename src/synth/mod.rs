@@ -10,6 +10,7 @@ pub mod gltf;
 pub mod init;
 pub mod joint_names;
 pub mod keys;
+pub mod model_switch;
 pub mod options;
 mod pace;
 pub mod path_follow;
