@@ -29,6 +29,8 @@ impl StudioApp {
         let kept_keys = match back {
             Some(back) => {
                 self.editing.doc.options = back.options;
+                let message = format!("Back on {}: what the switch to {} changed and was left alone is as it was", info.spec.dataset, previous.spec.dataset);
+                self.messages.set(Topic::Classes, Level::Info, message);
                 back.keys
             }
             None => vec![false; before.options.keys.len()],
