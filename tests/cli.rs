@@ -1,5 +1,5 @@
 //! The command line's own choices, run as a user runs it: where it finds models, how a take
-//! starts when not told, and a project's model.
+//! starts when not told, a project's model, and a walk at its own pace among others.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -53,4 +53,44 @@ fn models_are_found_and_a_project_brings_its_own() {
     ok(glocal_in(dir.path(), &["generate", "--project", project.to_str().unwrap(), "--out", take.to_str().unwrap(), "--json"]), "a Bandai project");
     let text = std::fs::read_to_string(&take).unwrap();
     assert!(text.contains("\"bow\""), "the take is not Bandai's: {}", &text[..200.min(text.len())]);
+}
+
+/// The walking segment of a take in the JSON `glocal generate` wrote: the hips' mean height
+/// over the floor and their speed over the ground (metres, m/s), leaving out the second of
+/// transition at each end.
+fn walking_hips(take: &Path) -> (f32, f32) {
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(take).unwrap()).unwrap();
+    let (fps, mpu) = (json["fps"].as_f64().unwrap() as f32, json["meters_per_unit"].as_f64().unwrap() as f32);
+    let walking = json["segments"].as_array().unwrap().iter().find(|s| s["name"] == "walking").unwrap();
+    let second = fps as usize;
+    let (a, b) = (walking["start_frame"].as_u64().unwrap() as usize + second, walking["end_frame"].as_u64().unwrap() as usize - second);
+    let frames: Vec<Vec<[f32; 3]>> = serde_json::from_value(json["frames"].clone()).unwrap();
+    let floor = frames[a..b].iter().flatten().map(|p| p[1]).fold(f32::INFINITY, f32::min);
+    let height = frames[a..b].iter().map(|f| f[0][1] - floor).sum::<f32>() / (b - a) as f32 * mpu;
+    let (from, to) = (frames[a][0], frames[b - 1][0]);
+    let speed = (to[0] - from[0]).hypot(to[2] - from[2]) * mpu / ((b - 1 - a) as f32 / fps);
+    (height, speed)
+}
+
+/// A walk at its own pace between two activities at another global pace walks, whatever the
+/// global pace: its hips at standing height and its speed near a walk's at that pace. At
+/// global pace 0.5 the eating segment's easing ran over the walk's only block and it stayed
+/// seated (hips 0.71 m, 0.03 m/s).
+#[test]
+fn a_walk_at_its_own_pace_walks_whatever_the_global_pace() {
+    let dir = tempfile::tempdir().unwrap();
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let take = |timeline: &str, pace: &str, init: &str| {
+        let out = dir.path().join(format!("{timeline}-{pace}.json").replace([':', ',', '@'], "_"));
+        ok(glocal_in(crate_dir, &["generate", "--model", "models/h36m", "--timeline", timeline, "--pace", pace, "--init", init, "--out", out.to_str().unwrap()]), "generate");
+        walking_hips(&out)
+    };
+    let (standing, walk_speed) = take("walking:6@2.0", "1.0", "seed:walking");
+    eprintln!("a walk alone at pace 2: hips {standing:.3} m, {walk_speed:.2} m/s");
+    for pace in ["0.5", "1.0", "2.0"] {
+        let (height, speed) = take("eating:3,walking:6@2.0,sitting:3", pace, "seed:0");
+        eprintln!("global pace {pace}: the walk's hips {height:.3} m, {speed:.2} m/s");
+        assert!(height > 0.8 && height > standing - 0.05, "at global pace {pace} the walk's hips are at {height:.3} m (standing: {standing:.3})");
+        assert!(speed > 0.6 * walk_speed, "at global pace {pace} the walk moves at {speed:.2} m/s (a walk alone: {walk_speed:.2})");
+    }
 }

@@ -66,6 +66,9 @@ impl StudioApp {
             let r = egui::Rect::from_min_size(rect.left_bottom() + egui::vec2(12.0, -30.0), egui::vec2(220.0, 18.0));
             ui.put(r, egui::ProgressBar::new(p).text(RichText::new(format!("generating {:.0}%", p * 100.0)).small()));
         }
-        self.messages.show(ui, rect);
+        // The retarget windows sit at the top right, where the toasts would cover their buttons.
+        let rig = &self.panels.rig;
+        let rig_window = rig.preview.is_some() || rig.failure.is_some();
+        self.messages.show(ui, rect, rig_window);
     }
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use super::project::{History, Project};
 use super::timeline::Mark;
+use crate::synth::model_switch::ModelSwitch;
 use crate::synth::Request as TakeRequest;
 
 pub struct Editing {
@@ -22,12 +23,14 @@ pub struct Editing {
     pub(super) selected: Option<usize>,
     /// The key or waypoint selected on its track.
     pub(super) selected_mark: Option<Mark>,
+    /// The model switches made, so a switch back restores what the first one changed.
+    pub(super) switches: Vec<ModelSwitch>,
 }
 
 impl Editing {
     /// `doc` to edit; `saved` is what counts as no unsaved work.
     pub fn new(doc: Project, saved: Option<Project>, project_path: Option<PathBuf>) -> Self {
-        Self { doc, history: History::default(), saved, project_path, edit_open: false, selected: None, selected_mark: None }
+        Self { doc, history: History::default(), saved, project_path, edit_open: false, selected: None, selected_mark: None, switches: Vec::new() }
     }
 
     /// Replaces the document by `f(doc)` as one undoable edit.

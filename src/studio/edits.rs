@@ -20,7 +20,7 @@ impl StudioApp {
 
     pub fn undo(&mut self) {
         if self.editing.undo() {
-            self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
+            self.after_history_step();
         } else {
             self.messages.info("Nothing to undo");
         }
@@ -28,9 +28,20 @@ impl StudioApp {
 
     pub fn redo(&mut self) {
         if self.editing.redo() {
-            self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
+            self.after_history_step();
         } else {
             self.messages.info("Nothing to redo");
+        }
+    }
+
+    /// The panels as the document stepped to says, and its model loaded if it is another
+    /// (undoing a model switch).
+    fn after_history_step(&mut self) {
+        self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
+        let loaded = self.engine.model_loading.as_ref().or(self.engine.model.as_ref().map(|m| &m.dir));
+        if loaded != Some(&self.editing.doc.model) {
+            let dir = self.editing.doc.model.clone();
+            self.load_model(dir);
         }
     }
 

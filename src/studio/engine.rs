@@ -34,6 +34,8 @@ pub struct Engine {
     pub(super) auto_regen: bool,
     /// An initial-pose file is being checked against a newly loaded model.
     pub(super) init_after_switch: bool,
+    /// The model being loaded is a switch the user asked for ([`super::app::StudioApp::switch_model`]).
+    pub(super) switching: bool,
 }
 
 impl Engine {
@@ -54,6 +56,7 @@ impl Engine {
             regen_at: None,
             auto_regen: true,
             init_after_switch: false,
+            switching: false,
         }
     }
 

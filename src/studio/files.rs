@@ -20,6 +20,7 @@ impl StudioApp {
     pub fn load_model(&mut self, dir: PathBuf) {
         // A generation asked for on the current model would only fail on the next one.
         self.cancel();
+        self.engine.switching = false;
         self.panels.fields.model_path = dir.display().to_string();
         self.engine.model_loading = Some(dir.clone());
         self.engine.worker.load_model(dir);
@@ -224,7 +225,7 @@ impl StudioApp {
     fn dialog_chosen(&mut self, purpose: Purpose, path: PathBuf) {
         self.messages.resolve(Topic::Dialog);
         match purpose {
-            Purpose::OpenModel => self.load_model(path),
+            Purpose::OpenModel => self.switch_model(path),
             Purpose::OpenProject => self.request(Guarded::Open(path)),
             Purpose::SaveProject => self.save_chosen(&path),
             Purpose::Export => self.export_to(path),

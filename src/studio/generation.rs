@@ -7,10 +7,9 @@ use std::sync::Arc;
 use super::app::StudioApp;
 use super::engine::{DEBOUNCE, PREVIOUS_TAKE_COLOR};
 use super::messages::{first_line, Level, Topic};
-use super::panels::{InitTab, MappingNote};
-use super::project::{self, Project};
+use super::panels::InitTab;
+use super::project;
 use super::worker::{ModelInfo, Reply, Take};
-use crate::synth::class_map::ClassMap;
 use crate::synth::{Document, InitPose};
 
 impl StudioApp {
@@ -125,6 +124,7 @@ impl StudioApp {
         let dataset = self.engine.model.as_ref().map_or_else(String::new, |m| m.spec.dataset.clone());
         let first = self.editing.doc.options.timeline.segments.first().and_then(|s| self.engine.model.as_ref().and_then(|m| m.spec.class_index(&s.class).ok())).unwrap_or(0);
         self.set_init_class(first, 0);
+        self.switch_settled();
         let class = match &self.editing.doc.options.init {
             InitPose::SeedClass { class, .. } => class.clone(),
             _ => String::new(),
@@ -134,10 +134,15 @@ impl StudioApp {
 
     fn model_loaded(&mut self, info: Arc<ModelInfo>) {
         let previous = self.engine.model.take();
+        // A switch the user asked for is carried over as one undo step; any other load (the
+        // first, a project's model, an undo's) finds the document already on this model.
+        let switched_from = previous.clone().filter(|p| std::mem::take(&mut self.engine.switching) && p.dir != info.dir);
         self.engine.model_loading = None;
         self.engine.map = None;
         self.engine.map_error = None;
-        self.editing.doc.model = info.dir.clone();
+        if switched_from.is_none() {
+            self.editing.doc.model = info.dir.clone();
+        }
         self.panels.fields.model_path = info.dir.display().to_string();
         if self.editing.doc.options.timeline.segments.is_empty() {
             self.editing.doc.options.timeline = Document::default_timeline(&info.spec.classes);
@@ -146,8 +151,13 @@ impl StudioApp {
             // The first model of a fresh start: its default timeline is not unsaved work.
             self.editing.mark_saved();
         }
-        self.carry_classes(&info);
-        self.carry_init(&info);
+        match &switched_from {
+            Some(from) => self.carry_over(from, &info),
+            None => {
+                self.carry_classes(&info);
+                self.carry_init(&info);
+            }
+        }
         self.panels.fields.new_class = self.panels.fields.new_class.min(info.spec.classes.len().saturating_sub(1));
         self.panels.fields.seed_index = self.panels.fields.seed_index.min(info.seeds.len().saturating_sub(1));
         if previous.is_some() {
@@ -160,86 +170,6 @@ impl StudioApp {
         self.engine.requested = None;
         self.engine.generation_error = None;
         self.engine.regen_at = Some(self.now);
-    }
-
-    /// Retags segments whose class the new model does not have (by [`ClassMap`]), in the
-    /// document and its history, and says what was mapped.
-    fn carry_classes(&mut self, info: &ModelInfo) {
-        let classes = &info.spec.classes;
-        let mut unknown: Vec<String> = Vec::new();
-        for s in &self.editing.doc.options.timeline.segments {
-            if info.spec.class_index(&s.class).is_err() && !unknown.contains(&s.class) {
-                unknown.push(s.class.clone());
-            }
-        }
-        if unknown.is_empty() || classes.is_empty() {
-            return;
-        }
-        let table: Vec<(String, String)> = self.storage.class_table.iter().cloned().chain(ClassMap::shipped_table()).collect();
-        let map = ClassMap::build(&unknown, classes, &table);
-        let described = map.describe(&self.editing.doc.options.timeline);
-        let segments = map.pairs.iter().map(|p| self.editing.doc.options.timeline.segments.iter().enumerate().filter(|(_, s)| s.class == p.from).map(|(k, _)| k).collect()).collect();
-        let (timeline, changed) = map.apply(&self.editing.doc.options.timeline);
-        self.editing.doc.options.timeline = timeline;
-        let carry = |p: &mut Project| {
-            p.options.timeline = map.apply(&p.options.timeline).0;
-            if let InitPose::SeedClass { class, .. } = &mut p.options.init {
-                if let Some(to) = map.get(class) {
-                    *class = to.to_string();
-                }
-            }
-        };
-        self.editing.history.map_states(carry);
-        self.messages.set(
-            Topic::Classes,
-            Level::Info,
-            format!("Classes carried over to {}: {described} ({changed} segments, durations kept). Edit > Class mapping… changes a pairing.", info.spec.dataset),
-        );
-        self.panels.mapping = Some(MappingNote { map, classes: classes.clone(), segments, timeline: self.editing.doc.options.timeline.clone() });
-    }
-
-    /// Keeps the initial pose meaningful on a new model: a class start moves to the mapped
-    /// class's typical window, a seed index out of range is reset, and a file is checked
-    /// again (and reset with a message if it does not fit).
-    fn carry_init(&mut self, info: &ModelInfo) {
-        match self.editing.doc.options.init.clone() {
-            InitPose::SeedClass { class, variant } => {
-                let k = match info.spec.class_index(&class) {
-                    Ok(k) => k,
-                    Err(_) => self.panels.mapping.as_ref().and_then(|m| m.map.get(&class)).and_then(|c| info.spec.class_index(c).ok()).unwrap_or(0),
-                };
-                let variant = if info.spec.classes[k] == class { variant } else { info.typical_variant(k, 0) };
-                self.editing.doc.options.init = InitPose::SeedClass { class: info.spec.classes[k].clone(), variant };
-            }
-            InitPose::SeedIndex(i) if i >= info.seeds.len() => {
-                self.editing.doc.options.init = InitPose::SeedIndex(0);
-                self.messages.set(Topic::Init, Level::Info, format!("Seed {i} does not exist in the {} model: the take starts from seed 0", info.spec.dataset));
-            }
-            InitPose::SeedIndex(_) => {}
-            init @ InitPose::File { .. } => {
-                self.engine.init_after_switch = true;
-                self.engine.worker.check_init(init);
-            }
-        }
-    }
-
-    /// Changes the counterpart of `from` in the last model switch's mapping: the segments it
-    /// retagged get `to` (while the timeline is as the switch left it), and the pairing is
-    /// remembered for later switches.
-    pub fn set_mapping(&mut self, from: &str, to: &str) {
-        let Some(note) = self.panels.mapping.as_mut() else { return };
-        let Some(k) = note.map.pairs.iter().position(|p| p.from == from) else { return };
-        note.map.set(from, to);
-        self.storage.class_table.retain(|(a, _)| a != from);
-        self.storage.class_table.insert(0, (from.to_string(), to.to_string()));
-        if self.editing.doc.options.timeline.segments.len() == note.timeline.segments.len() {
-            let indices = note.segments[k].clone();
-            self.edit(|d| indices.iter().for_each(|&i| d.options.timeline.segments[i].class = to.to_string()));
-            if let Some(note) = self.panels.mapping.as_mut() {
-                note.timeline = self.editing.doc.options.timeline.clone();
-            }
-        }
-        self.save_state();
     }
 
     /// Asks for a new take when the options changed and the pause is over.

@@ -49,6 +49,7 @@ impl StudioApp {
                 self.panels.rig.failure = None;
                 self.messages.set(Topic::Init, Level::Info, format!("{}: retargeted onto the model; check the preview and Use it", project::shown_path(&preview.path)));
                 self.panels.rig.preview = Some(preview);
+                self.viewport.frame_all();
             }
             Retargeting::Failed(failure) => {
                 self.panels.rig.preview = None;
@@ -75,12 +76,15 @@ impl StudioApp {
     fn preview_window(&mut self, ctx: &egui::Context) {
         let Some(p) = self.panels.rig.preview.clone() else { return };
         egui::Window::new("Retargeted pose").collapsible(false).resizable(false).anchor(egui::Align2::RIGHT_TOP, egui::vec2(-16.0, 40.0)).show(ctx, |ui| {
-            ui.label(format!("{} @ {}", project::shown_path(&p.path), p.frame));
+            // The file's name keeps the window narrow; its full path is on hover.
+            let name = p.path.file_name().map_or_else(|| p.path.display().to_string(), |n| n.to_string_lossy().into_owned());
+            ui.label(format!("{name} @ {}", p.frame)).on_hover_text(project::shown_path(&p.path));
             ui.label(RichText::new("Left, orange: the file's skeleton").color(super::timeline::color32(SOURCE_COLOR)));
             ui.label(RichText::new("Right, blue: the model's pose").color(super::timeline::color32(RETARGETED_COLOR)));
             ui.horizontal(|ui| {
                 if ui.button("Use").clicked() {
                     self.panels.rig.preview = None;
+                    self.viewport.frame_all();
                     self.use_retargeted(p.purpose, p.path.clone(), p.frame);
                 }
                 if ui.button("Edit mapping…").clicked() {
@@ -88,6 +92,7 @@ impl StudioApp {
                 }
                 if ui.button("Cancel").clicked() {
                     self.panels.rig.preview = None;
+                    self.viewport.frame_all();
                     self.messages.resolve(Topic::Init);
                 }
             });

@@ -66,7 +66,7 @@ impl StudioApp {
                 let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
                 let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
                 if ui.selectable_label(current, name).on_hover_text(dir.display().to_string()).clicked() {
-                    self.load_model(dir);
+                    self.switch_model(dir);
                     ui.close();
                 }
             }
@@ -78,6 +78,10 @@ impl StudioApp {
         ui.separator();
         if ui.button("Export take…").clicked() {
             self.open_dialog(Purpose::Export, ui.ctx());
+            ui.close();
+        }
+        if ui.button("Copy as command line").on_hover_text("The glocal generate command that makes this take and exports it as set in Export take").clicked() {
+            self.copy_command_line(ui.ctx());
             ui.close();
         }
         ui.separator();

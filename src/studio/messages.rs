@@ -142,16 +142,17 @@ impl Messages {
         }
     }
 
-    /// Toasts in the top right corner of `rect`.
-    pub fn show(&mut self, ui: &egui::Ui, rect: egui::Rect) {
+    /// Toasts in the top right corner of `rect`, or its bottom right corner when `keep_top`
+    /// (a window of its own is there, and its buttons must stay reachable).
+    pub fn show(&mut self, ui: &egui::Ui, rect: egui::Rect, keep_top: bool) {
         if self.list.is_empty() {
             return;
         }
         let mut dismiss = None;
         egui::Area::new(egui::Id::unique("glocal_toasts"))
             .order(egui::Order::Foreground)
-            .fixed_pos(rect.right_top() + egui::vec2(-12.0, 12.0))
-            .pivot(egui::Align2::RIGHT_TOP)
+            .fixed_pos(if keep_top { rect.right_bottom() + egui::vec2(-12.0, -12.0) } else { rect.right_top() + egui::vec2(-12.0, 12.0) })
+            .pivot(if keep_top { egui::Align2::RIGHT_BOTTOM } else { egui::Align2::RIGHT_TOP })
             .show(ui.ctx(), |ui| {
                 ui.set_max_width(420.0);
                 for (k, m) in self.list.iter().enumerate().rev() {

@@ -178,8 +178,8 @@ pub fn autosave(project: &Project, path: &Path) -> Result<()> {
     project.save(path)
 }
 
-/// Undo and redo of edits: whole-project snapshots (a project is small). The model folder
-/// is not part of the history: undo never reloads a model.
+/// Undo and redo of edits: whole-project snapshots (a project is small), each on its own
+/// model: undoing a model switch brings the model before it back.
 #[derive(Default)]
 pub struct History {
     undo: Vec<Project>,
@@ -211,22 +211,15 @@ impl History {
 
     /// Steps `current` back; false when there is nothing to undo.
     pub fn undo(&mut self, current: &mut Project) -> bool {
-        let Some(mut prev) = self.undo.pop() else { return false };
-        prev.model = current.model.clone();
+        let Some(prev) = self.undo.pop() else { return false };
         self.redo.push(std::mem::replace(current, prev));
         true
     }
 
     pub fn redo(&mut self, current: &mut Project) -> bool {
-        let Some(mut next) = self.redo.pop() else { return false };
-        next.model = current.model.clone();
+        let Some(next) = self.redo.pop() else { return false };
         self.undo.push(std::mem::replace(current, next));
         true
-    }
-
-    /// Applies `f` to every recorded state (e.g. class names carried to a new model).
-    pub fn map_states(&mut self, mut f: impl FnMut(&mut Project)) {
-        self.undo.iter_mut().chain(self.redo.iter_mut()).for_each(&mut f);
     }
 }
 

@@ -122,7 +122,9 @@ pub fn preview(spec: &ModelSpec, purpose: PreviewFor, path: PathBuf, frame: usiz
             // at the model's rate), and the first block ends one stride after it.
             let g = (frame + spec.stride).min(on_model.frames() - 1);
             let f = ((g as f32 / on_model.fps * source.fps).round() as usize).min(source.frames() - 1);
-            let (source, retargeted) = (Arc::new(source.slice(f, f + 1)), Arc::new(on_model.slice(g, g + 1)));
+            let retargeted = on_model.slice(g, g + 1);
+            let source = at_height(&source.slice(f, f + 1), height(&retargeted));
+            let (source, retargeted) = (Arc::new(source), Arc::new(retargeted));
             Retargeting::Previewed(Arc::new(RetargetPreview { purpose, path, frame, source, retargeted, joints }))
         }
         Ok(_) => failed(path, format!("{name}: no frames left after retargeting"), joints),
@@ -134,10 +136,36 @@ pub fn preview(spec: &ModelSpec, purpose: PreviewFor, path: PathBuf, frame: usiz
 pub const SOURCE_COLOR: [u8; 3] = [235, 150, 60];
 pub const RETARGETED_COLOR: [u8; 3] = [90, 170, 240];
 
-/// Where the preview puts a pose: its root over (`x`, 0), whatever the file's world.
+/// Where the preview puts a pose: its root over (`x`, 0) and its lowest joint on the floor,
+/// whatever the file's world.
 fn beside(motion: &Motion, x: f32) -> glam::Vec3 {
-    let root = motion.frame(0).first().copied().unwrap_or_default() * motion.skeleton.meters_per_unit();
-    glam::Vec3::new(x - root.x, 0.0, -root.z)
+    let mpu = motion.skeleton.meters_per_unit();
+    let root = motion.frame(0).first().copied().unwrap_or_default() * mpu;
+    let lowest = motion.frame(0).iter().map(|p| p.y).fold(f32::INFINITY, f32::min) * mpu;
+    glam::Vec3::new(x - root.x, if lowest.is_finite() { -lowest } else { 0.0 }, -root.z)
+}
+
+/// The height of a one-frame pose in metres, lowest joint to highest.
+fn height(pose: &Motion) -> f32 {
+    let ys = pose.frame(0).iter().map(|p| p.y);
+    let (low, high) = ys.fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), y| (l.min(y), h.max(y)));
+    (high - low) * pose.skeleton.meters_per_unit()
+}
+
+/// `pose` drawn `metres` tall: its skeleton's unit set so it stands as tall as the model's
+/// pose beside it. A BVH does not say its unit, and one guessed wrong drew the file's
+/// skeleton at a third of the model's height; the preview compares directions, not sizes.
+fn at_height(pose: &Motion, metres: f32) -> Motion {
+    let own = height(pose);
+    let skeleton = &pose.skeleton;
+    let unit = skeleton.meters_per_unit() * metres / own;
+    if !(unit.is_finite() && unit > 0.0) {
+        return pose.clone();
+    }
+    match Skeleton::new(skeleton.names().to_vec(), skeleton.parents().to_vec(), skeleton.offsets().to_vec(), unit) {
+        Ok(scaled) => Motion::from_positions(Arc::new(scaled), pose.fps, pose.positions().to_vec()),
+        Err(_) => pose.clone(),
+    }
 }
 
 impl RetargetPreview {

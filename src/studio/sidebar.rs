@@ -85,7 +85,7 @@ impl StudioApp {
                     let name = dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned());
                     let current = self.engine.model.as_ref().is_some_and(|m| m.dir == dir);
                     if ui.selectable_label(current, name).clicked() && !current {
-                        self.load_model(dir);
+                        self.switch_model(dir);
                     }
                 }
             });
@@ -95,7 +95,7 @@ impl StudioApp {
         ui.horizontal(|ui| {
             if ui.button("Load model").clicked() || enter {
                 let p = PathBuf::from(self.panels.fields.model_path.trim());
-                self.load_model(p);
+                self.switch_model(p);
             }
             if ui.button("Browse…").clicked() {
                 self.open_dialog(Purpose::OpenModel, ui.ctx());

@@ -11,6 +11,7 @@ pub mod init;
 pub mod joint_names;
 pub mod keys;
 pub mod looping;
+pub mod model_switch;
 pub mod options;
 mod pace;
 pub mod path_follow;

@@ -35,6 +35,12 @@ pub struct BlockPlan {
     pub ease_blocks: usize,
     /// The keys whose sparse pose this block produces (indices into the placed keys).
     pub keys: Vec<usize>,
+    /// Blocks from this one on that aim at `target` (this one included): a class change
+    /// that waited for the easing before it would leave a short segment none.
+    pub run: usize,
+    /// The block's segment holds more sparse poses than a block: an activity, not a passing
+    /// moment (h36m's 2 s sittingdown before a sit) that a change may let go by.
+    pub lasting: bool,
 }
 
 /// The sparse poses of each segment and where its boundaries fall.
@@ -44,9 +50,11 @@ pub(super) struct SparseTimeline {
     /// Per segment: sparse poses and class.
     pub(super) counts: Vec<usize>,
     pub(super) classes: Vec<usize>,
-    /// Per segment: the length of the transition into it in sparse steps (for the first
-    /// segment, from the initial poses' class).
-    pub(super) transition_steps: Vec<f32>,
+    /// Per segment: the transition into it in sparse steps, before and after its boundary
+    /// (for the first segment, from the initial poses' class). Each half is counted at its
+    /// own side's pace: a slow segment before a fast one would otherwise have its second of
+    /// transition counted in the fast one's long steps and cover most of it.
+    pub(super) transition_steps: Vec<(f32, f32)>,
     /// Frame of each sparse pose in the paced take.
     pub(super) frames: Vec<f64>,
     /// Seconds per sparse step at each segment's pace.
@@ -66,8 +74,12 @@ impl SparseTimeline {
         let segment_of: Vec<usize> = counts.iter().enumerate().flat_map(|(k, &n)| std::iter::repeat_n(k, n)).collect();
         let transition_steps = segments
             .iter()
-            .zip(&paces)
-            .map(|(s, &p)| if opts.transition == Transition::Cut { 0.0 } else { s.transition.unwrap_or(opts.transition_seconds) / step_of(p) })
+            .enumerate()
+            .map(|(k, s)| {
+                let half = if opts.transition == Transition::Cut { 0.0 } else { s.transition.unwrap_or(opts.transition_seconds) / 2.0 };
+                let before = paces[k.saturating_sub(1)];
+                (half / step_of(before), half / step_of(paces[k]))
+            })
             .collect();
         let step_seconds = paces.iter().map(|&p| step_of(p)).collect();
         let mut frames = vec![0.0f64];
@@ -92,12 +104,14 @@ impl SparseTimeline {
     }
 
     /// The boundary whose transition covers sparse pose `i`, and how far through it `i` is
-    /// (0 at its start, 1 at its end).
+    /// (0 at its start, 0.5 at the boundary, 1 at its end).
     fn transition_at(&self, i: usize) -> Option<(usize, f32)> {
         (1..self.counts.len()).find_map(|k| {
-            let len = self.transition_steps[k];
-            let through = (i as f32 - self.boundary(k) as f32) / len + 0.5;
-            (len > 0.0 && (0.0..1.0).contains(&through)).then_some((k, through))
+            let (before, after) = self.transition_steps[k];
+            let from_boundary = i as f32 - self.boundary(k) as f32;
+            let half = if from_boundary < 0.0 { before } else { after };
+            let through = 0.5 + from_boundary / (2.0 * half);
+            (half > 0.0 && (0.0..1.0).contains(&through)).then_some((k, through))
         })
     }
 
@@ -107,8 +121,17 @@ impl SparseTimeline {
     pub(super) fn plan(&self, model: &GlocalModel, anchored: bool, key_poses: &[usize]) -> Vec<BlockPlan> {
         let t = model.spec.block_len;
         let blocks = self.total().saturating_sub(t).div_ceil(t);
-        let ease_of = |k: usize| if anchored && self.transition_steps[k] > 0.0 { 1 + (self.transition_steps[k] / t as f32).ceil() as usize } else { 0 };
-        (0..blocks)
+        // The easing starts where the new segment's blocks do: its length is the transition's
+        // after the boundary, twice over (the whole transition when both sides share a pace).
+        let ease_of = |k: usize| {
+            let after = self.transition_steps[k].1;
+            if anchored && after > 0.0 {
+                1 + (2.0 * after / t as f32).ceil() as usize
+            } else {
+                0
+            }
+        };
+        let mut plans = (0..blocks)
             .map(|b| {
                 let mut class = vec![0.0; model.class_vector(0).len()];
                 for i in t + b * t..t + (b + 1) * t {
@@ -130,9 +153,15 @@ impl SparseTimeline {
                 let ease_blocks = ease_of(segment);
                 let produced = t + b * t..t + (b + 1) * t;
                 let keys = (0..key_poses.len()).filter(|&k| produced.contains(&key_poses[k])).collect();
-                BlockPlan { class, target, ease_blocks, keys }
+                BlockPlan { class, target, ease_blocks, keys, run: 1, lasting: self.counts[segment] > t }
             })
-            .collect()
+            .collect::<Vec<_>>();
+        for b in (0..plans.len().saturating_sub(1)).rev() {
+            if plans[b + 1].target == plans[b].target {
+                plans[b].run = plans[b + 1].run + 1;
+            }
+        }
+        plans
     }
 
     /// Where each segment falls in the paced take.

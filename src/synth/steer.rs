@@ -163,7 +163,13 @@ impl Steering {
         // the search would decide nothing.)
         let leaning = self.easing.as_ref().is_some_and(|e| !e.change);
         let looping = may_keep_alive && (self.easing.is_none() || leaning) && repeats_earlier(sparse, dim, t / 2, t, LOOP_TOLERANCE * self.bank.typical[plan.target]);
-        if (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
+        // A class change waits for the easing into the class before it, unless that would
+        // leave its segment, longer than a block, no block of its own: a 6 s walk at pace 2
+        // between two segments at pace 0.5 has one block, which the first segment's easing
+        // still held, and never walked. (A segment a block long may go by: a 2 s sittingdown
+        // anchored between a walk and a sit left the sit's end less seated.)
+        let eased_into_another = switching && plan.lasting && self.easing.as_ref().is_some_and(|e| e.change && plan.run <= e.blocks - e.step);
+        if eased_into_another || (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
             // A take slow for seconds starts its next block from (nearly) a lively window, one
             // block only: twice from the same context gives the same block twice.
             let (blocks, strength) = if switching {
@@ -329,7 +335,7 @@ mod tests {
         let mut steering = Steering::new(&model, &opts);
         let mut context = model.seed_of_class(walking, 0).unwrap().features.clone();
         spec.sparse_norm.normalize(&mut context);
-        let plan = BlockPlan { class: model.class_vector(sitting), target: sitting, ease_blocks: 2, keys: Vec::new() };
+        let plan = BlockPlan { class: model.class_vector(sitting), target: sitting, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true };
         let strengths: Vec<f32> = (0..6).map(|_| steering.block(&plan, &mut context.clone(), &context)).collect();
         let (held, own) = (CHANGE_CLASS_STRENGTH.max(spec.class_strength), spec.class_strength);
         assert!(held > own, "the change's guidance {held} is no stronger than the model's {own}");
