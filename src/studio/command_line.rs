@@ -107,6 +107,7 @@ fn option_args(options: &GenerateOptions, model: &ModelInfo) -> Vec<String> {
         (!options.keep_alive, "--no-keep-alive"),
         (!options.join_seams, "--no-seam-join"),
         (!options.foot_lock, "--no-foot-lock"),
+        (options.cycle, "--loop"),
     ];
     args.extend(switches.into_iter().filter(|(on, _)| *on).map(|(_, flag)| flag.to_string()));
     args
