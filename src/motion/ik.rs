@@ -163,12 +163,12 @@ mod tests {
         assert_eq!(hip_offset(&[(hip, Vec3::new(0.1, 0.3, 0.0), 0.9)]), Vec3::ZERO);
     }
 
-    /// A hip, a knee, an ankle, a toe, and a second branch off the hip (the other leg's top)
-    /// that nothing here may move.
+    /// A pelvis, and below it a hip, a knee, an ankle, a toe, and a second branch (the other
+    /// leg's top) that nothing here may move.
     fn leg() -> Skeleton {
-        let names = ["hip", "knee", "ankle", "toe", "other"].map(String::from).to_vec();
-        let offsets = vec![Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, -0.45, 0.02), Vec3::new(0.0, -0.45, -0.02), Vec3::new(0.0, -0.05, 0.15), Vec3::new(0.2, 0.0, 0.0)];
-        Skeleton::new(names, vec![None, Some(0), Some(1), Some(2), Some(0)], offsets, 1.0).unwrap()
+        let names = ["pelvis", "hip", "knee", "ankle", "toe", "other"].map(String::from).to_vec();
+        let offsets = vec![Vec3::new(0.0, 1.0, 0.0), Vec3::new(-0.1, 0.0, 0.0), Vec3::new(0.0, -0.45, 0.02), Vec3::new(0.0, -0.45, -0.02), Vec3::new(0.0, -0.05, 0.15), Vec3::new(0.1, 0.0, 0.0)];
+        Skeleton::new(names, vec![None, Some(0), Some(1), Some(2), Some(3), Some(0)], offsets, 1.0).unwrap()
     }
 
     fn bones(s: &Skeleton, pose: &[Vec3]) -> Vec<f32> {
@@ -179,19 +179,19 @@ mod tests {
     fn a_limb_reaches_and_its_foot_keeps_its_orientation() {
         let s = leg();
         let rest = s.rest_positions();
-        for target in [Vec3::new(0.1, 0.3, 0.3), Vec3::new(-0.2, 0.5, 0.0), Vec3::new(0.0, 2.5, 0.0)] {
+        for target in [Vec3::new(0.0, 0.3, 0.3), Vec3::new(-0.3, 0.5, 0.0), Vec3::new(-0.1, 2.5, 0.0)] {
             let mut pose = rest.clone();
-            reach(&s, &mut pose, [0, 1, 2], target, rest[1]);
+            reach(&s, &mut pose, [1, 2, 3], target, rest[2]);
             let lengths = bones(&s, &pose).into_iter().zip(bones(&s, &rest)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
             assert!(lengths < 1e-5, "bones changed by {lengths}");
-            assert!((pose[3] - pose[2]).distance(rest[3] - rest[2]) < 1e-5, "the foot turned");
-            assert_eq!((pose[0], pose[4]), (rest[0], rest[4]), "joints outside the limb moved");
-            if target.distance(rest[0]) < 0.89 {
-                assert!(pose[2].distance(target) < 1e-5, "the ankle is {} from {target}", pose[2].distance(target));
+            assert!((pose[4] - pose[3]).distance(rest[4] - rest[3]) < 1e-5, "the foot turned");
+            assert_eq!([pose[0], pose[1], pose[5]], [rest[0], rest[1], rest[5]], "joints outside the limb moved");
+            if target.distance(rest[1]) < 0.89 {
+                assert!(pose[3].distance(target) < 1e-5, "the ankle is {} from {target}", pose[3].distance(target));
             } else {
                 // Out of reach: stretched along the line to it.
-                let towards = (target - pose[0]).normalize();
-                assert!((pose[2] - pose[0]).normalize().dot(towards) > 0.9999);
+                let towards = (target - pose[1]).normalize();
+                assert!((pose[3] - pose[1]).normalize().dot(towards) > 0.9999);
             }
         }
     }
@@ -201,17 +201,17 @@ mod tests {
         let s = leg();
         let rest = s.rest_positions();
         let mut pose = rest.clone();
-        let target = Vec3::new(0.3, 0.4, 0.2);
-        bend_towards(&s, &mut pose, &[0, 1], 3, target);
-        assert!(pose[3].distance(target) < 1e-4, "the end is {} off", pose[3].distance(target));
+        let target = Vec3::new(0.2, 0.4, 0.2);
+        bend_towards(&s, &mut pose, &[1, 2], 4, target);
+        assert!(pose[4].distance(target) < 1e-4, "the end is {} off", pose[4].distance(target));
         let lengths = bones(&s, &pose).into_iter().zip(bones(&s, &rest)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
         assert!(lengths < 1e-5);
         // Both joints bent (neither took it all): the thigh turned, and the knee's angle changed.
-        let thigh = (rest[1] - rest[0]).angle_between(pose[1] - pose[0]);
-        let knee = |p: &[Vec3]| (p[0] - p[1]).angle_between(p[2] - p[1]);
+        let thigh = (rest[2] - rest[1]).angle_between(pose[2] - pose[1]);
+        let knee = |p: &[Vec3]| (p[1] - p[2]).angle_between(p[3] - p[2]);
         assert!(thigh > 0.05 && (knee(&pose) - knee(&rest)).abs() > 0.05, "thigh turned {thigh}, knee {} -> {}", knee(&rest), knee(&pose));
         let mut untouched = rest.clone();
-        turn_below(&s, &mut untouched, 3, Quat::from_rotation_y(1.0));
+        turn_below(&s, &mut untouched, 4, Quat::from_rotation_y(1.0));
         assert_eq!(untouched, rest, "a leaf turns nothing");
     }
 }
