@@ -2,21 +2,20 @@
 //! driving the real worker and the shipped model `models/h36m`.
 //!
 //! One wgpu device for the whole test process; each harness gets its own egui renderer on
-//! it (kittest refuses a render state that has drawn before), with the viewport
-//! registered. Tests take a lock so they run one at a time (model loads and generation
-//! are CPU-bound).
+//! it, with the viewport registered (`studio_support`). Tests take a lock so they run one at
+//! a time (model loads and generation are CPU-bound).
+
+mod studio_support;
 
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
-use std::time::{Duration, Instant};
+use std::sync::{Mutex, MutexGuard};
 
-use eframe::egui_wgpu::{self, RenderState};
 use egui::{Key, Modifiers};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::wgpu::WgpuTestRenderer;
 use egui_kittest::{Harness, SnapshotOptions};
-use glocal::studio::viewport::Viewport;
 use glocal::studio::{StudioApp, StudioOptions};
+use studio_support::{render_state, wait};
 use glocal::synth::render::class_color;
 use glocal::synth::Preset;
 
@@ -25,20 +24,6 @@ const MODEL: &str = "models/h36m";
 fn serial() -> MutexGuard<'static, ()> {
     static LOCK: Mutex<()> = Mutex::new(());
     LOCK.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-fn base_render_state() -> &'static RenderState {
-    static BASE: OnceLock<RenderState> = OnceLock::new();
-    BASE.get_or_init(|| egui_kittest::wgpu::create_render_state(egui_kittest::wgpu::default_wgpu_setup(), egui_wgpu::RendererOptions::PREDICTABLE))
-}
-
-/// A fresh egui renderer on the shared device, with the viewport's pipeline installed.
-fn render_state() -> RenderState {
-    let base = base_render_state();
-    let renderer = egui_wgpu::Renderer::new(&base.device, base.target_format, egui_wgpu::RendererOptions::PREDICTABLE);
-    let rs = RenderState { renderer: Arc::new(egui::mutex::RwLock::new(renderer)), ..base.clone() };
-    Viewport::register(&rs);
-    rs
 }
 
 /// A fresh folder for one test's files, under cargo's scratch space for integration tests
@@ -72,17 +57,6 @@ fn harness_with(options: StudioOptions, size: egui::Vec2) -> Harness<'static, St
         .with_accessibility_check(false)
         .renderer(WgpuTestRenderer::from_render_state(render_state()))
         .build_eframe(move |cc| StudioApp::new(cc, options))
-}
-
-/// Steps the harness until `done` holds (at most two minutes).
-fn wait(h: &mut Harness<'_, StudioApp>, what: &str, done: impl Fn(&StudioApp) -> bool) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        assert!(start.elapsed() < Duration::from_secs(120), "timed out waiting for {what}; messages: {:?}", h.state().messages().log());
-        h.step();
-        std::thread::sleep(Duration::from_millis(15));
-    }
-    h.step();
 }
 
 /// Model loaded, seed map built, take generated, nothing pending.

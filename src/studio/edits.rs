@@ -20,6 +20,7 @@ impl StudioApp {
 
     pub fn undo(&mut self) {
         if self.editing.undo() {
+            self.viewport.forget_posed();
             self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
         } else {
             self.messages.info("Nothing to undo");
@@ -28,6 +29,7 @@ impl StudioApp {
 
     pub fn redo(&mut self) {
         if self.editing.redo() {
+            self.viewport.forget_posed();
             self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
         } else {
             self.messages.info("Nothing to redo");
