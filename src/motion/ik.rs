@@ -67,9 +67,10 @@ const BEND_STEP: f32 = 0.2;
 /// that joint's rotation does.
 pub fn turn_below(skeleton: &Skeleton, pose: &mut [Vec3], joint: usize, turn: Quat) {
     let pivot = pose[joint];
-    for j in joint + 1..skeleton.len() {
+    // Parents come before their children, so the joints below lie after it.
+    for (j, p) in pose.iter_mut().enumerate().skip(joint + 1) {
         if skeleton.is_ancestor(joint, j) {
-            pose[j] = pivot + turn * (pose[j] - pivot);
+            *p = pivot + turn * (*p - pivot);
         }
     }
 }
