@@ -41,7 +41,8 @@ pub(super) struct Posing {
 
 struct Drag {
     effector: Effector,
-    /// The frame as the drag found it (take units), and its skeleton.
+    /// The frame on screen, as the drag found it (take units), and its skeleton.
+    frame: usize,
     base: Vec<Vec3>,
     skeleton: Arc<Skeleton>,
     /// The plane the joint moves on (a point and its normal, metres).
@@ -104,8 +105,9 @@ impl Viewport {
             self.posing.drag = origin.and_then(|o| self.start_drag(o, rect, scene, target));
         }
         let Some(drag) = &self.posing.drag else { return false };
-        // A take on another skeleton (a model switch) ends the drag: its pose no longer fits.
-        let rig = self.layers.first().and_then(|i| i.rig.as_ref()).filter(|_| *layer.motion.skeleton == *drag.skeleton);
+        // Another frame (scrubbing) or a take on another skeleton (a model switch) ends the
+        // drag: the pose it edits is no longer the one on screen.
+        let rig = self.layers.first().and_then(|i| i.rig.as_ref()).filter(|_| frame == drag.frame && *layer.motion.skeleton == *drag.skeleton);
         let Some(rig) = rig else {
             self.posing.drag = None;
             return true;
@@ -133,7 +135,7 @@ impl Viewport {
         let layer = &scene.layers[0];
         let frame = scene.frame.min(layer.motion.frames() - 1);
         let base = self.frame_shown(0, &layer.motion, frame).to_vec();
-        Some(Drag { effector, base, skeleton: layer.motion.skeleton.clone(), plane, press, joint })
+        Some(Drag { effector, frame, base, skeleton: layer.motion.skeleton.clone(), plane, press, joint })
     }
 
     /// Each handle: its effector, its joint (metres) and where it shows. None outside pose
