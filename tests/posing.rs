@@ -268,3 +268,59 @@ fn changed_pixels_near(a: &image::RgbaImage, b: &image::RgbaImage, at: egui::Pos
     }
     n
 }
+
+/// Pose mode does not take the camera away: a drag that starts off the handles orbits and
+/// keys nothing; a drag of the hips handle keys a root-fixing pose with the feet where they
+/// were.
+#[test]
+fn off_the_handles_the_view_orbits_and_the_hips_make_a_root_key() {
+    let dir = temp_dir("hips");
+    let mut h = harness(&dir);
+    let take = wait_take(&mut h, 0);
+    let (unit, roles) = (take.skeleton.meters_per_unit(), JointRoles::new(&take.skeleton).unwrap());
+    let frame = take.frames() / 2;
+    let ruler = h.get_by_label("Timeline ruler").rect();
+    let at = egui::pos2(ruler.left() + frame as f32 / take.frames() as f32 * (ruler.width() - 8.0), ruler.center().y);
+    pointer(&mut h, at, Some(true));
+    pointer(&mut h, at, Some(false));
+    let frame = h.state().frame();
+    h.get_by_label("Pose by hand").click_accesskit();
+    h.run_ok();
+    let hips = take.frame(frame)[roles.body_root] * unit;
+    let drag = |h: &mut Harness<'_, StudioApp>, from: egui::Pos2, by: egui::Vec2| {
+        pointer(h, from, None);
+        pointer(h, from, Some(true));
+        for k in 1..=5 {
+            pointer(h, from + by * (k as f32 / 5.0), None);
+        }
+        pointer(h, from + by, Some(false));
+    };
+
+    // The hips stand on the orbit's axis when the view follows them: the hand shows the turn.
+    let hand = take.frame(frame)[roles.left_hand] * unit;
+    let before = h.state().viewport().project(hand).unwrap();
+    let beside = h.state().viewport().project(hips).unwrap() + egui::vec2(250.0, 0.0);
+    drag(&mut h, beside, egui::vec2(40.0, 0.0));
+    let after = h.state().viewport().project(hand).unwrap();
+    assert!(before.distance(after) > 5.0, "a drag off the handles orbits the view (the hand moved {} points on screen)", before.distance(after));
+    assert!(h.state().project().options.keys.is_empty(), "and keys nothing");
+
+    let handle = h.state().viewport().project(hips).unwrap();
+    drag(&mut h, handle, egui::vec2(0.0, 30.0));
+    let keys = h.state().project().options.keys.clone();
+    assert_eq!(keys.len(), 1);
+    assert!(keys[0].fix_root, "dragging the hips fixes where the body stands");
+    let KeySource::Pose(pose) = &keys[0].source else { panic!("a posed key holds its pose") };
+    let pose: Vec<Vec3> = pose.iter().map(|p| Vec3::from(*p)).collect();
+    let feet: Vec<usize> = roles.left.foot_joints().into_iter().chain(roles.right.foot_joints()).collect();
+    let feet_moved = feet.iter().map(|&j| pose[j].distance(take.frame(frame)[j])).fold(0.0, f32::max) * unit;
+    let lowered = hips.y - pose[roles.body_root].y * unit;
+    println!("the hips dragged {:.1} cm down, the feet within {:.4} mm of where they were", lowered * 100.0, feet_moved * 1000.0);
+    assert!(lowered > 0.03 && feet_moved < 1e-4, "hips {:.1} cm lower, feet moved {:.3} mm", lowered * 100.0, feet_moved * 1000.0);
+
+    // The take made through it stands in the keyed pose where the key stands.
+    let keyed = wait_take(&mut h, 1);
+    let off = worst(keyed.frame(frame), &pose) * unit;
+    println!("the take through the root key: worst joint {:.2} mm from the key, in the world", off * 1000.0);
+    assert!(off < 0.02, "the take passes {:.1} cm from the crouch it was given", off * 100.0);
+}
