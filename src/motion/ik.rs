@@ -1,7 +1,14 @@
-//! Analytic two-bone inverse kinematics on joint positions (hip, knee, ankle), and the hip
-//! offset that lets legs reach their targets.
+//! Analytic two-bone inverse kinematics on joint positions (hip, knee, ankle), the hip
+//! offset that lets legs reach their targets, and the same reach on a whole pose (a limb
+//! with everything it carries, a spine bending a head towards a point) for posing by hand.
+//!
+//! A whole pose is changed only by turning a joint (everything below it turns about it), so
+//! every bone keeps its length and the pose stays one a skeleton can hold: solving its
+//! rotations ([`super::solve_local_poses`]) gives it back.
 
-use glam::Vec3;
+use glam::{Mat3, Quat, Vec3};
+
+use super::Skeleton;
 
 /// The fraction of a fully stretched leg the hips are kept within: a straight knee has no
 /// bending direction, and one that snaps straight looks mechanical.
@@ -48,6 +55,86 @@ pub fn hip_offset(legs: &[(Vec3, Vec3, f32)]) -> Vec3 {
     offset
 }
 
+/// Most rounds of [`bend_towards`]; a reachable target is met to a hundredth of a
+/// millimetre (on a metre-long chain) in far fewer.
+const BEND_ROUNDS: usize = 100;
+
+/// The largest turn (radians) a joint takes in one round of [`bend_towards`], so a far target
+/// is approached along a smooth path rather than in one overshooting step.
+const BEND_STEP: f32 = 0.2;
+
+/// Turns everything below `joint` (not the joint itself) about it by `turn`, as a change of
+/// that joint's rotation does.
+pub fn turn_below(skeleton: &Skeleton, pose: &mut [Vec3], joint: usize, turn: Quat) {
+    let pivot = pose[joint];
+    // Parents come before their children, so the joints below lie after it.
+    for (j, p) in pose.iter_mut().enumerate().skip(joint + 1) {
+        if skeleton.is_ancestor(joint, j) {
+            *p = pivot + turn * (*p - pivot);
+        }
+    }
+}
+
+/// The turn about `pivot` that points `from` at `to` (the shortest one; none when either is
+/// at the pivot).
+fn aim(pivot: Vec3, from: Vec3, to: Vec3) -> Quat {
+    match ((from - pivot).try_normalize(), (to - pivot).try_normalize()) {
+        (Some(a), Some(b)) => Quat::from_rotation_arc(a, b),
+        _ => Quat::IDENTITY,
+    }
+}
+
+/// Moves the end of the limb `[upper, middle, end]` (shoulder, elbow, wrist or hip, knee,
+/// ankle) to `target` by turning the upper and middle joints, the middle one bending in the
+/// plane of `pole` ([`two_bone`]); what the end carries (hand, foot) keeps its orientation in
+/// the world, as an IK controller's does. A target out of reach is approached as far as the
+/// limb stretches.
+pub fn reach(skeleton: &Skeleton, pose: &mut [Vec3], [upper, middle, end]: [usize; 3], target: Vec3, pole: Vec3) {
+    let (upper_len, lower_len) = (pose[middle].distance(pose[upper]), pose[end].distance(pose[middle]));
+    let (new_middle, new_end) = two_bone(pose[upper], target, pole, upper_len, lower_len);
+    let first = aim(pose[upper], pose[middle], new_middle);
+    turn_below(skeleton, pose, upper, first);
+    let second = aim(pose[middle], pose[end], new_end);
+    turn_below(skeleton, pose, middle, second);
+    turn_below(skeleton, pose, end, (second * first).inverse());
+}
+
+/// Bends the chain `spine` (joints from the bottom up, each an ancestor of `effector`) so `effector` comes to
+/// `target`. Each round is a damped least-squares step: the smallest set of turns of the
+/// chain's joints that moves the effector towards the target, in which a joint turns in
+/// proportion to its lever (its distance to the effector), so a spine bends mostly low and
+/// the neck follows, as a body bows. A target out of reach is approached as far as the chain
+/// bends.
+pub fn bend_towards(skeleton: &Skeleton, pose: &mut [Vec3], spine: &[usize], effector: usize, target: Vec3) {
+    let length: f32 = spine.iter().map(|&j| pose[j].distance(pose[effector])).fold(0.0, f32::max);
+    // Damping keeps the step finite where the chain cannot move the effector (straight
+    // towards or away from a joint).
+    let damping = Mat3::from_diagonal(Vec3::splat((0.1 * length).powi(2)));
+    for _ in 0..BEND_ROUNDS {
+        let error = target - pose[effector];
+        if error.length() <= length * 1e-5 {
+            break;
+        }
+        // With r the lever from a joint to the effector, a turn w moves the effector by
+        // w x r; the Jacobian's J J^T sums |r|^2 I - r r^T over the joints, and J^T x is r x x.
+        let levers: Vec<Vec3> = spine.iter().map(|&j| pose[effector] - pose[j]).collect();
+        let jjt = levers.iter().fold(damping, |m, r| m + Mat3::from_diagonal(Vec3::splat(r.length_squared())) - outer(*r, *r));
+        let x = jjt.inverse() * error;
+        let turns: Vec<Vec3> = levers.iter().map(|r| r.cross(x)).collect();
+        let largest = turns.iter().map(|w| w.length()).fold(0.0, f32::max);
+        let scale = if largest > BEND_STEP { BEND_STEP / largest } else { 1.0 };
+        // Top joint first: a turn then never moves a pivot still to turn about.
+        for (&joint, turn) in spine.iter().zip(&turns).rev() {
+            turn_below(skeleton, pose, joint, Quat::from_scaled_axis(*turn * scale));
+        }
+    }
+}
+
+/// The outer product a b^T.
+fn outer(a: Vec3, b: Vec3) -> Mat3 {
+    Mat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -75,5 +162,57 @@ mod tests {
         let (hip, target, reach) = legs[0];
         assert!(((target - (hip + offset)).length() - reach).abs() < 1e-4);
         assert_eq!(hip_offset(&[(hip, Vec3::new(0.1, 0.3, 0.0), 0.9)]), Vec3::ZERO);
+    }
+
+    /// A pelvis, and below it a hip, a knee, an ankle, a toe, and a second branch (the other
+    /// leg's top) that nothing here may move.
+    fn leg() -> Skeleton {
+        let names = ["pelvis", "hip", "knee", "ankle", "toe", "other"].map(String::from).to_vec();
+        let offsets = vec![Vec3::new(0.0, 1.0, 0.0), Vec3::new(-0.1, 0.0, 0.0), Vec3::new(0.0, -0.45, 0.02), Vec3::new(0.0, -0.45, -0.02), Vec3::new(0.0, -0.05, 0.15), Vec3::new(0.1, 0.0, 0.0)];
+        Skeleton::new(names, vec![None, Some(0), Some(1), Some(2), Some(3), Some(0)], offsets, 1.0).unwrap()
+    }
+
+    fn bones(s: &Skeleton, pose: &[Vec3]) -> Vec<f32> {
+        (0..s.len()).map(|j| s.parents()[j].map_or(0.0, |p| pose[j].distance(pose[p]))).collect()
+    }
+
+    #[test]
+    fn a_limb_reaches_and_its_foot_keeps_its_orientation() {
+        let s = leg();
+        let rest = s.rest_positions();
+        for target in [Vec3::new(0.0, 0.3, 0.3), Vec3::new(-0.3, 0.5, 0.0), Vec3::new(-0.1, 2.5, 0.0)] {
+            let mut pose = rest.clone();
+            reach(&s, &mut pose, [1, 2, 3], target, rest[2]);
+            let lengths = bones(&s, &pose).into_iter().zip(bones(&s, &rest)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            assert!(lengths < 1e-5, "bones changed by {lengths}");
+            assert!((pose[4] - pose[3]).distance(rest[4] - rest[3]) < 1e-5, "the foot turned");
+            assert_eq!([pose[0], pose[1], pose[5]], [rest[0], rest[1], rest[5]], "joints outside the limb moved");
+            if target.distance(rest[1]) < 0.89 {
+                assert!(pose[3].distance(target) < 1e-5, "the ankle is {} from {target}", pose[3].distance(target));
+            } else {
+                // Out of reach: stretched along the line to it.
+                let towards = (target - pose[1]).normalize();
+                assert!((pose[3] - pose[1]).normalize().dot(towards) > 0.9999);
+            }
+        }
+    }
+
+    #[test]
+    fn a_chain_bends_its_end_onto_a_target_with_the_bend_spread() {
+        let s = leg();
+        let rest = s.rest_positions();
+        let mut pose = rest.clone();
+        let target = Vec3::new(0.2, 0.4, 0.2);
+        bend_towards(&s, &mut pose, &[1, 2], 4, target);
+        assert!(pose[4].distance(target) < 1e-4, "the end is {} off", pose[4].distance(target));
+        let lengths = bones(&s, &pose).into_iter().zip(bones(&s, &rest)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        assert!(lengths < 1e-5);
+        // Both joints bent (neither took it all): the thigh turned, and the knee's angle changed.
+        let thigh = (rest[2] - rest[1]).angle_between(pose[2] - pose[1]);
+        let knee = |p: &[Vec3]| (p[1] - p[2]).angle_between(p[3] - p[2]);
+        assert!(thigh > 0.05 && (knee(&pose) - knee(&rest)).abs() > 0.05, "thigh turned {thigh}, knee {} -> {}", knee(&rest), knee(&pose));
+        let mut untouched = rest.clone();
+        turn_below(&s, &mut untouched, 4, Quat::from_rotation_y(1.0));
+        assert_eq!(untouched, rest, "a leaf turns nothing");
     }
 }

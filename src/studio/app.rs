@@ -107,6 +107,11 @@ impl StudioApp {
         self.engine.take.as_deref()
     }
 
+    /// The 3D view (where a point shows, for tests that drag in it).
+    pub fn viewport(&self) -> &Viewport {
+        &self.viewport
+    }
+
     pub fn model_info(&self) -> Option<&ModelInfo> {
         self.engine.model.as_deref()
     }

@@ -4,6 +4,7 @@
 use egui::{Align2, Color32, FontId, RichText};
 
 use super::app::StudioApp;
+use super::keys::ViewportTool;
 use super::timeline::Mark;
 use super::viewport::{Layer, PathOverlay, Scene};
 
@@ -11,7 +12,10 @@ impl StudioApp {
     pub(super) fn central(&mut self, ui: &mut egui::Ui) {
         let rect = ui.available_rect_before_wrap();
         let mut layers = Vec::new();
-        if let Some(preview) = self.preview_layers() {
+        let previewing = self.preview_layers();
+        // Posing edits the take's own frame, held still.
+        self.viewport.set_posing(self.panels.tool == ViewportTool::Pose && previewing.is_none() && !self.playback.playing);
+        if let Some(preview) = previewing {
             layers = preview;
         } else if let Some(t) = &self.engine.take {
             layers.push(Layer { motion: t.motion.clone(), frame_colors: t.frame_colors.clone(), offset: glam::Vec3::ZERO, opacity: 1.0, contacts: Some(t.contacts.clone()) });
@@ -27,11 +31,15 @@ impl StudioApp {
             Some(Mark::Waypoint(k)) => Some(k),
             _ => None,
         };
-        let path = (self.panels.path_edit || !waypoints.is_empty()).then_some(PathOverlay { waypoints: &waypoints, selected, editing: self.panels.path_edit });
+        let drawing = self.panels.tool == ViewportTool::DrawPath;
+        let path = (drawing || !waypoints.is_empty()).then_some(PathOverlay { waypoints: &waypoints, selected, editing: drawing });
         let scene = Scene { layers: &layers, frame, settings: &self.editing.doc.view, path };
         self.viewport.ui(ui, &scene);
         for edit in self.viewport.take_path_edits() {
             self.apply_path_edit(edit);
+        }
+        if let Some(posed) = self.viewport.take_posed() {
+            self.add_key_from_posed(posed);
         }
 
         // Overlay: where we are, and what the worker is doing.

@@ -37,6 +37,7 @@ impl StudioApp {
     /// The panels as the document stepped to says, and its model loaded if it is another
     /// (undoing a model switch).
     fn after_history_step(&mut self) {
+        self.viewport.forget_posed();
         self.panels.init_tab = InitTab::of(&self.editing.doc.options.init);
         let loaded = self.engine.model_loading.as_ref().or(self.engine.model.as_ref().map(|m| &m.dir));
         if loaded != Some(&self.editing.doc.model) {

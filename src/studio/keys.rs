@@ -1,7 +1,7 @@
 //! Keys and the root path in the studio: the edits (each one undoable, saved in the
 //! project's [`GenerateOptions`](crate::synth::GenerateOptions)), the sidebar section that
-//! makes them, and the viewport's path-drawing mode. The engine applies them; the studio
-//! only edits the document and shows what the take could not do.
+//! makes them, and the viewport's path-drawing and posing modes. The engine applies them; the
+//! studio only edits the document and shows what the take could not do.
 
 use std::path::PathBuf;
 
@@ -11,12 +11,23 @@ use super::app::StudioApp;
 use super::dialogs::Purpose;
 use super::messages::{Level, Topic};
 use super::timeline::{color32, waypoint_times, Mark, KEY_COLOR, PATH_COLOR};
-use super::viewport::PathEdit;
+use super::viewport::{PathEdit, PosedFrame};
 use super::worker::ModelInfo;
 use crate::motion::JointRoles;
 use crate::synth::constraints::{Key, KeySource, RootPath, Waypoint, MIN_KEY_GAP_SECONDS};
 use crate::synth::render::class_color;
 use crate::synth::InitPose;
+
+/// What a drag in the viewport does besides orbiting: one tool at a time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ViewportTool {
+    #[default]
+    Orbit,
+    /// Clicks on the ground add path waypoints, drags move them.
+    DrawPath,
+    /// Drags on the handles pose the frame on screen.
+    Pose,
+}
 
 impl StudioApp {
     /// The time of the frame on screen, in seconds from the take's start.
@@ -27,7 +38,11 @@ impl StudioApp {
 
     /// Adds a key at the current frame, replacing one closer than the engine allows.
     fn add_key(&mut self, source: KeySource, fix_root: bool) {
-        let seconds = self.current_seconds();
+        self.add_key_at(self.current_seconds(), source, fix_root);
+    }
+
+    /// Adds a key at `seconds`, replacing one closer than the engine allows.
+    fn add_key_at(&mut self, seconds: f32, source: KeySource, fix_root: bool) {
         let key = Key { seconds, source, fix_root };
         self.edit(|d| {
             d.options.keys.retain(|k| (k.seconds - seconds).abs() >= MIN_KEY_GAP_SECONDS);
@@ -48,6 +63,16 @@ impl StudioApp {
         let f = self.playback.frame().min(take.motion.frames().saturating_sub(1));
         let pose = take.motion.frame(f).iter().map(|p| p.to_array()).collect();
         self.add_key(KeySource::Pose(pose), true);
+    }
+
+    /// A pose made by hand in the viewport as a key at its frame: the body's pose, and where
+    /// it stands when the hips were dragged or the key it replaces fixed that too.
+    pub(super) fn add_key_from_posed(&mut self, posed: PosedFrame) {
+        let Some(fps) = self.engine.take.as_ref().map(|t| t.motion.fps) else { return };
+        let seconds = posed.frame as f32 / fps;
+        let replaces_root_key = self.editing.doc.options.keys.iter().any(|k| k.fix_root && (k.seconds - seconds).abs() < MIN_KEY_GAP_SECONDS);
+        let pose = posed.pose.iter().map(|p| p.to_array()).collect();
+        self.add_key_at(seconds, KeySource::Pose(pose), posed.moves_root || replaces_root_key);
     }
 
     /// A seed-bank pose as a key at the current frame (the body's pose only).
@@ -203,7 +228,11 @@ impl StudioApp {
             if ui.button("Key from file…").on_hover_text("A frame of a BVH, NPY or dataset file (the pose only)").clicked() {
                 self.open_dialog(Purpose::KeyFile, ui.ctx());
             }
+            self.tool_toggle(ui, ViewportTool::Pose, "Pose by hand", "Drag a hand, a foot, the head or the hips in the viewport: the pose becomes a key at this frame");
         });
+        if self.panels.tool == ViewportTool::Pose {
+            ui.label(RichText::new("Posing: drag a handle (hands and head on the view's plane, feet along the floor, the hips with the feet kept planted); the view orbits from anywhere else").weak().small());
+        }
         ui.horizontal(|ui| {
             let max = model.seeds.len().saturating_sub(1);
             ui.add(Slider::new(&mut self.panels.fields.key_seed, 0..=max).text("seed"));
@@ -247,18 +276,26 @@ impl StudioApp {
     fn path_controls(&mut self, ui: &mut egui::Ui) {
         let n = self.editing.doc.options.path.as_ref().map_or(0, |p| p.waypoints.len());
         ui.horizontal_wrapped(|ui| {
-            ui.toggle_value(&mut self.panels.path_edit, "Draw path").on_hover_text("Click the ground in the viewport to add waypoints, drag one to move it");
+            self.tool_toggle(ui, ViewportTool::DrawPath, "Draw path", "Click the ground in the viewport to add waypoints, drag one to move it");
             if ui.add_enabled(n > 0, egui::Button::new("Clear path")).clicked() {
                 self.edit(|d| d.options.path = None);
                 self.editing.selected_mark = None;
             }
             ui.label(RichText::new(format!("{n} waypoints")).color(PATH_COLOR));
         });
-        if self.panels.path_edit {
+        if self.panels.tool == ViewportTool::DrawPath {
             ui.label(RichText::new("Drawing: the path starts where the take starts; click the ground to add a waypoint, drag one to move it (the view orbits from anywhere else)").weak().small());
         }
         if n == 1 {
             ui.label(RichText::new("A path needs a second waypoint").weak().small());
+        }
+    }
+
+    /// A toggle of one viewport tool (turning it on turns the other off).
+    fn tool_toggle(&mut self, ui: &mut egui::Ui, tool: ViewportTool, label: &str, hover: &str) {
+        let mut on = self.panels.tool == tool;
+        if ui.toggle_value(&mut on, label).on_hover_text(hover).changed() {
+            self.panels.tool = if on { tool } else { ViewportTool::Orbit };
         }
     }
 

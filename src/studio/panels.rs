@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use super::dialogs::Dialogs;
+use super::keys::ViewportTool;
 use super::project::same_file;
 use super::retarget::RigState;
 use super::timeline::TimelineState;
@@ -92,8 +93,8 @@ pub struct Panels {
     /// on a project with no file of its own, or whose file is the one being opened).
     pub(super) save_before: Option<Guarded>,
     pub(super) timeline_state: TimelineState,
-    /// Clicks on the viewport's ground add path waypoints.
-    pub(super) path_edit: bool,
+    /// What a drag in the viewport does besides orbiting (drawing the path, posing).
+    pub(super) tool: ViewportTool,
     /// The previous take drawn over the current one.
     pub(super) compare: bool,
     /// The advice last given (a message is posted when it changes).
@@ -122,7 +123,7 @@ impl Panels {
             confirm: None,
             save_before: None,
             timeline_state: TimelineState::default(),
-            path_edit: false,
+            tool: ViewportTool::Orbit,
             compare: false,
             advised: None,
             title: String::new(),

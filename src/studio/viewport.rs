@@ -5,13 +5,17 @@
 //! onion-skin ghosts, and several layers (side by side or overlaid). Everything is drawn in
 //! metres: each take is scaled by its skeleton's `meters_per_unit`. A root path is drawn on
 //! the floor with its waypoints; in path-edit mode a click on the ground adds a waypoint
-//! (the pointer's ray met with the ground plane) and a drag moves one ([`PathEdit`]).
+//! (the pointer's ray met with the ground plane) and a drag moves one ([`PathEdit`]). In pose
+//! mode, handles on the take's hands, feet, head and hips pose the frame on screen
+//! (`viewport/posing.rs`).
 //!
 //! Rendering (see `viewport/render.rs`): egui's render pass has no depth buffer by default, so
 //! the scene is drawn during the callback's `prepare` into an offscreen colour + depth image
 //! the size of the view (4x MSAA on GPUs, none on software rasterisers), and `paint` copies that image into egui's pass.
 
 mod mesh;
+mod posing;
+mod projection;
 mod render;
 mod solids;
 
@@ -22,7 +26,9 @@ use eframe::egui_wgpu::{self, wgpu};
 use glam::{Mat4, Vec3};
 
 use crate::motion::contacts::FootContacts;
-use crate::motion::{JointRoles, Motion, Side};
+use crate::motion::{JointRoles, Motion, PoseRig, Side};
+use posing::Posing;
+pub use posing::PosedFrame;
 use render::{Globals, Resources, SceneCallback, TrailVertex};
 use solids::{cylinder, floor_disc, linear_rgba, sphere, Solids};
 pub use render::HostPass;
@@ -95,7 +101,7 @@ const WAYPOINT_RADIUS: f32 = 0.08;
 /// floor, metres.
 pub const CONTACT_RGB: [u8; 3] = [255, 150, 60];
 const CONTACT_RADIUS: f32 = 0.06;
-/// A press within this many points of a waypoint grabs it.
+/// A press within this many points of a waypoint or a pose handle grabs it.
 const GRAB_POINTS: f32 = 14.0;
 
 /// Vertical field of view.
@@ -128,6 +134,9 @@ pub struct Viewport {
     /// The waypoint being dragged in path-edit mode.
     path_drag: Option<usize>,
     path_edits: Vec<PathEdit>,
+    posing: Posing,
+    /// The last frame's view rectangle and orbit centre (for [`Viewport::project`]).
+    last_view: Option<(egui::Rect, Vec3)>,
 }
 
 impl Default for Viewport {
@@ -177,6 +186,8 @@ struct LayerInfo {
     head: Option<(usize, usize, Option<usize>)>,
     /// Each foot's joints (left, right), where the skeleton's legs are known.
     feet: [Vec<usize>; 2],
+    /// What posing by hand moves, on a humanoid skeleton.
+    rig: Option<PoseRig>,
 }
 
 impl LayerInfo {
@@ -233,7 +244,8 @@ impl LayerInfo {
         let centre_height = (centre_sum / frames.max(1) as f64) as f32;
         let head = roles.as_ref().and_then(|r| Some((r.head, skeleton.parents()[r.head]?, r.head_end.filter(|&c| long(c)))));
         let feet = Side::BOTH.map(|side| roles.as_ref().map_or_else(Vec::new, |r| r.leg(side).foot_joints()));
-        Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head, feet }
+        let rig = PoseRig::new(skeleton).ok();
+        Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head, feet, rig }
     }
 }
 
@@ -261,6 +273,8 @@ impl Viewport {
             trail: None,
             path_drag: None,
             path_edits: Vec::new(),
+            posing: Posing::default(),
+            last_view: None,
         }
     }
 
@@ -317,7 +331,8 @@ impl Viewport {
                 false
             }
         };
-        if !path_took_pointer {
+        let pose_took_pointer = !path_took_pointer && self.pose_input(ui, &response, rect, scene, target);
+        if !path_took_pointer && !pose_took_pointer {
             self.handle_input(ui, &response, rect);
         }
         if response.double_clicked() && !scene.path.is_some_and(|p| p.editing) {
@@ -336,6 +351,8 @@ impl Viewport {
         let size_px = [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
         let callback = self.build(scene, target, size_px, rect.aspect_ratio());
         ui.painter().add(egui_wgpu::Callback::new_paint_callback(rect, callback));
+        self.paint_handles(ui, rect, scene, target);
+        self.last_view = Some((rect, target));
         response
     }
 
@@ -420,30 +437,6 @@ impl Viewport {
         let near = (cam.distance * 0.01).clamp(0.005, 1.0);
         let far = cam.distance * 4.0 + 200.0;
         (Mat4::perspective_rh(FOV_Y, aspect.max(1e-3), near, far) * view, eye)
-    }
-
-    /// Where the ray through a screen point meets the ground plane (x, z), if it does.
-    fn ground_point(&self, pos: egui::Pos2, rect: egui::Rect, target: Vec3) -> Option<[f32; 2]> {
-        let (view_proj, _) = self.view_proj(target, rect.aspect_ratio());
-        let ndc = |z: f32| Vec3::new((pos.x - rect.left()) / rect.width() * 2.0 - 1.0, 1.0 - (pos.y - rect.top()) / rect.height() * 2.0, z);
-        let inverse = view_proj.inverse();
-        let (near, far) = (inverse.project_point3(ndc(0.0)), inverse.project_point3(ndc(1.0)));
-        let dir = far - near;
-        let t = (self.ground() - near.y) / dir.y;
-        (dir.y.abs() > 1e-6 && t > 0.0 && t.is_finite()).then(|| {
-            let p = near + dir * t;
-            [p.x, p.z]
-        })
-    }
-
-    /// Where a ground point shows on screen (None: behind the camera).
-    fn screen_point(&self, point: [f32; 2], rect: egui::Rect, target: Vec3) -> Option<egui::Pos2> {
-        let (view_proj, _) = self.view_proj(target, rect.aspect_ratio());
-        let clip = view_proj * Vec3::new(point[0], self.ground(), point[1]).extend(1.0);
-        (clip.w > 1e-6).then(|| {
-            let ndc = clip.truncate() / clip.w;
-            egui::pos2(rect.left() + (ndc.x + 1.0) / 2.0 * rect.width(), rect.top() + (1.0 - ndc.y) / 2.0 * rect.height())
-        })
     }
 
     /// Path-edit mode: a press on a waypoint drags it, a click elsewhere on the ground adds
@@ -590,7 +583,7 @@ impl Viewport {
         };
 
         let mut solids = Solids::default();
-        for (layer, info) in scene.layers.iter().zip(&self.layers) {
+        for (k, (layer, info)) in scene.layers.iter().zip(&self.layers).enumerate() {
             let m = &layer.motion;
             if m.frames() == 0 || m.joints() == 0 {
                 continue;
@@ -618,7 +611,8 @@ impl Viewport {
                 let rgb = layer.frame_colors.get(t).copied().unwrap_or([200, 200, 200]);
                 let bone_color = linear_rgba(rgb, lighten, alpha);
                 let joint_color = linear_rgba(rgb, 0.45 + lighten * 0.5, alpha);
-                let p = |j: usize| m.frame(t)[j] * mpu + layer.offset;
+                let frame = self.frame_shown(k, m, t);
+                let p = |j: usize| frame[j] * mpu + layer.offset;
                 for &(a, b) in &info.bones {
                     let (pa, pb) = (p(a), p(b));
                     if let Some(inst) = cylinder(pa, pb, BONE_RADIUS, bone_color) {
