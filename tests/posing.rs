@@ -260,7 +260,6 @@ fn changed_pixels_near(a: &image::RgbaImage, b: &image::RgbaImage, at: egui::Pos
 /// were.
 #[test]
 fn off_the_handles_the_view_orbits_and_the_hips_make_a_root_key() {
-    let dir = temp_dir("posing-hips");
     let mut h = harness("posing-hips");
     let take = wait_take(&mut h, 0);
     let (unit, roles) = (take.skeleton.meters_per_unit(), JointRoles::new(&take.skeleton).unwrap());
