@@ -5,6 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::constraints::{Key, RootPath};
+use super::held::HeldStretch;
 use super::init::InitPose;
 use super::timeline::Timeline;
 use crate::model::spec::ModelSpec;
@@ -78,6 +79,10 @@ pub struct GenerateOptions {
     /// A path on the ground the take's locomotion follows.
     pub path: Option<RootPath>,
     pub key_method: KeyMethod,
+    /// Stretches of an earlier take this one keeps exactly (see [`super::held`]): the
+    /// segments a reroll or an edit left alone, and locked ones.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held: Vec<HeldStretch>,
 }
 
 impl Default for GenerateOptions {
@@ -99,6 +104,7 @@ impl Default for GenerateOptions {
             keys: Vec::new(),
             path: None,
             key_method: KeyMethod::default(),
+            held: Vec::new(),
         }
     }
 }
