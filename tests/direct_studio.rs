@@ -6,7 +6,6 @@
 
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
-use std::time::{Duration, Instant};
 
 use eframe::egui_wgpu::{self, RenderState};
 use egui::{Key, Modifiers};
@@ -17,6 +16,9 @@ use glocal::motion::Motion;
 use glocal::studio::viewport::Viewport;
 use glocal::studio::{StudioApp, StudioOptions};
 use glocal::synth::export::{export_with_contacts, prepare, ExportOptions};
+
+mod support;
+use support::wait;
 
 const BIN: &str = env!("CARGO_BIN_EXE_glocal");
 
@@ -37,17 +39,6 @@ fn harness(name: &str) -> Harness<'static, StudioApp> {
         system_dialogs: false,
     };
     Harness::builder().with_size(egui::vec2(1280.0, 800.0)).with_accessibility_check(false).renderer(WgpuTestRenderer::from_render_state(rs)).build_eframe(move |cc| StudioApp::new(cc, options))
-}
-
-/// Steps the harness until `done` holds (at most two minutes).
-fn wait(h: &mut Harness<'_, StudioApp>, what: &str, done: impl Fn(&StudioApp) -> bool) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        assert!(start.elapsed() < Duration::from_secs(120), "timed out waiting for {what}; messages: {:?}", h.state().messages().log());
-        h.step();
-        std::thread::sleep(Duration::from_millis(15));
-    }
-    h.step();
 }
 
 /// The take on screen once it is the document's and nothing is pending.

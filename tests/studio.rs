@@ -8,7 +8,6 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
-use std::time::{Duration, Instant};
 
 use eframe::egui_wgpu::{self, RenderState};
 use egui::{Key, Modifiers};
@@ -19,6 +18,9 @@ use glocal::studio::viewport::Viewport;
 use glocal::studio::{StudioApp, StudioOptions};
 use glocal::synth::render::class_color;
 use glocal::synth::Preset;
+
+mod support;
+use support::wait;
 
 const MODEL: &str = "models/h36m";
 
@@ -72,17 +74,6 @@ fn harness_with(options: StudioOptions, size: egui::Vec2) -> Harness<'static, St
         .with_accessibility_check(false)
         .renderer(WgpuTestRenderer::from_render_state(render_state()))
         .build_eframe(move |cc| StudioApp::new(cc, options))
-}
-
-/// Steps the harness until `done` holds (at most two minutes).
-fn wait(h: &mut Harness<'_, StudioApp>, what: &str, done: impl Fn(&StudioApp) -> bool) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        assert!(start.elapsed() < Duration::from_secs(120), "timed out waiting for {what}; messages: {:?}", h.state().messages().log());
-        h.step();
-        std::thread::sleep(Duration::from_millis(15));
-    }
-    h.step();
 }
 
 /// Model loaded, seed map built, take generated, nothing pending.
