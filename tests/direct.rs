@@ -122,7 +122,8 @@ fn reroll_keeps_the_rest(name: &str, dataset: Dataset) {
         let outside = (0..before.motion.frames()).filter(|f| !changed.contains(f));
         let (largest, same_poses) = difference(&before.motion, &after.motion, outside);
         let (inside, _) = difference(&before.motion, &after.motion, changed.clone());
-        println!("{name}: reroll segment {} (frames {changed:?}): max difference outside {largest} (local poses identical: {same_poses}), inside {inside:.3}", k + 1);
+        let floors = (before.motion.floor_height(), after.motion.floor_height());
+        println!("{name}: reroll segment {} (frames {changed:?}): max difference outside {largest} (local poses identical: {same_poses}), inside {inside:.3}; lowest joint {:.2} -> {:.2}", k + 1, floors.0, floors.1);
         assert_eq!(largest, 0.0, "{name}: rerolling segment {} moved frames outside it", k + 1);
         assert!(same_poses, "{name}: rerolling segment {} changed local poses outside it", k + 1);
         assert!(inside > 1.0, "{name}: segment {} did not change ({inside})", k + 1);

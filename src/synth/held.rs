@@ -257,9 +257,14 @@ impl HeldConstraint {
     }
 
     /// Fades the pose difference between each free stretch and the held frames at its ends
-    /// out inside the stretch.
+    /// out inside the stretch. A frame the fade takes below both its own lowest joint and
+    /// the held frames' at the ends is lifted back: fading a lifted foot's difference onto a
+    /// planted one pushed it 1-2 cm through the floor.
     fn fade_joins(&self, positions: &mut [Vec3], j: usize, fps: f32) {
+        let lowest = |positions: &[Vec3], f: usize| positions[f * j..(f + 1) * j].iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
         for free in &self.free {
+            let ends_floor = [free.start.checked_sub(1), Some(free.end)].iter().flatten().filter_map(|&f| self.held(f)).flat_map(|h| h.iter().map(|p| p.y)).fold(f32::INFINITY, f32::min);
+            let floors: Vec<f32> = free.clone().map(|f| lowest(positions, f).min(ends_floor)).collect();
             let fade = ((JOIN_FADE_SECONDS * fps).round() as usize).min((free.end - free.start) / 2).max(1);
             let residual = |f: Option<usize>, positions: &[Vec3]| -> Option<Vec<Vec3>> {
                 let f = f?;
@@ -273,6 +278,12 @@ impl HeldConstraint {
                     if w > 0.0 {
                         positions[f * j..(f + 1) * j].iter_mut().zip(&r).for_each(|(p, d)| *p += w * *d);
                     }
+                }
+            }
+            for (f, floor) in free.clone().zip(floors) {
+                let dip = floor - lowest(positions, f);
+                if dip > 0.0 {
+                    positions[f * j..(f + 1) * j].iter_mut().for_each(|p| p.y += dip);
                 }
             }
         }
