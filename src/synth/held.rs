@@ -6,12 +6,11 @@
 //! without bone rotations), so `glocal generate --project` makes the studio's take again
 //! whatever seeds or edits the held segments came from. Generation meets them at every
 //! stage, as keys are met: GloGen's sparse poses over held frames are the held take's, a
-//! free stretch's poses are warped onto the held pose at each end (the following segments
-//! are joined onto the new one, not rolled out again; the warp reaches 2 s, as a key's),
-//! the dense frames of a free stretch
-//! are turned and shifted to stand where the held frames on either side stand, and the
-//! finished take shows the held frames exactly, the pose difference at each end fading out
-//! inside the free stretch.
+//! free stretch's poses are warped onto the held pose at each end (2 s reach, as a key's:
+//! the following segments are joined onto the new one, not rolled out again), the dense
+//! frames of a free stretch are turned and shifted to stand where the held frames on either
+//! side stand, and the finished take shows the held frames exactly, the pose difference at
+//! each end fading out inside the free stretch.
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -30,10 +29,10 @@ use crate::model::glogen::GloGen;
 use crate::model::spec::ModelSpec;
 use crate::motion::{solve_local_poses, LocalPose, Motion, Skeleton};
 
-/// The most frames a request holds, in seconds of the take: ten minutes keep a project file
-/// under about 20 MB (a frame of local poses is ~110 numbers). Longer takes are generated
-/// whole.
-pub const MAX_HELD_SECONDS: f32 = 600.0;
+/// The most frames a request holds, in seconds of the take: five minutes keep a project file
+/// under about 20 MB (a frame of local poses is up to 111 numbers, ~24 bytes each in the
+/// project's pretty JSON). Longer takes are generated whole.
+pub const MAX_HELD_SECONDS: f32 = 300.0;
 
 /// Seconds over which the pose difference at either end of a free stretch fades out (at
 /// most half the stretch).
@@ -193,6 +192,10 @@ impl HeldConstraint {
     pub(super) fn new(spec: &ModelSpec, held: &[HeldStretch], timeline: &SparseTimeline) -> Result<Self> {
         let skeleton = &spec.layout.skeleton;
         let frames = take_frames(timeline);
+        let seconds = held.iter().map(|h| h.frames.len()).sum::<usize>() as f32 / spec.fps;
+        if seconds > MAX_HELD_SECONDS {
+            bail!("held stretches: {seconds:.0} s of frames; a request holds at most {MAX_HELD_SECONDS:.0} s");
+        }
         let mut positions = vec![None; frames];
         let mut poses = vec![None; frames];
         for (k, stretch) in held.iter().enumerate() {
