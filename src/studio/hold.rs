@@ -12,9 +12,15 @@ impl StudioApp {
     /// Sets the document's held frames for the regeneration about to start, from the take
     /// on screen, when the document is the last request edited (not a request brought back
     /// by undo or opened, whose held frames are what it needs). Locked segments that an edit
-    /// moves in time are unlocked, and the user is told.
+    /// moves in time are unlocked, and the user is told. Frames that do not fit the model
+    /// (another model's, left by a model switch) are dropped.
     pub(super) fn hold_for_regeneration(&mut self) {
-        let (Some(take), Some(model)) = (self.engine.take.clone(), self.engine.model.clone()) else { return };
+        let Some(model) = self.engine.model.clone() else { return };
+        // Frames of another model's skeleton (kept from before a model switch) hold nothing.
+        if !self.editing.doc.options.held.iter().all(|h| h.fits(&model.spec.layout.skeleton)) {
+            self.editing.doc.options.held.clear();
+        }
+        let Some(take) = self.engine.take.clone() else { return };
         let doc = &self.editing.doc;
         let edited_request = self.engine.requested.as_ref().is_some_and(|r| r.held == doc.options.held);
         if take.model_dir != doc.model || !edited_request {
@@ -27,12 +33,13 @@ impl StudioApp {
         let mut kept = Vec::new();
         let mut unlocked = Vec::new();
         for (k, segment) in segments.iter().enumerate() {
-            let keep = edited.is_some_and(|e| e != k) || segment.locked;
-            let moved = take.segments.get(k).is_none_or(|old| old.start_frame != spans[k].start_frame || old.end_frame != spans[k].end_frame);
-            if segment.locked && (moved || edited == Some(k)) {
+            // The same segment at the same place in the take on screen, if it is there.
+            let same = take.options.timeline.segments.get(k).is_some_and(|old| same_segment(old, segment));
+            let moved = !same || take.segments.get(k).is_none_or(|old| old.start_frame != spans[k].start_frame || old.end_frame != spans[k].end_frame);
+            if segment.locked && moved {
                 unlocked.push(k);
             }
-            if keep && !(edited.is_none() && moved) && edited != Some(k) {
+            if same && (edited.is_some() || (segment.locked && !moved)) {
                 kept.push(Kept { before: k, after: k, whole: segment.locked && !moved });
             }
         }

@@ -175,6 +175,30 @@ impl TakeSteps<'_> {
         let class_len = spec.glogen.class_len(spec.classes.len());
         self.cond[class_len..].copy_from_slice(&condition);
     }
+
+    /// At the first block of a segment with its own seed, its noise and the steering's anchor
+    /// draws start from that seed, so the segment can be rerolled alone.
+    fn enter_segment(&mut self, b: usize) {
+        let segment = self.block_segments[b];
+        let entering = self.segment_noise.as_ref().is_none_or(|(s, _)| *s != segment);
+        if let Some(seed) = self.opts.timeline.segments[segment].seed.filter(|_| entering) {
+            self.segment_noise = Some((segment, StdRng::seed_from_u64(seed)));
+            self.steering.reseed(seed);
+        }
+    }
+
+    /// Adds block `b`'s variation noise to its `input`: from its segment's own seed where it
+    /// has one, else from the take's.
+    fn vary(&mut self, b: usize, input: &mut [f32]) {
+        let own_seed = self.opts.timeline.segments[self.block_segments[b]].seed;
+        let (noise, variation) = match (own_seed, self.segment_noise.as_mut()) {
+            (Some(seed), Some((_, noise))) => (noise, if seed == 0 { 0.0 } else { VARIATION }),
+            _ => (&mut self.noise, if self.opts.seed == 0 { 0.0 } else { self.opts.variation }),
+        };
+        if variation > 0.0 {
+            input.iter_mut().for_each(|v| *v += variation * noise.random_range(-1.0f32..1.0));
+        }
+    }
 }
 
 impl RolloutSteps for TakeSteps<'_> {
@@ -185,20 +209,9 @@ impl RolloutSteps for TakeSteps<'_> {
     fn ask(&mut self, b: usize, input: &mut [f32], sparse: &[f32]) -> f32 {
         self.cond = self.plans[b].class.clone();
         self.aim(sparse);
-        let segment = self.block_segments[b];
-        let own_seed = self.opts.timeline.segments[segment].seed;
-        if let Some(seed) = own_seed.filter(|_| self.segment_noise.as_ref().is_none_or(|(s, _)| *s != segment)) {
-            self.segment_noise = Some((segment, StdRng::seed_from_u64(seed)));
-            self.steering.reseed(seed);
-        }
+        self.enter_segment(b);
         self.strength = self.steering.block(&self.plans[b], input, sparse);
-        let (noise, variation) = match (own_seed, self.segment_noise.as_mut()) {
-            (Some(seed), Some((_, noise))) => (noise, if seed == 0 { 0.0 } else { VARIATION }),
-            _ => (&mut self.noise, if self.opts.seed == 0 { 0.0 } else { self.opts.variation }),
-        };
-        if variation > 0.0 {
-            input.iter_mut().for_each(|v| *v += variation * noise.random_range(-1.0f32..1.0));
-        }
+        self.vary(b, input);
         self.strength
     }
 

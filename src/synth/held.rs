@@ -46,6 +46,13 @@ pub struct HeldStretch {
     pub frames: Arc<HeldFrames>,
 }
 
+impl HeldStretch {
+    /// Whether its frames are frames of `skeleton` (a model switch leaves the other model's).
+    pub fn fits(&self, skeleton: &Skeleton) -> bool {
+        self.frames.check(skeleton, "held stretch").is_ok()
+    }
+}
+
 /// A held stretch's frames, exactly as the earlier take made them (JSON numbers are written
 /// in the shortest form that reads back to the same `f32`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
