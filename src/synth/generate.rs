@@ -118,6 +118,7 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
         constraints.push(Box::new(PathConstraint { path: GroundPath::new(path, units_per_metre), units_per_metre }));
     }
     let first_key = keys.iter().map(|k| k.frame).min();
+    let key_frames = keys.iter().map(|k| k.frame).collect();
     if !keys.is_empty() {
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
         constraints.push(Box::new(KeyConstraint { keys, step_seconds, method: opts.key_method }));
@@ -129,7 +130,7 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
     }
     // Last: the held frames come out exactly as held, whatever the others did.
     if !opts.held.is_empty() {
-        constraints.push(Box::new(HeldConstraint::new(spec, &opts.held, timeline)?));
+        constraints.push(Box::new(HeldConstraint::new(spec, &opts.held, timeline, key_frames)?));
     }
     Ok(constraints)
 }

@@ -193,10 +193,12 @@ pub(super) struct HeldConstraint {
     /// Seconds per sparse step at each sparse pose's segment's pace.
     step_seconds: Vec<f32>,
     block_len: usize,
+    /// Frames of the take's keys.
+    key_frames: Vec<usize>,
 }
 
 impl HeldConstraint {
-    pub(super) fn new(spec: &ModelSpec, held: &[HeldStretch], timeline: &SparseTimeline) -> Result<Self> {
+    pub(super) fn new(spec: &ModelSpec, held: &[HeldStretch], timeline: &SparseTimeline, key_frames: Vec<usize>) -> Result<Self> {
         let skeleton = &spec.layout.skeleton;
         let frames = take_frames(timeline);
         let seconds = held.iter().map(|h| h.frames.len()).sum::<usize>() as f32 / spec.fps;
@@ -227,7 +229,7 @@ impl HeldConstraint {
         let free_sparse = runs(&sparse.iter().map(Option::is_none).collect::<Vec<_>>());
         let free = runs(&positions.iter().map(Option::is_none).collect::<Vec<_>>());
         let step_seconds = (0..sparse.len()).map(|i| timeline.step_seconds[timeline.segment_at(i)]).collect();
-        Ok(Self { positions, poses, sparse, free_sparse, free, step_seconds, block_len: spec.block_len })
+        Ok(Self { positions, poses, sparse, free_sparse, free, step_seconds, block_len: spec.block_len, key_frames })
     }
 
     /// The held pose at sparse index `i` as a key to warp GloGen's poses onto, leaving the
@@ -243,22 +245,29 @@ impl HeldConstraint {
     }
 
     /// Turns and shifts each free stretch's frames so the body stands where the held frames
-    /// on either side stand, the correction growing smoothly across the stretch.
+    /// on either side stand, the correction growing smoothly across the stretch; at a key's
+    /// frame inside it there is none (the keys have put the body there).
     fn align_roots(&self, positions: &mut [Vec3], layout: &FeatureLayout) {
         let j = layout.joints();
         for free in &self.free {
-            let offset = |f: Option<usize>| -> Option<(Vec3, f32)> {
+            let offset = |f: Option<usize>| -> Option<(usize, Vec3, f32)> {
                 let f = f?;
                 let (held, have) = (self.held(f)?, &positions[f * j..(f + 1) * j]);
                 let shift = held[0] - have[0];
-                Some((Vec3::new(shift.x, 0.0, shift.z), wrap(layout.heading(held) - layout.heading(have))))
+                Some((f, Vec3::new(shift.x, 0.0, shift.z), wrap(layout.heading(held) - layout.heading(have))))
             };
-            let (before, after) = (offset(free.start.checked_sub(1)), offset(Some(free.end)));
-            let Some(((from_shift, from_turn), (to_shift, to_turn))) = before.or(after).zip(after.or(before)) else { continue };
-            let span = (free.end - free.start + 1) as f32;
+            let keys = self.key_frames.iter().filter(|f| free.contains(f)).map(|&f| (f, Vec3::ZERO, 0.0));
+            let targets: Vec<(usize, Vec3, f32)> = offset(free.start.checked_sub(1)).into_iter().chain(keys).chain(offset(Some(free.end))).collect();
             for f in free.clone() {
-                let s = smoothstep((f + 1 - free.start) as f32 / span);
-                let (shift, turn) = (from_shift.lerp(to_shift, s), from_turn + s * wrap(to_turn - from_turn));
+                let next = targets.partition_point(|t| t.0 < f);
+                let (shift, turn) = match (next.checked_sub(1).map(|p| targets[p]), targets.get(next)) {
+                    (Some((pf, ps, pt)), Some(&(nf, ns, nt))) => {
+                        let s = smoothstep((f - pf) as f32 / (nf - pf) as f32);
+                        (ps.lerp(ns, s), pt + s * wrap(nt - pt))
+                    }
+                    (Some((_, shift, turn)), None) | (None, Some(&(_, shift, turn))) => (shift, turn),
+                    (None, None) => break,
+                };
                 let pose = &mut positions[f * j..(f + 1) * j];
                 let (root, rot) = (pose[0], Quat::from_rotation_y(turn));
                 pose.iter_mut().for_each(|p| *p = root + rot * (*p - root) + shift);
