@@ -146,6 +146,9 @@ fn rerolling_a_segment_keeps_every_other_frame_on_bandai() {
     reroll_keeps_the_rest("bandai", Dataset::Bandai);
 }
 
+/// An edit of one segment: its index and what it does to the timeline.
+type Edit = Box<dyn Fn(&mut Timeline)>;
+
 /// Segment 3 locked; five edits of the others (rerolls, a class, a duration after it, a
 /// neighbour's reroll): its frames stay the same bits each time.
 fn lock_holds(name: &str) {
@@ -156,7 +159,7 @@ fn lock_holds(name: &str) {
     let first = take(&model, &opts);
     let span = first.segments[locked].clone();
     let mut current = take(&model, &opts);
-    let edits: [(usize, Box<dyn Fn(&mut Timeline)>); 5] = [
+    let edits: [(usize, Edit); 5] = [
         (0, Box::new(|t: &mut Timeline| t.segments[0].seed = Some(7))),
         (4, Box::new(|t: &mut Timeline| t.segments[4].class = classes[1].clone())),
         (1, Box::new(|t: &mut Timeline| t.segments[1].seed = Some(8))),
