@@ -147,7 +147,7 @@ fn rerolling_a_segment_keeps_every_other_frame_on_bandai() {
 }
 
 /// An edit of one segment: its index and what it does to the timeline.
-type Edit = Box<dyn Fn(&mut Timeline)>;
+type Edit<'a> = Box<dyn Fn(&mut Timeline) + 'a>;
 
 /// Segment 3 locked; five edits of the others (rerolls, a class, a duration after it, a
 /// neighbour's reroll): its frames stay the same bits each time.
