@@ -226,3 +226,20 @@ fn a_segment_seed_varies_its_segment() {
     assert!(inside > 1.0, "a segment's seed did not vary it");
     assert!(!serde_json::to_string(&opts).unwrap().contains("held"));
 }
+
+/// Held frames that do not fit the take are refused with a line naming the stretch.
+#[test]
+fn held_frames_that_do_not_fit_are_refused() {
+    use glocal::synth::held::{HeldFrames, HeldStretch};
+    use std::sync::Arc;
+    let model = model("h36m");
+    let mut opts = GenerateOptions { timeline: "walking:4".parse().unwrap(), ..Default::default() };
+    let error = |opts: &GenerateOptions| format!("{:#}", generate(&model, opts, &mut |_| true).err().expect("bad held frames were taken"));
+    opts.held = vec![HeldStretch { first_frame: 10, frames: Arc::new(HeldFrames::Poses(vec![vec![0.0; 5]])) }];
+    let short = error(&opts);
+    opts.held = vec![HeldStretch { first_frame: 99, frames: Arc::new(HeldFrames::Positions(vec![vec![0.0; 81]; 5])) }];
+    let beyond = error(&opts);
+    println!("{short}\n{beyond}");
+    assert!(short.contains("held stretch 1 (frames 10..11), frame 0: 111 numbers expected"), "{short}");
+    assert!(beyond.contains("lies beyond the take's 101 frames"), "{beyond}");
+}

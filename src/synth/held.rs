@@ -90,8 +90,11 @@ impl HeldFrames {
             HeldFrames::Poses(f) => (f, 3 + 4 * j, "a root position and a rotation per joint"),
             HeldFrames::Positions(f) => (f, 3 * j, "a position per joint"),
         };
-        if let Some((k, frame)) = frames.iter().enumerate().find(|(_, f)| f.len() != width || f.iter().any(|v| !v.is_finite())) {
-            bail!("{what}, frame {k}: {} numbers (all finite) expected ({kind} of the model's {j} joints), got {}", width, frame.len());
+        if let Some((k, frame)) = frames.iter().enumerate().find(|(_, f)| f.len() != width) {
+            bail!("{what}, frame {k}: {width} numbers expected ({kind} of the model's {j} joints), got {}", frame.len());
+        }
+        if let Some(k) = frames.iter().position(|f| f.iter().any(|v| !v.is_finite())) {
+            bail!("{what}, frame {k}: holds a number that is not finite");
         }
         Ok(())
     }
