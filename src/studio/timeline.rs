@@ -260,7 +260,8 @@ impl Pass<'_> {
         if resp.hovered() {
             let unknown = if known.is_none() { " · this model has no such class: right-click to choose one" } else { "" };
             let locked = if seg.locked { " · locked: its frames stay through other edits" } else { "" };
-            state.hint = Some(format!("Segment {}: {label}{unknown}{locked} · drag to reorder, drag the right edge to resize, right-click for more", k + 1));
+            let seed = seg.seed.map(|n| format!(" · seed #{n}")).unwrap_or_default();
+            state.hint = Some(format!("Segment {}: {label}{seed}{unknown}{locked} · drag to reorder, drag the right edge to resize, right-click for more", k + 1));
         }
         self.segment_clicks(&resp, state, k);
         self.resize_handle(ui, state, k, x1, id);
