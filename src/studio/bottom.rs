@@ -16,7 +16,7 @@ impl StudioApp {
         ui.add_space(2.0);
         let classes = self.classes().to_vec();
         let (frames, fps) = self.engine.take.as_ref().map_or((0, 25.0), |t| (t.motion.frames(), t.motion.fps));
-        let spans = self.engine.take.as_ref().filter(|t| t.options.timeline == self.editing.doc.options.timeline).map(|t| t.segments.clone());
+        let spans = self.engine.take.as_ref().filter(|t| t.options.timeline == self.editing.take_request().options.timeline).map(|t| t.segments.clone());
         let waypoint_times = self.waypoint_times();
         let input = Input {
             timeline: &self.editing.doc.options.timeline,

@@ -68,12 +68,14 @@ impl Editing {
     }
 
     /// What the engine is asked to generate: the document's request, where a path of one
-    /// waypoint (while it is being drawn) is no path yet.
+    /// waypoint (while it is being drawn) is no path yet, and locks (the studio's, not the
+    /// engine's) are left out, so locking a segment generates nothing.
     pub fn take_request(&self) -> TakeRequest {
         let mut request = self.doc.request();
         if request.options.path.as_ref().is_some_and(|p| p.waypoints.len() < 2) {
             request.options.path = None;
         }
+        request.options.timeline.segments.iter_mut().for_each(|s| s.locked = false);
         request
     }
 

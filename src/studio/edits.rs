@@ -67,6 +67,15 @@ impl StudioApp {
         }
     }
 
+    /// A new variation of segment `k` alone: a fresh seed of its own (the rest of the take is
+    /// kept, see `hold`).
+    pub fn reroll_segment(&mut self, k: usize) {
+        if k < self.editing.doc.options.timeline.segments.len() {
+            let seed = u64::from(rand::random::<u32>()) + 1;
+            self.edit(|d| d.options.timeline.segments[k].seed = Some(seed));
+        }
+    }
+
     pub fn set_segment_class(&mut self, k: usize, class: &str) {
         if k < self.editing.doc.options.timeline.segments.len() {
             self.edit(|d| d.options.timeline.segments[k].class = class.to_string());
@@ -140,6 +149,12 @@ impl StudioApp {
                     }
                 }
                 Action::Delete(k) => self.delete_segment(k),
+                Action::Reroll(k) => self.reroll_segment(k),
+                Action::ToggleLock(k) => {
+                    if k < self.editing.doc.options.timeline.segments.len() {
+                        self.edit(|d| d.options.timeline.segments[k].locked ^= true);
+                    }
+                }
                 Action::Seek(f) => {
                     self.playback.playing = false;
                     self.playback.seek(f, frames);

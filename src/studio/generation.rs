@@ -201,6 +201,7 @@ impl StudioApp {
         if self.engine.model.is_none() {
             return;
         }
+        self.hold_for_regeneration();
         let request = self.editing.take_request();
         self.engine.generate(request);
     }

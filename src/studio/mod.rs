@@ -7,7 +7,8 @@
 //!   what was saved, the selection); `edits` changes it
 //! - the engine: [`worker`] (the background thread that owns the model), [`engine`] (the
 //!   model, takes and generation under way as the UI knows them), [`retarget`] (foreign BVH
-//!   files for a preview); `generation` asks for takes and takes in the replies
+//!   files for a preview); `generation` asks for takes and takes in the replies, `hold` says what a
+//!   regeneration keeps of the take on screen
 //! - the panels: [`panels`] (what they remember between frames), and `menu`, `sidebar`,
 //!   `bottom`, `central`, `map_panel`, `keys` and `joint_mapping` that draw them, with the
 //!   widgets [`timeline`], [`viewport`] (the 3D view) and [`transport`] (playback)
@@ -27,6 +28,7 @@ mod edits;
 pub mod engine;
 mod files;
 mod generation;
+mod hold;
 mod joint_mapping;
 mod keys;
 mod map_panel;

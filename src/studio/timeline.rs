@@ -4,7 +4,8 @@
 //!
 //! Mouse: click or drag on the ruler scrubs, shift-drag on it selects a range; click a
 //! block to select it, double-click to select its frames, drag its right edge to resize,
-//! drag its body to reorder; right-click for class, duplicate and delete. Under the
+//! drag its body to reorder; right-click for class, reroll, lock, duplicate and delete; the
+//! dice on a block rerolls it, the padlock locks it. Under the
 //! segments, a track of keys (diamonds) and one of root-path waypoints (dots; hollow when
 //! the waypoint has no time of its own and sits where arc length spreads it): click to
 //! select, drag to move in time, right-click to delete.
@@ -31,6 +32,10 @@ pub enum Action {
     SetClass { index: usize, class: String },
     Duplicate(usize),
     Delete(usize),
+    /// A new variation seed for the segment: it alone is generated again.
+    Reroll(usize),
+    /// Locks or unlocks the segment: a locked one keeps its frames through other edits.
+    ToggleLock(usize),
     Seek(usize),
     SetSelection(Option<(usize, usize)>),
     /// A key or waypoint clicked (None: cleared).
@@ -249,14 +254,52 @@ impl Pass<'_> {
             Stroke::new(1.0, fill.gamma_multiply(0.6))
         };
         self.painter.rect_stroke(rect, 4.0, stroke, StrokeKind::Inside);
-        let text_painter = self.painter.with_clip_rect(rect.shrink(3.0));
+        let icons = self.segment_icons(ui, state, k, rect);
+        let text_painter = self.painter.with_clip_rect(Rect::from_min_max(rect.min, pos2(icons, rect.max.y)).shrink(3.0));
         text_painter.text(rect.left_center() + vec2(6.0, 0.0), Align2::LEFT_CENTER, &label, FontId::proportional(13.0), Color32::WHITE);
         if resp.hovered() {
             let unknown = if known.is_none() { " · this model has no such class: right-click to choose one" } else { "" };
-            state.hint = Some(format!("Segment {}: {label}{unknown} · drag to reorder, drag the right edge to resize, right-click for more", k + 1));
+            let locked = if seg.locked { " · locked: its frames stay through other edits" } else { "" };
+            let seed = seg.seed.map(|n| format!(" · seed #{n}")).unwrap_or_default();
+            state.hint = Some(format!("Segment {}: {label}{seed}{unknown}{locked} · drag to reorder, drag the right edge to resize, right-click for more", k + 1));
         }
         self.segment_clicks(&resp, state, k);
         self.resize_handle(ui, state, k, x1, id);
+    }
+
+    /// The dice (reroll) and padlock (lock) buttons at the top right of segment `k`'s block
+    /// `rect`, where it is wide enough; returns where the label must end.
+    fn segment_icons(&mut self, ui: &mut egui::Ui, state: &mut TimelineState, k: usize, rect: Rect) -> f32 {
+        const SIZE: f32 = 14.0;
+        let locked = self.input.timeline.segments[k].locked;
+        if rect.width() < 4.0 * SIZE {
+            return rect.right();
+        }
+        let top = rect.top() + 3.0;
+        let lock_rect = Rect::from_min_size(pos2(rect.right() - SIZE - 8.0, top), vec2(SIZE, SIZE));
+        let dice_rect = lock_rect.translate(vec2(-SIZE - 4.0, 0.0));
+        let (lock_name, lock_hint) = if locked { ("Unlock", "unlock it: edits of the others may regenerate it") } else { ("Lock", "lock it: it keeps its frames through edits of the others") };
+        let buttons = [
+            (dice_rect, format!("Reroll segment {}", k + 1), "reroll it: a new variation of this segment alone, the rest of the take kept".to_string(), Action::Reroll(k)),
+            (lock_rect, format!("{lock_name} segment {}", k + 1), lock_hint.to_string(), Action::ToggleLock(k)),
+        ];
+        for (r, name, hint, action) in buttons {
+            let resp = ui.interact(r, ui.scope_id().with((name.as_str(), k)), Sense::click());
+            resp.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, &name));
+            let strong = resp.hovered() || (locked && action == Action::ToggleLock(k));
+            let color = if strong { Color32::WHITE } else { Color32::from_white_alpha(150) };
+            match action {
+                Action::Reroll(_) => paint_dice(&self.painter, r, color),
+                _ => paint_padlock(&self.painter, r, color, locked),
+            }
+            if resp.hovered() {
+                state.hint = Some(format!("Segment {}: {hint}", k + 1));
+            }
+            if resp.clicked() {
+                self.actions.push(action);
+            }
+        }
+        dice_rect.left() - 2.0
     }
 
     /// Selecting, selecting the frames of, moving, and the right-click menu of segment `k`.
@@ -285,6 +328,14 @@ impl Pass<'_> {
                     }
                 }
             });
+            if ui.button("Reroll").clicked() {
+                actions.push(Action::Reroll(k));
+                ui.close();
+            }
+            if ui.button(if input.timeline.segments[k].locked { "Unlock" } else { "Lock" }).clicked() {
+                actions.push(Action::ToggleLock(k));
+                ui.close();
+            }
             if ui.button("Duplicate").clicked() {
                 actions.push(Action::Duplicate(k));
                 ui.close();
@@ -405,6 +456,29 @@ fn segment_label(seg: &crate::synth::Segment, k: usize, known: bool, made: Optio
         label.push_str(&format!(" · in {t:.1}s"));
     }
     label
+}
+
+/// A die's face in `r`: a rounded square with three pips on its diagonal.
+fn paint_dice(painter: &egui::Painter, r: Rect, color: Color32) {
+    painter.rect_stroke(r.shrink(1.0), 3.0, Stroke::new(1.5, color), StrokeKind::Inside);
+    for t in [0.3, 0.5, 0.7] {
+        painter.circle_filled(r.lerp_inside(vec2(t, t)), 1.4, color);
+    }
+}
+
+/// A padlock in `r`: its shackle closed on the body when `locked`, raised and open otherwise.
+fn paint_padlock(painter: &egui::Painter, r: Rect, color: Color32, locked: bool) {
+    let body = Rect::from_min_max(r.lerp_inside(vec2(0.15, 0.5)), r.lerp_inside(vec2(0.85, 1.0)));
+    if locked {
+        painter.rect_filled(body, 2.0, color);
+    } else {
+        painter.rect_stroke(body, 2.0, Stroke::new(1.5, color), StrokeKind::Inside);
+    }
+    let lift = if locked { 0.0 } else { 0.15 };
+    let (left, right) = (r.lerp_inside(vec2(0.3, 0.5)), r.lerp_inside(vec2(0.7, 0.5)));
+    let top = |p: egui::Pos2| pos2(p.x, r.lerp_inside(vec2(0.0, 0.1 - lift * 0.5)).y);
+    let shackle = vec![pos2(left.x, left.y - r.height() * lift), top(left), top(right), pos2(right.x, right.y - if locked { 0.0 } else { r.height() * 0.3 })];
+    painter.add(egui::Shape::line(shackle, Stroke::new(1.5, color)));
 }
 
 /// Colour of keys on their track (and in the viewport's key list).

@@ -10,10 +10,11 @@ use rand::{Rng, SeedableRng};
 
 use super::foot_lock::{foot_lock, FootLocked, Travel};
 use super::given::GivenStart;
+use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
 use super::looping::generate_loop;
 use super::keys::{place_keys, KeyConstraint, PlacedKey};
-use super::options::{GenerateOptions, KeyMethod, Transition};
+use super::options::{GenerateOptions, KeyMethod, Transition, VARIATION};
 use super::path_follow::{GroundPath, PathConstraint};
 use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
 use super::steer::Steering;
@@ -50,7 +51,7 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
         return generate_loop(model, opts, progress);
     }
     let spec = &model.spec;
-    let timeline = SparseTimeline::new(model, opts)?;
+    let timeline = SparseTimeline::new(spec, opts)?;
     let class_strength = opts.class_strength_for(spec);
     if !(0.0..=MAX_CLASS_STRENGTH).contains(&class_strength) {
         bail!("class strength must be between 0 and {MAX_CLASS_STRENGTH}, got {class_strength}");
@@ -65,6 +66,8 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
     let mut targets = if model.glogen().reads_target() { keys.clone() } else { Vec::new() };
     targets.sort_by_key(|k| k.sparse);
     let constraints = take_constraints(model, opts, &timeline, keys)?;
+    let t = spec.block_len;
+    let block_segments = (0..plans.len()).map(|b| timeline.segment_at(t + b * t + t / 2)).collect();
 
     spec.sparse_norm.normalize(&mut sparse);
     let mut steps = TakeSteps {
@@ -76,6 +79,8 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
         cond: Vec::new(),
         steering: Steering::new(model, opts),
         noise: StdRng::seed_from_u64(opts.seed),
+        block_segments,
+        segment_noise: None,
         constraints: &constraints,
         strength: class_strength,
         progress,
@@ -110,7 +115,7 @@ pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn 
 }
 
 /// The take's constraints in the order they apply: the root path lays the take out, the keys
-/// pin it, and a file start's given frames are put back as given.
+/// pin it, a file start's given frames are put back as given, and held frames as held.
 fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>) -> Result<Vec<Box<dyn TakeConstraint>>> {
     let spec = &model.spec;
     let mut constraints: Vec<Box<dyn TakeConstraint>> = Vec::new();
@@ -120,6 +125,7 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
         constraints.push(Box::new(PathConstraint { path: GroundPath::new(path, units_per_metre), units_per_metre }));
     }
     let first_key = keys.iter().map(|k| k.frame).min();
+    let key_frames = keys.iter().map(|k| k.frame).collect();
     if !keys.is_empty() {
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
         constraints.push(Box::new(KeyConstraint { keys, step_seconds, method: opts.key_method }));
@@ -128,6 +134,10 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
     let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);
     if let Some(frames) = given_frames(model, &opts.init)?.filter(|_| first_pace == 1.0) {
         constraints.push(Box::new(GivenStart { frames, until: first_key.unwrap_or(usize::MAX) }));
+    }
+    // Last: the held frames come out exactly as held, whatever the others did.
+    if !opts.held.is_empty() {
+        constraints.push(Box::new(HeldConstraint::new(spec, &opts.held, timeline, key_frames)?));
     }
     Ok(constraints)
 }
@@ -146,6 +156,10 @@ struct TakeSteps<'a> {
     cond: Vec<f32>,
     steering: Steering,
     noise: StdRng,
+    /// The segment each block belongs to (its plan's target).
+    block_segments: Vec<usize>,
+    /// The segment with its own seed whose blocks are under way, and its noise.
+    segment_noise: Option<(usize, StdRng)>,
     constraints: &'a [Box<dyn TakeConstraint>],
     /// The guidance of the block under way.
     strength: f32,
@@ -169,6 +183,30 @@ impl TakeSteps<'_> {
         let class_len = spec.glogen.class_len(spec.classes.len());
         self.cond[class_len..].copy_from_slice(&condition);
     }
+
+    /// At the first block of a segment with its own seed, its noise and the steering's anchor
+    /// draws start from that seed, so the segment can be rerolled alone.
+    fn enter_segment(&mut self, b: usize) {
+        let segment = self.block_segments[b];
+        let entering = self.segment_noise.as_ref().is_none_or(|(s, _)| *s != segment);
+        if let Some(seed) = self.opts.timeline.segments[segment].seed.filter(|_| entering) {
+            self.segment_noise = Some((segment, StdRng::seed_from_u64(seed)));
+            self.steering.reseed(seed);
+        }
+    }
+
+    /// Adds block `b`'s variation noise to its `input`: from its segment's own seed where it
+    /// has one, else from the take's.
+    fn vary(&mut self, b: usize, input: &mut [f32]) {
+        let own_seed = self.opts.timeline.segments[self.block_segments[b]].seed;
+        let (noise, variation) = match (own_seed, self.segment_noise.as_mut()) {
+            (Some(seed), Some((_, noise))) => (noise, if seed == 0 { 0.0 } else { VARIATION }),
+            _ => (&mut self.noise, if self.opts.seed == 0 { 0.0 } else { self.opts.variation }),
+        };
+        if variation > 0.0 {
+            input.iter_mut().for_each(|v| *v += variation * noise.random_range(-1.0f32..1.0));
+        }
+    }
 }
 
 impl RolloutSteps for TakeSteps<'_> {
@@ -179,10 +217,9 @@ impl RolloutSteps for TakeSteps<'_> {
     fn ask(&mut self, b: usize, input: &mut [f32], sparse: &[f32]) -> f32 {
         self.cond = self.plans[b].class.clone();
         self.aim(sparse);
+        self.enter_segment(b);
         self.strength = self.steering.block(&self.plans[b], input, sparse);
-        if self.opts.variation > 0.0 && self.opts.seed != 0 {
-            input.iter_mut().for_each(|v| *v += self.opts.variation * self.noise.random_range(-1.0f32..1.0));
-        }
+        self.vary(b, input);
         self.strength
     }
 

@@ -6,6 +6,7 @@ pub mod export;
 pub mod foot_lock;
 pub mod generate;
 mod given;
+pub mod held;
 pub mod gltf;
 pub mod init;
 pub mod joint_names;

@@ -5,6 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::constraints::{Key, RootPath};
+use super::held::HeldStretch;
 use super::init::InitPose;
 use super::timeline::Timeline;
 use crate::model::spec::ModelSpec;
@@ -81,6 +82,10 @@ pub struct GenerateOptions {
     /// A one-activity take cut to a closed cycle for looping (see [`super::looping`]).
     #[serde(rename = "loop", skip_serializing_if = "std::ops::Not::not")]
     pub cycle: bool,
+    /// Stretches of an earlier take this one keeps exactly (see [`super::held`]): the
+    /// segments a reroll or an edit left alone, and locked ones.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held: Vec<HeldStretch>,
 }
 
 impl Default for GenerateOptions {
@@ -103,6 +108,7 @@ impl Default for GenerateOptions {
             path: None,
             key_method: KeyMethod::default(),
             cycle: false,
+            held: Vec::new(),
         }
     }
 }

@@ -12,6 +12,7 @@ use crate::data::features::FeatureLayout;
 use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
 use crate::model::glogen::GloGen;
+use crate::model::spec::ModelSpec;
 use crate::motion::Motion;
 
 /// A segment's place in the generated take.
@@ -62,8 +63,7 @@ pub(super) struct SparseTimeline {
 }
 
 impl SparseTimeline {
-    pub(super) fn new(model: &GlocalModel, opts: &GenerateOptions) -> Result<Self> {
-        let spec = &model.spec;
+    pub(super) fn new(spec: &ModelSpec, opts: &GenerateOptions) -> Result<Self> {
         let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
         crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
         let step_of = |pace: f32| spec.stride as f32 * pace / spec.fps;

@@ -132,7 +132,7 @@ impl Steering {
             settling: 0,
             settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
             last_anchor: None,
-            anchors: StdRng::seed_from_u64(opts.seed ^ 0xA1C4_0125),
+            anchors: anchor_draws(opts.seed),
             keep_alive: opts.keep_alive,
             class_strength: opts.class_strength_for(&model.spec),
             dim: spec.layout.dim(),
@@ -223,6 +223,11 @@ impl Steering {
         }
     }
 
+    /// Draws the anchor windows from `seed` from here on (a segment with its own seed).
+    pub fn reseed(&mut self, seed: u64) {
+        self.anchors = anchor_draws(seed);
+    }
+
     /// The block GloGen made of it, after the pose before it (both normalised): what the
     /// take's pace is measured on.
     pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
@@ -238,6 +243,11 @@ impl Steering {
             self.pace.amend_last(model, &raw_block(&model.spec, previous, block));
         }
     }
+}
+
+/// The random stream anchor windows are drawn from, for a variation seed.
+fn anchor_draws(seed: u64) -> StdRng {
+    StdRng::seed_from_u64(seed ^ 0xA1C4_0125)
 }
 
 struct AnchorBank {

@@ -26,11 +26,19 @@ pub struct Segment {
     /// overriding the take's transition length (0: a cut).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub transition: Option<f32>,
+    /// This segment's own variation seed: its blocks' pose noise and anchor windows are
+    /// drawn from it instead of the take's seed (0: no noise), so it can be rerolled alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// The studio keeps this segment's frames through edits of the others (see
+    /// `synth::held`); generation itself does not read it.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub locked: bool,
 }
 
 impl Segment {
     pub fn new(class: impl Into<String>, seconds: f32) -> Self {
-        Self { class: class.into(), seconds, pace: None, transition: None }
+        Self { class: class.into(), seconds, pace: None, transition: None, seed: None, locked: false }
     }
 }
 
@@ -93,8 +101,9 @@ fn check_pace(p: f32, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// `"sit:3,drink:5,walk:10"`; a segment may carry its own pace as `walk:10@1.5` and its own
-/// transition length (seconds, into it from the previous segment) as `walk:10~0.5`.
+/// `"sit:3,drink:5,walk:10"`; a segment may carry its own pace as `walk:10@1.5`, its own
+/// transition length (seconds, into it from the previous segment) as `walk:10~0.5` and its
+/// own variation seed as `walk:10#7`, in that order (`walk:10@1.5~0.5#7`).
 impl FromStr for Timeline {
     type Err = anyhow::Error;
     fn from_str(s: &str) -> Result<Self> {
@@ -106,6 +115,10 @@ impl FromStr for Timeline {
             let (class, rest) = part
                 .split_once(':')
                 .with_context(|| format!("segment {} '{part}': expected CLASS:SECONDS, e.g. walk:5", k + 1))?;
+            let (rest, seed) = match rest.split_once('#') {
+                Some((r, n)) => (r, Some(n.trim().parse::<u64>().with_context(|| format!("segment {} '{part}': seed '{n}' is not a whole number from 0 to {}", k + 1, u64::MAX))?)),
+                None => (rest, None),
+            };
             let (rest, transition) = match rest.split_once('~') {
                 Some((r, t)) => (r, Some(t.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': transition '{t}' is not a number of seconds", k + 1))?)),
                 None => (rest, None),
@@ -115,7 +128,7 @@ impl FromStr for Timeline {
                 None => (rest, None),
             };
             let seconds = secs.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': duration '{secs}' is not a number", k + 1))?;
-            segments.push(Segment { class: class.trim().to_string(), seconds, pace, transition });
+            segments.push(Segment { class: class.trim().to_string(), seconds, pace, transition, seed, locked: false });
         }
         Ok(Timeline { segments })
     }
@@ -129,7 +142,8 @@ impl fmt::Display for Timeline {
             .map(|s| {
                 let pace = s.pace.map(|p| format!("@{p}")).unwrap_or_default();
                 let transition = s.transition.map(|t| format!("~{t}")).unwrap_or_default();
-                format!("{}:{}{pace}{transition}", s.class, s.seconds)
+                let seed = s.seed.map(|n| format!("#{n}")).unwrap_or_default();
+                format!("{}:{}{pace}{transition}{seed}", s.class, s.seconds)
             })
             .collect();
         f.write_str(&parts.join(","))
@@ -155,6 +169,12 @@ mod tests {
         assert_eq!(t.segments[1].transition, Some(0.5));
         assert_eq!(t.to_string(), "sitting:3,walking:4@2~0.5");
         assert!(format!("{:#}", "sitting:3,walking:4~-1".parse::<Timeline>().unwrap().validate(&classes(), 1.0).unwrap_err()).contains("transition must be between 0 and 10"));
+        let t: Timeline = "sitting:3#0,walking:4@2~0.5#18446744073709551615,eating:2~1#7".parse().unwrap();
+        assert_eq!(t.segments.iter().map(|s| s.seed).collect::<Vec<_>>(), [Some(0), Some(u64::MAX), Some(7)]);
+        assert_eq!(t.segments[1].transition, Some(0.5));
+        assert_eq!(t.to_string().parse::<Timeline>().unwrap(), t, "seeds round-trip through the text form");
+        assert!(format!("{:#}", "walking:4#x".parse::<Timeline>().unwrap_err()).contains("segment 1 'walking:4#x': seed 'x' is not a whole number"));
+        assert!(format!("{:#}", "walking:4#-3".parse::<Timeline>().unwrap_err()).contains("seed '-3'"));
     }
 
     #[test]

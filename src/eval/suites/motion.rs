@@ -54,7 +54,7 @@ fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &Generate
     let k = spec.classes.len();
     let mut pools: Vec<Pool> = (0..k).map(|_| Pool::default()).collect();
     let take = |model: &GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
-        let segments = segments.into_iter().map(|(c, s)| Segment { class: spec.classes[c].clone(), seconds: s, pace: None, transition: None }).collect();
+        let segments = segments.into_iter().map(|(c, s)| Segment::new(spec.classes[c].clone(), s)).collect();
         let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..base.clone() }.varied(seed);
         let g = generate(model, &opts, &mut |_| true)?;
         let seed_frames = spec.block_len * spec.stride;
