@@ -67,6 +67,8 @@ fn only_in_a_project(options: &GenerateOptions, joint_map: bool) -> Option<&'sta
         Some("keys made from a take's frames")
     } else if options.path.is_some() {
         Some("a root path")
+    } else if !options.held.is_empty() {
+        Some("frames kept from rerolled, edited or locked segments")
     } else if joint_map {
         Some("a joint map")
     } else if options.key_method != GenerateOptions::default().key_method {

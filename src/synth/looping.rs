@@ -38,6 +38,9 @@ pub fn generate_loop(model: &GlocalModel, opts: &GenerateOptions, progress: &mut
     let needed = starts.end + lengths.end() + 2;
     let mut longer = opts.clone();
     longer.cycle = false;
+    // Held frames are frames of an earlier cycle, not of the longer take the cycle is cut
+    // from: a loop is cut anew whole.
+    longer.held.clear();
     longer.timeline.segments[0].seconds = needed as f32 / fps + 1.0;
     let take = generate(model, &longer, progress)?;
     let (motion, cycle) = closed_cycle(&take.motion, &CycleSearch { starts, lengths })?;
