@@ -11,7 +11,8 @@ take against the same generation exported as JSON with Mixamo names:
   joint and its collars start at its neck; the metarig's sockets sit 6 cm above its pelvis
   bone, 37.6 degrees off the take's pair before anything moves), which no turn of a rigid
   piece changes. Both pieces' turns are read from the same lines on both skeletons: side to
-  side (right to left hip socket, shoulder socket) and up (hips to chest, chest to neck);
+  side (right to left hip socket, shoulder socket) and up (hips to chest, chest to neck), the
+  chest's side-to-side line at rest the hip sockets' (as motion/retarget/body.rs reads them);
 - where the take's foot is planted, the rig's foot is within 2 cm of the floor;
 - no mapped bone keeps an identity track while the take's joint moves;
 - the add-on's Export FBX re-imports with the same frame count and every bone's turn from its
@@ -144,9 +145,11 @@ def blender_point(p):
     return Vector((p[0], -p[2], p[1]))
 
 
-def piece_frame(points, piece):
+def piece_frame(points, piece, at_rest=False):
     """The frame of a rigid piece of the trunk from its key joints' `points` (a rotation)."""
     (right, left), (low, high), exact = PIECES[piece]
+    if at_rest:
+        right, left = PIECES["Hips"][0]
     side, up = points[left] - points[right], points[high] - points[low]
     forward = side.cross(up).normalized()
     if exact == "side":
@@ -177,7 +180,7 @@ def check_generated(arm, keys, take, label, failures):
         failures.append(f"{label}: scene fps {fps}, take {take['fps']}")
     source = native_keys(take)
     rest = {key: arm.matrix_world @ arm.data.bones[bone].head_local for key, bone in keys.items()}
-    rest_frames = {piece: piece_frame(rest, piece) for piece in PIECES}
+    rest_frames = {piece: piece_frame(rest, piece, at_rest=True) for piece in PIECES}
     carried = carried_bones(arm, keys)
     angles = {pair: [] for pair in BONES}
     own_pair = {pair: [] for pair in carried}

@@ -9,7 +9,9 @@
 //! turned as the source's piece turns, read from two lines between key joints every humanoid
 //! has: side to side (right to left hip socket, right to left shoulder socket) and up the body
 //! (hips to chest, chest to neck). The target's own rest shape then decides where its sockets
-//! and collars are, as its own pelvis and ribcage would.
+//! and collars are, as its own pelvis and ribcage would. At rest the chest is taken to face
+//! the way the pelvis does, its side-to-side line read off the hip sockets: Human3.6M rests
+//! with its arms straight up and both shoulder sockets on one point, which gives no line.
 
 use glam::{Mat3, Quat, Vec3};
 
@@ -29,7 +31,7 @@ enum Exact {
 /// A rigid piece of the trunk, turned as the source's.
 #[derive(Clone, Debug)]
 pub(super) struct BodyPiece {
-    /// From the right key joint to the left one.
+    /// From the right key joint to the left one, in the source's frames.
     side_to_side: (Key, Key),
     /// From the lower key joint to the upper one.
     up: (Key, Key),
@@ -41,7 +43,7 @@ pub(super) struct BodyPiece {
 impl BodyPiece {
     /// The pelvis (the hips key joint's piece) of the target at rest (`rest`, `keys`).
     pub fn pelvis(rest: &[Vec3], keys: &KeyJoints) -> Result<BodyPiece, RetargetError> {
-        BodyPiece::new("hips", (Key::RightUpLeg, Key::LeftUpLeg), (Key::Hips, Key::Chest), Exact::SideToSide, rest, keys)
+        BodyPiece::new("hips", HIP_SOCKETS, (Key::Hips, Key::Chest), Exact::SideToSide, rest, keys)
     }
 
     /// The chest's piece, its up line to the neck where `neck` (both skeletons have a neck
@@ -52,22 +54,26 @@ impl BodyPiece {
     }
 
     fn new(part: &'static str, side_to_side: (Key, Key), up: (Key, Key), exact: Exact, rest: &[Vec3], keys: &KeyJoints) -> Result<BodyPiece, RetargetError> {
-        let mut piece = BodyPiece { side_to_side, up, exact, rest_inverse: Quat::IDENTITY };
-        let rest_frame = piece.frame(rest, keys).ok_or(RetargetError::NoFacing { part })?;
-        piece.rest_inverse = rest_frame.inverse();
-        Ok(piece)
+        let rest_frame = frame_of(line(rest, keys, HIP_SOCKETS), line(rest, keys, up), exact).ok_or(RetargetError::NoFacing { part })?;
+        Ok(BodyPiece { side_to_side, up, exact, rest_inverse: rest_frame.inverse() })
     }
 
     /// The piece's turn from the target's rest to where the source's piece faces in `frame`
     /// (the source's joint positions, `keys` its key joints); None where the source's two
     /// lines have collapsed into one.
     pub fn turn(&self, frame: &[Vec3], keys: &KeyJoints) -> Option<Quat> {
-        Some((self.frame(frame, keys)? * self.rest_inverse).normalize())
+        let source_frame = frame_of(line(frame, keys, self.side_to_side), line(frame, keys, self.up), self.exact)?;
+        Some((source_frame * self.rest_inverse).normalize())
     }
+}
 
-    fn frame(&self, points: &[Vec3], keys: &KeyJoints) -> Option<Quat> {
-        let line = |(from, to): (Key, Key)| Some(points[keys.get(to)?] - points[keys.get(from)?]);
-        frame_of(line(self.side_to_side)?, line(self.up)?, self.exact)
+const HIP_SOCKETS: (Key, Key) = (Key::RightUpLeg, Key::LeftUpLeg);
+
+/// From key joint `from` to `to` in `points` (zero where either is not mapped).
+fn line(points: &[Vec3], keys: &KeyJoints, (from, to): (Key, Key)) -> Vec3 {
+    match (keys.get(from), keys.get(to)) {
+        (Some(a), Some(b)) => points[b] - points[a],
+        _ => Vec3::ZERO,
     }
 }
 
