@@ -104,12 +104,14 @@ mod tests {
 
     #[test]
     fn the_exact_line_is_kept_and_the_other_squared() {
-        let tilted_up = Vec3::new(0.0, 1.0, 0.3);
-        let pelvis = frame_of(Vec3::X * 2.0, tilted_up, Exact::SideToSide).unwrap();
+        let leaning_up = Vec3::new(0.3, 1.0, 0.0);
+        let pelvis = frame_of(Vec3::X * 2.0, leaning_up, Exact::SideToSide).unwrap();
         assert!((pelvis * Vec3::X).distance(Vec3::X) < 1e-6);
         assert!((pelvis * Vec3::Y).distance(Vec3::Y) < 1e-6, "up is squared to the exact side-to-side line");
+        let tilted_up = Vec3::new(0.0, 1.0, 0.3);
         let chest = frame_of(Vec3::new(1.0, 0.2, 0.0), tilted_up, Exact::Up).unwrap();
         assert!((chest * Vec3::Y).distance(tilted_up.normalize()) < 1e-6);
+        assert!((chest * Vec3::X).dot(Vec3::new(1.0, 0.2, 0.0)) > 0.9, "side to side is squared to the exact up line");
         assert!(frame_of(Vec3::Y, Vec3::Y * 3.0, Exact::Up).is_none(), "parallel lines face nowhere");
     }
 }

@@ -170,8 +170,7 @@ impl Retarget {
                 aims[f] = Some(Aim { link: i, from: parent });
             }
         }
-        let socket = |keys: &KeyJoints, key: Key, side: &'static str| keys.get(key).ok_or(RetargetError::MissingKeys { side, keys: vec![key] });
-        let (left, right) = (socket(target_keys, Key::LeftUpLeg, "target")?, socket(target_keys, Key::RightUpLeg, "target")?);
+        let (left, right) = (required(target_keys, Key::LeftUpLeg, "target")?, required(target_keys, Key::RightUpLeg, "target")?);
         let hips = links[0].target;
         let root_scale = leg_length(&rest, target_keys) / leg_length(&source.rest_positions(), source_keys).max(f32::MIN_POSITIVE);
         Ok(Retarget {
@@ -180,7 +179,7 @@ impl Retarget {
             stance: Stance::new(source, source_keys, &target, target_keys, root_scale)?,
             root: target.chain_from_root(hips)[0],
             sockets_at_rest: (rest[left] + rest[right]) / 2.0 - rest[hips],
-            source_sockets: (socket(source_keys, Key::LeftUpLeg, "source")?, socket(source_keys, Key::RightUpLeg, "source")?),
+            source_sockets: (required(source_keys, Key::LeftUpLeg, "source")?, required(source_keys, Key::RightUpLeg, "source")?),
             source_keys: source_keys.clone(),
             target,
             rest_positions: rest,
@@ -352,6 +351,11 @@ fn level_across(turn: Quat, across: Vec3, along: Vec3) -> Quat {
     (Quat::from_rotation_arc(now, level) * turn).normalize()
 }
 
+/// The joint of a key joint every humanoid has (checked when a [`Retarget`] is made).
+fn required(keys: &KeyJoints, key: Key, side: &'static str) -> Result<usize, RetargetError> {
+    keys.get(key).ok_or(RetargetError::MissingKeys { side, keys: vec![key] })
+}
+
 /// Mean rest length of the two legs, hip to knee to ankle.
 fn leg_length(rest: &[Vec3], keys: &KeyJoints) -> f32 {
     let at = |k: Key| keys.get(k).map_or(Vec3::ZERO, |j| rest[j]);
@@ -458,6 +462,44 @@ mod tests {
         }
         let hips = d[dk.get(Key::Hips).unwrap()];
         assert!(hips.distance(Vec3::new(50.0, 88.0, -20.0) * 1.2) < 1e-3, "{hips}");
+    }
+
+    /// A target whose hip sockets sit 6 units above and 3 in front of its hips joint (a Rigify
+    /// metarig's pelvis) and whose thighs are longer than its shins, under a source crouching
+    /// and turned: the feet stand on the source's floor, the socket line points as the
+    /// source's, and the shins still point as the source's.
+    #[test]
+    fn feet_stand_on_the_floor_whatever_the_pelvis_and_legs() {
+        let (src, sk) = figure(0, 0.0, 1.0);
+        let (shape, dk) = figure(2, 0.0, 1.0);
+        let offsets = shape.names().iter().zip(shape.offsets()).map(|(name, o)| match name.as_str() {
+            "lthigh" | "rthigh" => Vec3::new(o.x, 6.0, 3.0),
+            "lknee" | "rknee" => Vec3::new(0.0, -50.0, 0.0),
+            "lankle" | "rankle" => Vec3::new(0.0, -35.0, 0.0),
+            _ => *o,
+        });
+        let dst = Skeleton::new(shape.names().to_vec(), shape.parents().to_vec(), offsets.collect(), 0.01).unwrap();
+        let mut pose = LocalPose { rotations: vec![Quat::IDENTITY; src.len()], translations: src.offsets().to_vec() };
+        pose.rotations[0] = Quat::from_rotation_y(0.6);
+        for (thigh, knee) in [(Key::LeftUpLeg, Key::LeftLeg), (Key::RightUpLeg, Key::RightLeg)] {
+            pose.rotations[sk.get(thigh).unwrap()] = Quat::from_rotation_x(-0.7);
+            pose.rotations[sk.get(knee).unwrap()] = Quat::from_rotation_x(1.2);
+        }
+        let crouched = Motion::from_local_poses(Arc::new(src.clone()), 30.0, vec![pose.clone()]);
+        pose.translations[0].y -= crouched.frame(0)[sk.get(Key::LeftFoot).unwrap()].y;
+        let source = Motion::from_local_poses(Arc::new(src.clone()), 30.0, vec![pose; 10]);
+        let out = Retarget::new(&src, &sk, Arc::new(dst), &dk).unwrap().apply(&source);
+        let line = |f: &[Vec3], k: &KeyJoints, a: Key, b: Key| (f[k.get(b).unwrap()] - f[k.get(a).unwrap()]).normalize();
+        for t in 0..out.frames() {
+            let (s, d) = (source.frame(t), out.frame(t));
+            for (foot, knee) in [(Key::LeftFoot, Key::LeftLeg), (Key::RightFoot, Key::RightLeg)] {
+                assert!(d[dk.get(foot).unwrap()].y.abs() < 0.1, "frame {t}: {foot:?} at {}", d[dk.get(foot).unwrap()].y);
+                let shin = line(s, &sk, knee, foot).angle_between(line(d, &dk, knee, foot)).to_degrees();
+                assert!(shin < 3.0, "frame {t}: {knee:?} {shin} degrees off");
+            }
+            let sockets = line(s, &sk, Key::RightUpLeg, Key::LeftUpLeg).angle_between(line(d, &dk, Key::RightUpLeg, Key::LeftUpLeg));
+            assert!(sockets.to_degrees() < 0.1, "frame {t}: the socket line {} degrees off", sockets.to_degrees());
+        }
     }
 
     #[test]

@@ -19,7 +19,7 @@ use super::super::contacts::{box_average, foot_contacts, ContactConfig};
 use super::super::keys::{Key, KeyJoints};
 use super::super::ik::two_bone;
 use super::super::{JointRoles, LocalPose, Leg, Motion, Skeleton};
-use super::RetargetError;
+use super::{required, RetargetError};
 
 /// Seconds either side over which a contact fades in and out of the shift.
 const BLEND_SECONDS: f32 = 0.1;
@@ -78,7 +78,7 @@ const LEGS: [[Key; 4]; 2] = [
 impl Stance {
     pub fn new(source: &Skeleton, source_keys: &KeyJoints, target: &Skeleton, target_keys: &KeyJoints, scale: f32) -> Result<Stance, RetargetError> {
         let legs = |skeleton: &Skeleton, keys: &KeyJoints, side: &'static str| -> Result<[LegJoints; 2], RetargetError> {
-            let [left, right] = LEGS.map(|[socket, knee, ankle, _]| Ok(LegJoints::new(skeleton, [joint(keys, socket, side)?, joint(keys, knee, side)?, joint(keys, ankle, side)?])));
+            let [left, right] = LEGS.map(|[socket, knee, ankle, _]| Ok(LegJoints::new(skeleton, [required(keys, socket, side)?, required(keys, knee, side)?, required(keys, ankle, side)?])));
             Ok([left?, right?])
         };
         Ok(Stance { source: legs(source, source_keys, "source")?, target: legs(target, target_keys, "target")?, source_roles: roles(source_keys)?, scale })
@@ -142,13 +142,9 @@ impl Stance {
     }
 }
 
-fn joint(keys: &KeyJoints, key: Key, side: &'static str) -> Result<usize, RetargetError> {
-    keys.get(key).ok_or(RetargetError::MissingKeys { side, keys: vec![key] })
-}
-
 /// The source's roles for contact detection, from its key joints (the foot: ankle and toe).
 fn roles(keys: &KeyJoints) -> Result<JointRoles, RetargetError> {
-    let get = |key: Key| joint(keys, key, "source");
+    let get = |key: Key| required(keys, key, "source");
     let leg = |[hip, knee, ankle, toe]: [Key; 4]| -> Result<Leg, RetargetError> { Ok(Leg { hip: get(hip)?, knee: get(knee)?, ankle: get(ankle)?, toe: keys.get(toe), toe_end: None }) };
     let [left, right] = LEGS.map(leg);
     Ok(JointRoles { body_root: get(Key::Hips)?, left: left?, right: right?, head: get(Key::Head)?, head_end: None, left_hand: get(Key::LeftHand)?, right_hand: get(Key::RightHand)? })
