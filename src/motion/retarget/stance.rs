@@ -10,8 +10,9 @@
 //! scaled), so a planted foot stays where the source's stands; up and down by the soles (each
 //! foot's lowest joint), so it stands on the floor. Every bone still points as the source's.
 //! Contacts are the source's ([`foot_contacts`]); with both feet planted the shift is their
-//! mean, each contact fades in and out over a few frames so the shift does not jump when a
-//! foot lands or lifts, and frames with both feet in the air take the shift in between.
+//! mean and each leg makes up the rest. A contact weighs fully while it holds and fades in and
+//! out over a few frames either side, so the shift does not jump when a foot lands or lifts;
+//! frames with both feet in the air take the shift in between.
 
 use glam::{Quat, Vec3};
 
@@ -56,8 +57,8 @@ impl LegJoints {
 pub(super) struct Placement {
     /// The whole body's shift.
     pub shift: Vec3,
-    /// How far each planted foot (left, right) still has to rise after the shift.
-    pub lifts: [f32; 2],
+    /// How far each planted foot (left, right) still has to move after the shift.
+    pub lifts: [Vec3; 2],
 }
 
 /// The legs of both skeletons (left, right) and how the source's contacts are read.
@@ -91,7 +92,7 @@ impl Stance {
         let joints = target.len() / frames.max(1);
         let contacts = foot_contacts(source, &self.source_roles, &ContactConfig::default());
         let half = (BLEND_SECONDS * source.fps).round() as usize;
-        let weights = [&contacts.left, &contacts.right].map(|flags| box_average(&flags.iter().map(|&on| if on { 1.0 } else { 0.0 }).collect::<Vec<f32>>(), half));
+        let weights = [&contacts.left, &contacts.right].map(|flags| box_average(&grown(flags, half), half));
         let misses: Vec<[Vec3; 2]> = (0..frames).map(|t| [0, 1].map(|side| self.miss(side, source.frame(t), &target[t * joints..(t + 1) * joints]))).collect();
         let shifts = filled_in(
             &(0..frames)
@@ -101,18 +102,19 @@ impl Stance {
                 })
                 .collect::<Vec<_>>(),
         );
-        (0..frames).map(|t| Placement { shift: shifts[t], lifts: [0, 1].map(|side| weights[side][t] * (misses[t][side].y - shifts[t].y)) }).collect()
+        (0..frames).map(|t| Placement { shift: shifts[t], lifts: [0, 1].map(|side| (misses[t][side] - shifts[t]) * weights[side][t]) }).collect()
     }
 
-    /// Bends the target's leg on `side` so that its ankle rises by `lift` (sinks if negative),
-    /// the foot keeping its turn (`pose` of one frame, `world` its joints' world rotations and
-    /// `at` their positions): with both feet planted, the shift of the body is their mean,
-    /// and each foot's sole makes up the rest (Human3.6M's two ankles stand 1-3 cm apart in
-    /// height, which a heeled foot turns into a sole above the floor).
-    pub fn lift_foot(&self, side: usize, lift: f32, skeleton: &Skeleton, pose: &mut LocalPose, world: &[Quat], at: &[Vec3]) {
+    /// Bends the target's leg on `side` so that its ankle moves by `lift`, the foot keeping
+    /// its turn (`pose` of one frame, `world` its joints' world rotations and `at` their
+    /// positions): with both feet planted, the shift of the body is their mean, and each leg
+    /// makes up the rest (Human3.6M's two ankles stand 1-3 cm apart in height, which a heeled
+    /// foot turns into a sole above the floor; and a stance wider or narrower than the
+    /// source's would slide the feet as the weight moves from one to the other).
+    pub fn lift_foot(&self, side: usize, lift: Vec3, skeleton: &Skeleton, pose: &mut LocalPose, world: &[Quat], at: &[Vec3]) {
         let leg = &self.target[side];
         let (hip, knee, ankle) = (at[leg.socket], at[leg.knee], at[leg.ankle]);
-        let (new_knee, new_ankle) = two_bone(hip, ankle + Vec3::Y * lift, knee, hip.distance(knee), knee.distance(ankle));
+        let (new_knee, new_ankle) = two_bone(hip, ankle + lift, knee, hip.distance(knee), knee.distance(ankle));
         let arc = |from: Vec3, to: Vec3| match (from.try_normalize(), to.try_normalize()) {
             (Some(a), Some(b)) => Quat::from_rotation_arc(a, b),
             _ => Quat::IDENTITY,
@@ -148,6 +150,12 @@ fn roles(keys: &KeyJoints) -> Result<JointRoles, RetargetError> {
     let leg = |[hip, knee, ankle, toe]: [Key; 4]| -> Result<Leg, RetargetError> { Ok(Leg { hip: get(hip)?, knee: get(knee)?, ankle: get(ankle)?, toe: keys.get(toe), toe_end: None }) };
     let [left, right] = LEGS.map(leg);
     Ok(JointRoles { body_root: get(Key::Hips)?, left: left?, right: right?, head: get(Key::Head)?, head_end: None, left_hand: get(Key::LeftHand)?, right_hand: get(Key::RightHand)? })
+}
+
+/// 1 where a flag is set within `half` places, else 0: averaged over the same window, a
+/// contact weighs fully on every frame it holds and fades out over `half` frames either side.
+fn grown(flags: &[bool], half: usize) -> Vec<f32> {
+    (0..flags.len()).map(|t| if flags[t.saturating_sub(half)..(t + half + 1).min(flags.len())].contains(&true) { 1.0 } else { 0.0 }).collect()
 }
 
 /// `values` with each gap (None) filled by the straight line between its neighbours, held
