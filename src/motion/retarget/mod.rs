@@ -4,12 +4,16 @@
 //! Both skeletons name the same twenty key joints ([`Key`]: hips, chest, neck, head, collars,
 //! arms, forearms, hands, thighs, shins, feet, toes; [`super::guess_key_joints`] finds them).
 //! The key joints that both skeletons have form a small tree (each one's parent is its nearest
-//! mapped ancestor). Each frame, every bone of that tree points on the target where the same
-//! bone points on the source, at the target's own rest length; the hips follow the source's
-//! hips scaled by the ratio of leg lengths (a shorter character takes shorter steps). Joint
-//! rotations are then solved against the target's rest pose ([`solve_local_poses`] on the
-//! mapped tree), and the target's other joints (extra spine joints, fingers, twist joints,
-//! end sites) are carried rigidly by their nearest mapped ancestor.
+//! mapped ancestor). Each frame, every bone of that tree below the trunk (neck, collars, arms,
+//! legs, feet) turns the shortest way from its parent's turn to point on the target where
+//! the same bone points on the source; the pelvis and the chest, rigid pieces that carry
+//! several bones and are shaped differently on every skeleton, turn as the source's pieces
+//! turn ([`body`]). The first joint of an unmapped stretch between two mapped ones (extra spine
+//! joints, CMU's buttock joint) turns towards where the next mapped joint should be; the
+//! target's other joints (fingers, twist joints, end sites) are carried rigidly by their
+//! nearest mapped ancestor. The hips are placed by the middle of the hip sockets (the
+//! source's, scaled by the ratio of leg lengths: a shorter character takes shorter steps), and
+//! the body is shifted so the planted feet stand where the source's do ([`stance`]).
 //!
 //! Why bone directions rather than copying local rotations: a local rotation only means
 //! something relative to its skeleton's rest pose, and rest poses differ (the CMU files stand
@@ -24,7 +28,12 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 
 use super::keys::{Key, KeyJoints};
-use super::{solve_local_poses, LocalPose, Motion, Skeleton};
+use super::{LocalPose, Motion, Skeleton};
+use body::BodyPiece;
+use stance::Stance;
+
+mod body;
+mod stance;
 
 /// What a skeleton's rest pose (all rotations identity) looks like, judged from the angle
 /// between the upper arms and the body's up direction (hips to head), with the legs hanging
@@ -74,6 +83,8 @@ pub enum RetargetError {
     MissingKeys { side: &'static str, keys: Vec<Key> },
     #[error("the {side} skeleton's {key} is not below its hips")]
     NotBelowHips { side: &'static str, key: &'static str },
+    #[error("the target skeleton's {part} faces nowhere: its side-to-side and up lines are parallel")]
+    NoFacing { part: &'static str },
 }
 
 /// One bone of the mapped tree: a key joint both skeletons have.
@@ -86,24 +97,56 @@ struct Link {
     parent: Option<usize>,
     /// Target rest distance from the parent link's joint.
     length: f32,
+    turn: Turn,
+}
+
+/// How a link's joint turns each frame.
+#[derive(Clone, Debug)]
+enum Turn {
+    /// The hips and the chest: as the source's pelvis and chest turn ([`BodyPiece`]).
+    Piece(BodyPiece),
+    /// Towards its child link (index into `links`) as the source's bone points, the shortest
+    /// way from its parent link's turn (so its twist follows the parent's); `rest` is that
+    /// bone's direction on the target at rest. A foot is then twisted about that bone so
+    /// that its rest side-to-side line (`level`) lies level: the twist the leg hands down is
+    /// arbitrary (a direction says nothing about it), and a rolled foot sinks one edge of its
+    /// heel into the floor (2 cm on a Rigify metarig).
+    Towards { child: usize, rest: Vec3, level: Option<Vec3> },
+    /// No child link (hands, feet without toes, the head): carried by its parent link.
+    Carried,
+}
+
+/// An unmapped joint that turns towards the joint of `link`, from that of `from` (its parent
+/// link) along the source's bone.
+#[derive(Clone, Copy, Debug)]
+struct Aim {
+    link: usize,
+    from: usize,
 }
 
 /// A prepared mapping from one skeleton onto another; [`Retarget::apply`] moves takes.
 #[derive(Clone, Debug)]
 pub struct Retarget {
     target: Arc<Skeleton>,
+    rest_positions: Vec<Vec3>,
+    source_keys: KeyJoints,
     /// Mapped key joints in target joint order (the hips first).
     links: Vec<Link>,
-    /// The target reduced to the mapped joints, for solving their rotations.
-    mapped_skeleton: Skeleton,
     /// For each target joint, its link when it is a mapped joint.
     link_of: Vec<Option<usize>>,
     /// For the first unmapped joint on the way from one mapped joint to the next (an extra
     /// spine joint, CMU's buttock joint between hips and thigh), the link it turns towards, so
     /// the chain reaches where the next mapped joint should be.
-    aims: Vec<Option<usize>>,
+    aims: Vec<Option<Aim>>,
+    /// The target's root (the hips, or a joint above them that carries them unturned).
+    root: usize,
+    /// Hips to the middle of the hip sockets on the target at rest.
+    sockets_at_rest: Vec3,
+    /// The source's hip sockets, whose middle places the target's.
+    source_sockets: (usize, usize),
     /// Target units of hips motion per source unit: the ratio of leg lengths.
     root_scale: f32,
+    stance: Stance,
     pub source_rest: RestPose,
     pub target_rest: RestPose,
 }
@@ -116,38 +159,30 @@ impl Retarget {
                 return Err(RetargetError::MissingKeys { side, keys: missing });
             }
         }
-        // A source key on its mapped parent (the CMU database's zero-length lowerneck and
-        // clavicle joints) hands on no direction: its goal sits on its parent's, which the
-        // solver then leaves out of the parent's fit, and the bone after it still points right.
-        let mut pairs: Vec<(usize, usize, Key)> =
-            Key::ALL.into_iter().filter_map(|k| Some((target_keys.get(k)?, source_keys.get(k)?, k))).collect();
-        pairs.sort_by_key(|p| p.0);
-        let target_rest = target.rest_positions();
-        let mut links: Vec<Link> = Vec::with_capacity(pairs.len());
-        for (t, s, key) in pairs {
-            let parent = target.ancestors(t).find_map(|a| links.iter().position(|l| l.target == a));
-            if parent.is_none() && key != Key::Hips {
-                return Err(RetargetError::NotBelowHips { side: "target", key: key.name() });
-            }
-            let length = parent.map_or(0.0, |p| target_rest[t].distance(target_rest[links[p].target]));
-            links.push(Link { key, target: t, source: s, parent, length });
-        }
+        let rest = target.rest_positions();
+        let links = links(source, source_keys, &target, target_keys, &rest)?;
         let link_of: Vec<Option<usize>> = (0..target.len()).map(|j| links.iter().position(|l| l.target == j)).collect();
         let mut aims = vec![None; target.len()];
         for (i, link) in links.iter().enumerate() {
-            let Some(parent) = link.parent.map(|p| links[p].target) else { continue };
-            let first = target.child_towards(parent, link.target).filter(|&c| c != link.target);
+            let Some(parent) = link.parent else { continue };
+            let first = target.child_towards(links[parent].target, link.target).filter(|&c| c != link.target);
             if let Some(f) = first.filter(|&f| aims[f].is_none()) {
-                aims[f] = Some(i);
+                aims[f] = Some(Aim { link: i, from: parent });
             }
         }
-        let keep: Vec<usize> = links.iter().map(|l| l.target).collect();
-        let root_scale = leg_length(&target, target_keys) / leg_length(source, source_keys).max(f32::MIN_POSITIVE);
+        let (left, right) = (required(target_keys, Key::LeftUpLeg, "target")?, required(target_keys, Key::RightUpLeg, "target")?);
+        let hips = links[0].target;
+        let root_scale = leg_length(&rest, target_keys) / leg_length(&source.rest_positions(), source_keys).max(f32::MIN_POSITIVE);
         Ok(Retarget {
-            mapped_skeleton: target.subset(&keep),
             source_rest: RestPose::detect(source, source_keys),
             target_rest: RestPose::detect(&target, target_keys),
+            stance: Stance::new(source, source_keys, &target, target_keys, root_scale)?,
+            root: target.chain_from_root(hips)[0],
+            sockets_at_rest: (rest[left] + rest[right]) / 2.0 - rest[hips],
+            source_sockets: (required(source_keys, Key::LeftUpLeg, "source")?, required(source_keys, Key::RightUpLeg, "source")?),
+            source_keys: source_keys.clone(),
             target,
+            rest_positions: rest,
             links,
             link_of,
             aims,
@@ -168,50 +203,61 @@ impl Retarget {
     /// `motion` (on the source skeleton) on the target skeleton, with its rotations, at the
     /// same frame rate and frame count.
     pub fn apply(&self, motion: &Motion) -> Motion {
-        let mut mapped = Vec::with_capacity(motion.frames() * self.links.len());
+        let joints = self.target.len();
+        let mut poses = Vec::with_capacity(motion.frames());
+        let mut positions = Vec::with_capacity(motion.frames() * joints);
+        let mut turns = vec![Quat::IDENTITY; self.links.len()];
+        let mut worlds = Vec::with_capacity(motion.frames());
         for t in 0..motion.frames() {
-            let frame = motion.frame(t);
-            let start = mapped.len();
-            for link in &self.links {
-                let p = match link.parent {
-                    None => frame[link.source] * self.root_scale,
-                    Some(parent) => {
-                        let bone = frame[link.source] - frame[self.links[parent].source];
-                        mapped[start + parent] + bone.normalize_or_zero() * link.length
-                    }
-                };
-                mapped.push(p);
+            let (pose, world, placed) = self.pose(motion.frame(t), &mut turns);
+            poses.push(pose);
+            worlds.push(world);
+            positions.extend(placed);
+        }
+        let placements = self.stance.placements(motion, &positions);
+        for (t, (pose, place)) in poses.iter_mut().zip(placements).enumerate() {
+            pose.translations[self.root] += place.shift;
+            for (side, lift) in place.lifts.into_iter().enumerate() {
+                self.stance.lift_foot(side, lift, &self.target, pose, &worlds[t], &positions[t * joints..(t + 1) * joints]);
             }
         }
-        let solved = solve_local_poses(&self.mapped_skeleton, &mapped);
-        let poses = solved.iter().zip(mapped.chunks_exact(self.links.len())).map(|(pose, goals)| self.full_pose(pose, goals)).collect();
         Motion::from_local_poses(self.target.clone(), motion.fps, poses)
     }
 
-    /// The target's whole pose from the mapped joints' solved pose and where they should be
-    /// (`goals`, one per link): a mapped joint takes its solved world rotation, the first joint
-    /// of an unmapped stretch turns towards the next mapped joint's goal, every other joint
-    /// moves rigidly with its parent.
-    fn full_pose(&self, mapped: &LocalPose, goals: &[Vec3]) -> LocalPose {
-        let mut link_world = vec![Quat::IDENTITY; self.links.len()];
+    /// Each link's world rotation in the source's `frame`. `turns` holds the previous frame's,
+    /// which a pelvis or chest keeps where the source's has collapsed to a line.
+    fn turn_links(&self, frame: &[Vec3], turns: &mut [Quat]) {
         for (i, link) in self.links.iter().enumerate() {
-            let base = link.parent.map_or(Quat::IDENTITY, |p| link_world[p]);
-            link_world[i] = base * mapped.rotations[i];
+            let base = link.parent.map_or(Quat::IDENTITY, |p| turns[p]);
+            turns[i] = match &link.turn {
+                Turn::Piece(piece) => piece.turn(frame, &self.source_keys).unwrap_or(turns[i]),
+                Turn::Towards { child, rest, level } => {
+                    let bone = frame[self.links[*child].source] - frame[link.source];
+                    let turned = turn_towards(base, *rest, bone);
+                    level.map_or(turned, |across| level_across(turned, across, bone))
+                }
+                Turn::Carried => base,
+            };
         }
+    }
+
+    /// The target's whole pose for the source's `frame`, with its joints' world rotations and
+    /// positions, the hips placed by the hip sockets: a mapped joint takes its link's turn,
+    /// the first joint of an unmapped stretch turns towards where the next mapped joint should
+    /// be (from where the previous one is, along the source's bone), every other joint moves
+    /// rigidly with its parent.
+    fn pose(&self, frame: &[Vec3], turns: &mut [Quat]) -> (LocalPose, Vec<Quat>, Vec<Vec3>) {
+        self.turn_links(frame, turns);
         let skeleton = &*self.target;
-        let rest = skeleton.rest_positions();
+        let rest = &self.rest_positions;
         let hips = self.links[0].target;
-        let translations: Vec<Vec3> = (0..skeleton.len())
-            .map(|j| match skeleton.parents()[j] {
-                Some(_) => skeleton.offsets()[j],
-                // A root above the hips does not rotate: place it so the hips land right.
-                None if j == hips => goals[0],
-                None if skeleton.is_ancestor(j, hips) => goals[0] - (rest[hips] - rest[j]),
-                None => skeleton.offsets()[j],
-            })
-            .collect();
+        let (left, right) = self.source_sockets;
+        let hips_at = (frame[left] + frame[right]) / 2.0 * self.root_scale - turns[0] * self.sockets_at_rest;
         let mut world = vec![Quat::IDENTITY; skeleton.len()];
         let mut position = vec![Vec3::ZERO; skeleton.len()];
+        let mut translations = skeleton.offsets().to_vec();
+        // A root above the hips does not turn: it is placed so the hips land right.
+        translations[self.root] = hips_at - (rest[hips] - rest[self.root]);
         for j in 0..skeleton.len() {
             let (base, at) = match skeleton.parents()[j] {
                 Some(p) => (world[p], position[p] + world[p] * translations[j]),
@@ -219,8 +265,12 @@ impl Retarget {
             };
             position[j] = at;
             world[j] = match (self.link_of[j], self.aims[j]) {
-                (Some(i), _) => link_world[i],
-                (None, Some(k)) => turn_towards(base, rest[self.links[k].target] - rest[j], goals[k] - at),
+                (Some(i), _) => turns[i],
+                (None, Some(Aim { link, from })) => {
+                    let (link, from) = (&self.links[link], &self.links[from]);
+                    let goal = position[from.target] + (frame[link.source] - frame[from.source]).normalize_or_zero() * link.length;
+                    turn_towards(base, rest[link.target] - rest[j], goal - at)
+                }
                 (None, None) => base,
             };
         }
@@ -230,8 +280,53 @@ impl Retarget {
                 None => world[j],
             })
             .collect();
-        LocalPose { rotations, translations }
+        (LocalPose { rotations, translations }, world, position)
     }
+}
+
+/// The mapped tree: the key joints both skeletons have, in target joint order, each with its
+/// nearest mapped ancestor and how it turns.
+fn links(source: &Skeleton, source_keys: &KeyJoints, target: &Skeleton, target_keys: &KeyJoints, target_rest: &[Vec3]) -> Result<Vec<Link>, RetargetError> {
+    // A source key on its mapped parent (the CMU database's zero-length lowerneck and
+    // clavicle joints) hands on no direction: its link keeps its parent's turn, and the bone
+    // after it still points right.
+    let mut pairs: Vec<(usize, usize, Key)> = Key::ALL.into_iter().filter_map(|k| Some((target_keys.get(k)?, source_keys.get(k)?, k))).collect();
+    pairs.sort_by_key(|p| p.0);
+    let mut links: Vec<Link> = Vec::with_capacity(pairs.len());
+    for (t, s, key) in pairs {
+        let parent = target.ancestors(t).find_map(|a| links.iter().position(|l| l.target == a));
+        if parent.is_none() && key != Key::Hips {
+            return Err(RetargetError::NotBelowHips { side: "target", key: key.name() });
+        }
+        let length = parent.map_or(0.0, |p| target_rest[t].distance(target_rest[links[p].target]));
+        links.push(Link { key, target: t, source: s, parent, length, turn: Turn::Carried });
+    }
+    // The chest's up line runs to the neck where both have one clear of the chest.
+    let source_rest = source.rest_positions();
+    let clear = |rest: &[Vec3], keys: &KeyJoints| match (keys.get(Key::Chest), keys.get(Key::Neck)) {
+        (Some(c), Some(n)) => rest[c].distance(rest[n]) > 1e-3 * leg_length(rest, keys),
+        _ => false,
+    };
+    let neck = clear(&source_rest, source_keys) && clear(target_rest, target_keys);
+    let side_to_side = match (target_keys.get(Key::LeftUpLeg), target_keys.get(Key::RightUpLeg)) {
+        (Some(l), Some(r)) => target_rest[l] - target_rest[r],
+        _ => Vec3::X,
+    };
+    for i in 0..links.len() {
+        let children: Vec<usize> = (0..links.len()).filter(|&c| links[c].parent == Some(i)).collect();
+        links[i].turn = match (links[i].key, children.as_slice()) {
+            (Key::Hips, _) => Turn::Piece(BodyPiece::pelvis(target_rest, target_keys)?),
+            (Key::Chest, _) => Turn::Piece(BodyPiece::chest(target_rest, target_keys, neck)?),
+            (_, []) => Turn::Carried,
+            // One child link, or (with an unusual joint map) the first of several.
+            (key, [child, ..]) => Turn::Towards {
+                child: *child,
+                rest: target_rest[links[*child].target] - target_rest[links[i].target],
+                level: matches!(key, Key::LeftFoot | Key::RightFoot).then_some(side_to_side),
+            },
+        };
+    }
+    Ok(links)
 }
 
 /// `base` followed by the shortest rotation taking `base * rest` onto `wanted`.
@@ -244,9 +339,25 @@ fn turn_towards(base: Quat, rest: Vec3, wanted: Vec3) -> Quat {
     (Quat::from_rotation_arc(from, to) * base).normalize()
 }
 
+/// `turn` twisted about `along` so that `across` (a rest direction, turned by `turn`) lies
+/// level, square to the floor's up; unchanged where `along` is within 6 degrees of upright.
+fn level_across(turn: Quat, across: Vec3, along: Vec3) -> Quat {
+    let Some(along) = along.try_normalize() else { return turn };
+    let now = turn * across;
+    let level = along.cross(Vec3::Y);
+    let (Some(now), true) = ((now - along * now.dot(along)).try_normalize(), level.length() > 0.1) else { return turn };
+    let level = level.normalize();
+    let level = if level.dot(now) < 0.0 { -level } else { level };
+    (Quat::from_rotation_arc(now, level) * turn).normalize()
+}
+
+/// The joint of a key joint every humanoid has (checked when a [`Retarget`] is made).
+fn required(keys: &KeyJoints, key: Key, side: &'static str) -> Result<usize, RetargetError> {
+    keys.get(key).ok_or(RetargetError::MissingKeys { side, keys: vec![key] })
+}
+
 /// Mean rest length of the two legs, hip to knee to ankle.
-fn leg_length(skeleton: &Skeleton, keys: &KeyJoints) -> f32 {
-    let rest = skeleton.rest_positions();
+fn leg_length(rest: &[Vec3], keys: &KeyJoints) -> f32 {
     let at = |k: Key| keys.get(k).map_or(Vec3::ZERO, |j| rest[j]);
     let leg = |hip: Key, knee: Key, ankle: Key| at(hip).distance(at(knee)) + at(knee).distance(at(ankle));
     (leg(Key::LeftUpLeg, Key::LeftLeg, Key::LeftFoot) + leg(Key::RightUpLeg, Key::RightLeg, Key::RightFoot)) / 2.0
@@ -259,16 +370,16 @@ fn leg_length(skeleton: &Skeleton, keys: &KeyJoints) -> f32 {
 pub fn mapped_bones(a: &KeyJoints, a_skeleton: &Skeleton, b: &KeyJoints, b_skeleton: &Skeleton) -> Vec<(Key, Key)> {
     let both: Vec<(Key, usize)> = a.mapped().filter(|(k, _)| b.get(*k).is_some()).collect();
     let (rest_a, rest_b) = (a_skeleton.rest_positions(), b_skeleton.rest_positions());
-    let has_length = |rest: &[Vec3], keys: &KeyJoints, skeleton: &Skeleton, key: Key, parent: Key| {
+    let has_length = |rest: &[Vec3], keys: &KeyJoints, key: Key, parent: Key| {
         let (Some(j), Some(p)) = (keys.get(key), keys.get(parent)) else { return false };
-        rest[j].distance(rest[p]) > 1e-3 * leg_length(skeleton, keys)
+        rest[j].distance(rest[p]) > 1e-3 * leg_length(rest, keys)
     };
     both.iter()
         .filter_map(|&(key, joint)| {
             let parent = a_skeleton.ancestors(joint).find_map(|p| both.iter().find(|(_, j)| *j == p).map(|(k, _)| *k))?;
             Some((key, parent))
         })
-        .filter(|&(key, parent)| has_length(&rest_a, a, a_skeleton, key, parent) && has_length(&rest_b, b, b_skeleton, key, parent))
+        .filter(|&(key, parent)| has_length(&rest_a, a, key, parent) && has_length(&rest_b, b, key, parent))
         .collect()
 }
 
@@ -351,6 +462,44 @@ mod tests {
         }
         let hips = d[dk.get(Key::Hips).unwrap()];
         assert!(hips.distance(Vec3::new(50.0, 88.0, -20.0) * 1.2) < 1e-3, "{hips}");
+    }
+
+    /// A target whose hip sockets sit 6 units above and 3 in front of its hips joint (a Rigify
+    /// metarig's pelvis) and whose thighs are longer than its shins, under a source crouching
+    /// and turned: the feet stand on the source's floor, the socket line points as the
+    /// source's, and the shins still point as the source's.
+    #[test]
+    fn feet_stand_on_the_floor_whatever_the_pelvis_and_legs() {
+        let (src, sk) = figure(0, 0.0, 1.0);
+        let (shape, dk) = figure(2, 0.0, 1.0);
+        let offsets = shape.names().iter().zip(shape.offsets()).map(|(name, o)| match name.as_str() {
+            "lthigh" | "rthigh" => Vec3::new(o.x, 6.0, 3.0),
+            "lknee" | "rknee" => Vec3::new(0.0, -50.0, 0.0),
+            "lankle" | "rankle" => Vec3::new(0.0, -35.0, 0.0),
+            _ => *o,
+        });
+        let dst = Skeleton::new(shape.names().to_vec(), shape.parents().to_vec(), offsets.collect(), 0.01).unwrap();
+        let mut pose = LocalPose { rotations: vec![Quat::IDENTITY; src.len()], translations: src.offsets().to_vec() };
+        pose.rotations[0] = Quat::from_rotation_y(0.6);
+        for (thigh, knee) in [(Key::LeftUpLeg, Key::LeftLeg), (Key::RightUpLeg, Key::RightLeg)] {
+            pose.rotations[sk.get(thigh).unwrap()] = Quat::from_rotation_x(-0.7);
+            pose.rotations[sk.get(knee).unwrap()] = Quat::from_rotation_x(1.2);
+        }
+        let crouched = Motion::from_local_poses(Arc::new(src.clone()), 30.0, vec![pose.clone()]);
+        pose.translations[0].y -= crouched.frame(0)[sk.get(Key::LeftFoot).unwrap()].y;
+        let source = Motion::from_local_poses(Arc::new(src.clone()), 30.0, vec![pose; 10]);
+        let out = Retarget::new(&src, &sk, Arc::new(dst), &dk).unwrap().apply(&source);
+        let line = |f: &[Vec3], k: &KeyJoints, a: Key, b: Key| (f[k.get(b).unwrap()] - f[k.get(a).unwrap()]).normalize();
+        for t in 0..out.frames() {
+            let (s, d) = (source.frame(t), out.frame(t));
+            for (foot, knee) in [(Key::LeftFoot, Key::LeftLeg), (Key::RightFoot, Key::RightLeg)] {
+                assert!(d[dk.get(foot).unwrap()].y.abs() < 0.1, "frame {t}: {foot:?} at {}", d[dk.get(foot).unwrap()].y);
+                let shin = line(s, &sk, knee, foot).angle_between(line(d, &dk, knee, foot)).to_degrees();
+                assert!(shin < 3.0, "frame {t}: {knee:?} {shin} degrees off");
+            }
+            let sockets = line(s, &sk, Key::RightUpLeg, Key::LeftUpLeg).angle_between(line(d, &dk, Key::RightUpLeg, Key::LeftUpLeg));
+            assert!(sockets.to_degrees() < 0.1, "frame {t}: the socket line {} degrees off", sockets.to_degrees());
+        }
     }
 
     #[test]
