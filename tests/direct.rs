@@ -230,7 +230,7 @@ fn a_segment_seed_varies_its_segment() {
 /// Held frames that do not fit the take are refused with a line naming the stretch.
 #[test]
 fn held_frames_that_do_not_fit_are_refused() {
-    use glocal::synth::held::{HeldFrames, HeldStretch};
+    use glocal::synth::held_frames::{HeldFrames, HeldStretch};
     use std::sync::Arc;
     let model = model("h36m");
     let mut opts = GenerateOptions { timeline: "walking:4".parse().unwrap(), ..Default::default() };

@@ -4,7 +4,7 @@
 use egui::{Align2, Color32, FontId, RichText};
 
 use super::app::StudioApp;
-use super::keys::ViewportTool;
+use super::panels::ViewportTool;
 use super::timeline::Mark;
 use super::viewport::{Layer, PathOverlay, Scene};
 

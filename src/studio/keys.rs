@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use egui::{RichText, Slider};
 
 use super::app::StudioApp;
+use super::panels::ViewportTool;
 use super::dialogs::Purpose;
 use super::messages::{Level, Topic};
 use super::timeline::{color32, waypoint_times, Mark, KEY_COLOR, PATH_COLOR};
@@ -17,17 +18,6 @@ use crate::motion::JointRoles;
 use crate::synth::constraints::{Key, KeySource, RootPath, Waypoint, MIN_KEY_GAP_SECONDS};
 use crate::synth::render::class_color;
 use crate::synth::InitPose;
-
-/// What a drag in the viewport does besides orbiting: one tool at a time.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum ViewportTool {
-    #[default]
-    Orbit,
-    /// Clicks on the ground add path waypoints, drags move them.
-    DrawPath,
-    /// Drags on the handles pose the frame on screen.
-    Pose,
-}
 
 impl StudioApp {
     /// The time of the frame on screen, in seconds from the take's start.

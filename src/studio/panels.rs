@@ -6,7 +6,6 @@
 use std::path::{Path, PathBuf};
 
 use super::dialogs::Dialogs;
-use super::keys::ViewportTool;
 use super::project::same_file;
 use super::retarget::RigState;
 use super::timeline::TimelineState;
@@ -137,4 +136,15 @@ impl Panels {
             rig: RigState::default(),
         }
     }
+}
+
+/// What a drag in the viewport does besides orbiting: one tool at a time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ViewportTool {
+    #[default]
+    Orbit,
+    /// Clicks on the ground add path waypoints, drags move them.
+    DrawPath,
+    /// Drags on the handles pose the frame on screen.
+    Pose,
 }

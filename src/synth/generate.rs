@@ -12,7 +12,6 @@ use super::foot_lock::{foot_lock, FootLocked, Travel};
 use super::given::GivenStart;
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
-use super::looping::generate_loop;
 use super::keys::{place_keys, KeyConstraint, PlacedKey};
 use super::options::{GenerateOptions, KeyMethod, Transition, VARIATION};
 use super::path_follow::{GroundPath, PathConstraint};
@@ -45,11 +44,10 @@ pub struct Generated {
     pub cycle: Option<Cycle>,
 }
 
-/// Generates a take. `progress` gets the fraction done and returns false to cancel.
-pub fn generate(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
-    if opts.cycle {
-        return generate_loop(model, opts, progress);
-    }
+/// Generates a take as its timeline lays it out, from its start to its end (a loop is cut
+/// from one, [`super::looping`]). `progress` gets the fraction done and returns false to
+/// cancel.
+pub fn continuous_take(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
     let spec = &model.spec;
     let timeline = SparseTimeline::new(spec, opts)?;
     let class_strength = opts.class_strength_for(spec);

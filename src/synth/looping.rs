@@ -4,7 +4,7 @@
 
 use anyhow::{bail, Result};
 
-use super::generate::{generate, Generated};
+use super::generate::{continuous_take, Generated};
 use super::options::GenerateOptions;
 use super::plan::SegmentSpan;
 use crate::model::glocal::GlocalModel;
@@ -42,7 +42,7 @@ pub fn generate_loop(model: &GlocalModel, opts: &GenerateOptions, progress: &mut
     // from: a loop is cut anew whole.
     longer.held.clear();
     longer.timeline.segments[0].seconds = needed as f32 / fps + 1.0;
-    let take = generate(model, &longer, progress)?;
+    let take = continuous_take(model, &longer, progress)?;
     let (motion, cycle) = closed_cycle(&take.motion, &CycleSearch { starts, lengths })?;
     let range = cycle.start..cycle.start + cycle.frames;
     let name = take.segments.first().map_or_else(|| segment.class.clone(), |s| s.name.clone());

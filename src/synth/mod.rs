@@ -7,6 +7,7 @@ pub mod foot_lock;
 pub mod generate;
 mod given;
 pub mod held;
+pub mod held_frames;
 pub mod gltf;
 pub mod init;
 pub mod joint_names;
@@ -23,6 +24,7 @@ pub mod render;
 pub mod rig;
 mod steer;
 mod t_pose;
+mod take;
 pub mod timeline;
 
 /// How a generation ends other than with a take, where the caller acts on the kind (other
@@ -51,7 +53,8 @@ pub(crate) fn raised_cosine(x: f32) -> f32 {
     }
 }
 
-pub use generate::{generate, Generated};
+pub use generate::Generated;
+pub use take::generate;
 pub use options::{GenerateOptions, KeyMethod, Transition, DEFAULT_TRANSITION_SECONDS};
 pub use plan::SegmentSpan;
 pub use constraints::{Key, KeySource, RootPath, Waypoint};

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::constraints::{Key, RootPath};
-use super::held::HeldStretch;
+use super::held_frames::HeldStretch;
 use super::init::InitPose;
 use super::timeline::Timeline;
 use crate::model::spec::ModelSpec;
