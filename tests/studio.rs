@@ -169,7 +169,7 @@ fn projects_save_load_and_refuse_bad_files() {
     assert!(h.state_mut().save_project(&path));
     let saved = h.state().project().options.timeline.clone();
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(text.contains("\"version\": 2"), "readable JSON with a version");
+    assert!(text.contains("\"version\": 3"), "readable JSON with a version");
     // Change the timeline, then load the file back.
     h.state_mut().add_segment();
     h.step();
@@ -190,7 +190,7 @@ fn projects_save_load_and_refuse_bad_files() {
     assert!(has_error(h.state(), "Could not open the project"));
     assert!(shows(&h, "Could not open the project"), "the error is visible");
     let newer = dir.join("newer.json");
-    std::fs::write(&newer, text.replace("\"version\": 2", "\"version\": 7")).unwrap();
+    std::fs::write(&newer, text.replace("\"version\": 3", "\"version\": 7")).unwrap();
     assert!(!h.state_mut().open_project(&newer));
     h.run_ok();
     assert_eq!(h.state().project().options.timeline, current);

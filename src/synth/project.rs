@@ -19,8 +19,10 @@ use crate::motion::Key;
 /// The project file format this build writes; files of a newer version are refused and
 /// older ones migrated ([`Document::from_value`]). Version 2 holds the engine's
 /// [`GenerateOptions`] as they are (keys and a root path included); version 1 had the
-/// timeline and settings as separate fields.
-pub const PROJECT_VERSION: u32 = 2;
+/// timeline and settings as separate fields. Version 3 adds per-segment seeds, held frames
+/// and loops, which a version 2 reader would drop without a word, so it refuses them instead;
+/// a version 2 file reads as version 3 unchanged.
+pub const PROJECT_VERSION: u32 = 3;
 
 /// A project file larger than this is not one (a project with a thousand keys is ~1 MB).
 const MAX_PROJECT_BYTES: u64 = 64 << 20;
@@ -221,9 +223,10 @@ mod tests {
     fn round_trips_and_refuses_newer_or_broken_files() {
         let d = sample();
         assert_eq!(Document::from_json(&to_json(&d), "p").unwrap(), d);
-        let newer = to_json(&d).replace("\"version\": 2", "\"version\": 99");
+        let current = format!("\"version\": {PROJECT_VERSION}");
+        let newer = to_json(&d).replace(&current, "\"version\": 99");
         assert!(format!("{:#}", Document::from_json(&newer, "p").unwrap_err()).contains("newer"));
-        let spelled_as_models_do = to_json(&d).replace("\"version\": 2", "\"format_version\": 99");
+        let spelled_as_models_do = to_json(&d).replace(&current, "\"format_version\": 99");
         assert!(format!("{:#}", Document::from_json(&spelled_as_models_do, "p").unwrap_err()).contains("version 99 project, made by a newer version of glocal"));
         assert!(Document::from_json("{ not json", "p").is_err());
         assert!(format!("{:#}", Document::from_json("{}", "p").unwrap_err()).contains("version"));
