@@ -61,7 +61,7 @@ const ACCELERATION_WEIGHT_FRAMES2: f32 = 18.0;
 ///
 /// The pairs of ends that continue each other best (pose, velocity and acceleration) are
 /// closed, and of those the one whose wrap moves like the rest of its cycle (its speed around
-/// the wrap within [`SPEED_TOLERANCE`] of the cycle's mean) with the smallest change of
+/// the wrap within [`SPEED_TOLERANCE`] of the cycle's median) with the smallest change of
 /// velocity at the wrap is kept: a wrap in a pause or a burst of the motion shows.
 pub fn closed_cycle(motion: &Motion, search: &CycleSearch) -> Result<(Motion, Cycle), CycleError> {
     let roles = JointRoles::new(&motion.skeleton)?;
@@ -72,17 +72,18 @@ pub fn closed_cycle(motion: &Motion, search: &CycleSearch) -> Result<(Motion, Cy
     let track = GroundTrack::new(motion, &roles);
     let half = (motion.fps * SPEED_WINDOW_SECONDS).round().max(1.0) as usize;
     // Smooth wraps first, by their jump; failing any, the wrap nearest the cycle's speed.
+    // Each candidate is ranked once, as it is closed.
     let rank = |c: &Closed| {
         let off_speed = (c.speed_ratio(half) - 1.0).abs();
         if off_speed <= SPEED_TOLERANCE { (0, c.jump()) } else { (1, off_speed) }
     };
-    let best = closest_pairs(motion, &track, search)
+    let (_, best) = closest_pairs(motion, &track, search)
         .into_iter()
-        .map(|(a, n)| Closed::new(motion, &track, a, n))
-        .min_by(|x, y| {
-            let (rx, ry) = (rank(x), rank(y));
-            rx.0.cmp(&ry.0).then(rx.1.total_cmp(&ry.1))
+        .map(|(a, n)| {
+            let closed = Closed::new(motion, &track, a, n);
+            (rank(&closed), closed)
         })
+        .min_by(|(x, _), (y, _)| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)))
         .expect("the search has at least one pair");
     let cycle = Cycle { start: best.start, frames: best.frames, travel: best.travel, straightened: best.turn };
     Ok((best.cycle, cycle))
@@ -90,7 +91,7 @@ pub fn closed_cycle(motion: &Motion, search: &CycleSearch) -> Result<(Motion, Cy
 
 /// Seconds either side of the wrap over which its speed is taken.
 const SPEED_WINDOW_SECONDS: f32 = 0.2;
-/// How far from the cycle's mean speed the speed around its wrap may be.
+/// How far from the cycle's median speed the speed around its wrap may be.
 const SPEED_TOLERANCE: f32 = 0.15;
 /// How many of the best-continuing pairs of ends are closed and compared.
 const CANDIDATES: usize = 256;

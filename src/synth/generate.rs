@@ -13,7 +13,7 @@ use super::given::GivenStart;
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
 use super::keys::{place_keys, KeyConstraint, PlacedKey};
-use super::options::{GenerateOptions, KeyMethod, Transition, VARIATION};
+use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
 use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
 use super::steer::Steering;
@@ -198,7 +198,7 @@ impl TakeSteps<'_> {
     fn vary(&mut self, b: usize, input: &mut [f32]) {
         let own_seed = self.opts.timeline.segments[self.block_segments[b]].seed;
         let (noise, variation) = match (own_seed, self.segment_noise.as_mut()) {
-            (Some(seed), Some((_, noise))) => (noise, if seed == 0 { 0.0 } else { VARIATION }),
+            (Some(seed), Some((_, noise))) => (noise, variation_for(seed)),
             _ => (&mut self.noise, if self.opts.seed == 0 { 0.0 } else { self.opts.variation }),
         };
         if variation > 0.0 {

@@ -92,11 +92,18 @@ pub fn hold_segments(spec: &ModelSpec, before: &Motion, before_spans: &[SegmentS
         }
     }
     held.sort_by_key(|h| h.first_frame);
-    let seconds = held.iter().map(|h| h.frames.len()).sum::<usize>() as f32 / spec.fps;
-    if seconds > MAX_HELD_SECONDS {
-        bail!("keeping {seconds:.0} s of the take's frames: a take keeps at most {MAX_HELD_SECONDS:.0} s, so it is generated whole");
-    }
+    check_held_seconds(&held, spec.fps)?;
     Ok(held)
+}
+
+/// Refuses more held frames than a request may carry, whether an edit made them or a project
+/// file brought them.
+fn check_held_seconds(held: &[HeldStretch], fps: f32) -> Result<()> {
+    let seconds = held.iter().map(|h| h.frames.len()).sum::<usize>() as f32 / fps;
+    if seconds > MAX_HELD_SECONDS {
+        bail!("held stretches: {seconds:.0} s of the take's frames; a request holds at most {MAX_HELD_SECONDS:.0} s, so the take is generated whole");
+    }
+    Ok(())
 }
 
 /// The held stretches of a request as a constraint on its take (see the module's text).
@@ -122,10 +129,7 @@ impl HeldConstraint {
     pub(super) fn new(spec: &ModelSpec, held: &[HeldStretch], timeline: &SparseTimeline, key_frames: Vec<usize>) -> Result<Self> {
         let skeleton = &spec.layout.skeleton;
         let frames = take_frames(timeline);
-        let seconds = held.iter().map(|h| h.frames.len()).sum::<usize>() as f32 / spec.fps;
-        if seconds > MAX_HELD_SECONDS {
-            bail!("held stretches: {seconds:.0} s of frames; a request holds at most {MAX_HELD_SECONDS:.0} s");
-        }
+        check_held_seconds(held, spec.fps)?;
         let mut positions = vec![None; frames];
         let mut poses = vec![None; frames];
         for (k, stretch) in held.iter().enumerate() {

@@ -116,11 +116,20 @@ impl Default for GenerateOptions {
 /// Pose noise of a varied take: seed 0 is the canonical take, any other seed a variation.
 pub const VARIATION: f32 = 0.05;
 
+/// The pose noise a variation seed brings: none for seed 0 (the canonical take).
+pub fn variation_for(seed: u64) -> f32 {
+    if seed == 0 {
+        0.0
+    } else {
+        VARIATION
+    }
+}
+
 impl GenerateOptions {
     /// The options with variation `seed` (and the noise that goes with it).
     pub fn varied(mut self, seed: u64) -> Self {
         self.seed = seed;
-        self.variation = if seed == 0 { 0.0 } else { VARIATION };
+        self.variation = variation_for(seed);
         self
     }
 
