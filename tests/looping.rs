@@ -137,6 +137,10 @@ fn the_command_line_and_a_project_make_the_same_loop() {
     let direct = dir.path().join("direct.json");
     let said = run(&["generate", "--timeline", "walking:4", "--loop", "--out", direct.to_str().unwrap()]);
     assert!(said.contains("loop of ") && said.contains("m per cycle"), "{said}");
+    // With --json the output is one JSON document, the loop in it.
+    let json = run(&["generate", "--timeline", "walking:4", "--loop", "--json", "--out", dir.path().join("j.json").to_str().unwrap()]);
+    let summary: serde_json::Value = serde_json::from_str(&json).unwrap_or_else(|e| panic!("--json printed more than JSON ({e}): {json}"));
+    assert!(summary["loop"].as_str().is_some_and(|l| l.contains("m per cycle")), "{summary}");
     // The same request saved as a project reproduces the loop exactly.
     let mut document = Document::new(Path::new("models/h36m").to_path_buf());
     document.options = loop_options("walking", 4.0);

@@ -185,9 +185,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     for warning in &take.warnings {
         eprintln!("warning: {warning}");
     }
-    if let Some(cycle) = &take.cycle {
-        say!("{}", cycle.summary(take.motion.fps, take.motion.skeleton.meters_per_unit()));
-    }
+    let cycle = take.cycle.as_ref().map(|c| c.summary(take.motion.fps, take.motion.skeleton.meters_per_unit()));
     let m = &m;
     if output.json {
         let summary = serde_json::json!({
@@ -197,6 +195,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
             "segments": segments,
             "elapsed_ms": elapsed.as_secs_f64() * 1e3,
             "warnings": take.warnings,
+            "loop": cycle,
             "out": output.out,
         });
         say!("{summary}");
@@ -204,6 +203,9 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         say!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, output.out.display());
         for s in &segments {
             say!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
+        }
+        if let Some(cycle) = &cycle {
+            say!("{cycle}");
         }
     }
     Ok(())
