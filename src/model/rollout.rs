@@ -3,6 +3,8 @@
 //! training's validation; what differs between them is what they decide per block
 //! ([`RolloutSteps`]).
 
+use std::ops::Range;
+
 use anyhow::{bail, Result};
 
 use super::block::BlockWorkspace;
@@ -49,10 +51,16 @@ impl RolloutSteps for OneClass {
 /// context), appending them, each joined onto the poses before it when `join_seams`.
 /// Returns each block's embedding.
 pub fn rollout(glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut Vec<f32>, blocks: usize, join_seams: bool, steps: &mut dyn RolloutSteps) -> Result<Vec<Vec<f32>>> {
+    rollout_blocks(glogen, ws, sparse, 0..blocks, join_seams, steps)
+}
+
+/// [`rollout`] of blocks `blocks` only: `sparse` holds what the blocks before made (a rollout
+/// resumed where an earlier one left off, its `steps` in the state they were then).
+pub fn rollout_blocks(glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut Vec<f32>, blocks: Range<usize>, join_seams: bool, steps: &mut dyn RolloutSteps) -> Result<Vec<Vec<f32>>> {
     let (t, dim) = (glogen.block_len(), glogen.dim());
     let mut out = vec![0.0; t * dim];
-    let mut embeddings = Vec::with_capacity(blocks);
-    for b in 0..blocks {
+    let mut embeddings = Vec::with_capacity(blocks.len());
+    for b in blocks {
         let context = sparse.len() - t * dim;
         let mut input = sparse[context..].to_vec();
         let strength = steps.ask(b, &mut input, sparse);

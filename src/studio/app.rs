@@ -287,7 +287,8 @@ impl eframe::App for StudioApp {
         if self.playback.playing {
             let fps = self.engine.take.as_ref().map_or(25.0, |t| t.motion.fps);
             let dt = ctx.input(|i| f64::from(i.stable_dt.min(0.1)));
-            self.playback.advance(dt, fps, frames, &self.editing.doc.playback);
+            let growing = self.engine.take.as_ref().is_some_and(|t| !t.complete && self.engine.pending.is_some_and(|(id, _)| id == t.id));
+            self.playback.advance(dt, fps, frames, &self.editing.doc.playback, growing);
             ctx.request_repaint();
         }
     }

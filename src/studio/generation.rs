@@ -38,6 +38,7 @@ impl StudioApp {
                         }
                     }
                 }
+                Reply::Streamed(take) => self.take_streamed(take),
                 Reply::Generated(take) => self.take_generated(take),
                 Reply::GenerateFailed { id, error, cancelled } => self.generation_failed(id, error, cancelled),
                 Reply::Path { id, path } => self.place_take(id, path),
@@ -66,6 +67,14 @@ impl StudioApp {
         }
     }
 
+    /// The first frames of the take being made, on screen as they come: playback goes on
+    /// over them (and waits at their end, [`super::transport::Playback::advance`]).
+    fn take_streamed(&mut self, take: Arc<Take>) {
+        if self.engine.pending.is_some_and(|(id, _)| id == take.id) {
+            self.show_take(take);
+        }
+    }
+
     /// A new take on screen; the one before it kept for comparison.
     fn take_generated(&mut self, take: Arc<Take>) {
         if self.engine.pending.is_some_and(|(id, _)| id == take.id) {
@@ -74,9 +83,16 @@ impl StudioApp {
         self.engine.generation_error = None;
         self.messages.resolve(Topic::Generation);
         self.messages.resolve(Topic::Stale);
-        let frames = take.motion.frames();
         self.show_warnings(&take.warnings);
-        if let Some(old) = self.engine.take.replace(take) {
+        self.show_take(take);
+    }
+
+    /// Puts `take` on screen. The take before it is kept for comparison, unless it was this
+    /// one's first frames.
+    fn show_take(&mut self, take: Arc<Take>) {
+        let frames = take.motion.frames();
+        let id = take.id;
+        if let Some(old) = self.engine.take.replace(take).filter(|old| old.id != id) {
             let white = Arc::new(vec![PREVIOUS_TAKE_COLOR; old.motion.frames()]);
             self.engine.previous = Some((old, white));
         }

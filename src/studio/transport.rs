@@ -44,8 +44,13 @@ impl Playback {
         }
     }
 
-    /// Advances by `dt` seconds of wall time.
-    pub fn advance(&mut self, dt: f64, fps: f32, frames: usize, settings: &PlaybackSettings) {
+    /// Advances by `dt` seconds of wall time over a take of `frames` frames; a `growing` take
+    /// (still being made) is waited for at its last frame instead of looped or stopped.
+    pub fn advance(&mut self, dt: f64, fps: f32, frames: usize, settings: &PlaybackSettings, growing: bool) {
+        if growing && self.playing {
+            self.position = (self.position + dt * f64::from(fps) * f64::from(settings.speed)).min(frames.saturating_sub(1) as f64);
+            return;
+        }
         if !self.playing || frames < 2 {
             self.playing = false;
             return;
@@ -90,16 +95,16 @@ mod tests {
         let mut p = Playback::default();
         let mut s = PlaybackSettings { speed: 1.0, loop_mode: LoopMode::Off };
         p.toggle(100, &s);
-        p.advance(2.0, 25.0, 100, &s);
+        p.advance(2.0, 25.0, 100, &s, false);
         assert_eq!(p.frame(), 50);
-        p.advance(10.0, 25.0, 100, &s);
+        p.advance(10.0, 25.0, 100, &s, false);
         assert_eq!((p.frame(), p.playing), (99, false));
         s.loop_mode = LoopMode::Selection;
         p.selection = Some((10, 20));
         p.toggle(100, &s);
-        p.advance(0.2, 25.0, 100, &s);
+        p.advance(0.2, 25.0, 100, &s, false);
         assert_eq!(p.frame(), 15);
-        p.advance(0.4, 25.0, 100, &s);
+        p.advance(0.4, 25.0, 100, &s, false);
         assert_eq!(p.frame(), 15);
         p.step(-20, 100);
         assert_eq!((p.frame(), p.playing), (0, false));

@@ -27,7 +27,7 @@ use crate::motion::cycle::Cycle;
 use crate::synth::export::{export_with_contacts, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
-use crate::synth::{GenerateOptions, InitPose, Request as TakeRequest, SegmentSpan};
+use crate::synth::{GenerateOptions, Generated, InitPose, Request as TakeRequest, SegmentSpan, TakeCache, TakeEvents};
 
 /// What the UI knows of a loaded model.
 pub struct ModelInfo {
@@ -87,6 +87,73 @@ pub struct Take {
     /// A looping take's cycle (see [`crate::synth::Generated::cycle`]).
     pub cycle: Option<Cycle>,
     pub millis: f64,
+    /// False while the take is still being made: these are its first frames, final.
+    pub complete: bool,
+}
+
+impl Take {
+    /// The take `generated` made for request `id` (`complete` false while it is still being
+    /// made: its frames so far).
+    fn of(id: u64, model_dir: PathBuf, generated: Generated, options: GenerateOptions, path: Vec<[f32; 2]>, millis: f64, complete: bool) -> Self {
+        let frames = generated.motion.frames();
+        let mut colors = vec![[128, 128, 128]; frames];
+        for s in &generated.segments {
+            for c in &mut colors[s.start_frame.min(frames)..s.end_frame.min(frames)] {
+                *c = class_color(s.class);
+            }
+        }
+        Take {
+            id,
+            model_dir,
+            motion: Arc::new(generated.motion),
+            segments: generated.segments,
+            frame_colors: Arc::new(colors),
+            block_classes: generated.block_classes,
+            path,
+            options,
+            warnings: generated.warnings,
+            contacts: Arc::new(generated.contacts),
+            cycle: generated.cycle,
+            millis,
+            complete,
+        }
+    }
+}
+
+/// What the worker does as a take is made: tells the UI how far it is (and stops when the
+/// take is no longer wanted), and sends the take's frames so far.
+struct Streaming<'a> {
+    id: u64,
+    model_dir: &'a PathBuf,
+    options: &'a GenerateOptions,
+    wanted: &'a AtomicU64,
+    replies: &'a Sender<Reply>,
+    ctx: &'a egui::Context,
+    last_sent: f32,
+    start: Instant,
+}
+
+impl TakeEvents for Streaming<'_> {
+    fn progress(&mut self, fraction: f32) -> bool {
+        if fraction - self.last_sent >= 0.05 || fraction >= 1.0 {
+            self.last_sent = fraction;
+            let _ = self.replies.send(Reply::Progress { id: self.id, fraction });
+            self.ctx.request_repaint();
+        }
+        self.wanted.load(Ordering::SeqCst) == self.id
+    }
+
+    fn wants_frames(&self) -> bool {
+        self.wanted.load(Ordering::SeqCst) == self.id
+    }
+
+    fn frames(&mut self, so_far: &Generated) {
+        let partial = Generated { motion: so_far.motion.clone(), segments: so_far.segments.clone(), block_embeddings: Vec::new(), block_classes: so_far.block_classes.clone(), contacts: so_far.contacts.clone(), warnings: Vec::new(), cycle: None };
+        let millis = self.start.elapsed().as_secs_f64() * 1e3;
+        let take = Take::of(self.id, self.model_dir.clone(), partial, self.options.clone(), Vec::new(), millis, false);
+        let _ = self.replies.send(Reply::Streamed(Arc::new(take)));
+        self.ctx.request_repaint();
+    }
 }
 
 #[derive(Clone)]
@@ -120,6 +187,8 @@ pub enum Reply {
     Map(Arc<SeedMap>),
     MapFailed(String),
     Progress { id: u64, fraction: f32 },
+    /// The first frames of a take still being made.
+    Streamed(Arc<Take>),
     Generated(Arc<Take>),
     GenerateFailed { id: u64, error: String, cancelled: bool },
     /// The map path of a take generated before the map existed.
@@ -147,7 +216,7 @@ pub struct Worker {
 fn start_thread(ctx: egui::Context, wanted: Arc<AtomicU64>) -> std::io::Result<(Sender<Job>, Receiver<Reply>)> {
     let (tx, requests) = channel();
     let (replies, rx) = channel();
-    let state = WorkerState { ctx, replies, wanted, model: None, map: None, last_blocks: None };
+    let state = WorkerState { ctx, replies, wanted, model: None, map: None, last_blocks: None, cache: TakeCache::default() };
     std::thread::Builder::new().name("glocal-worker".into()).spawn(move || state.run(&requests))?;
     Ok((tx, rx))
 }
@@ -225,6 +294,8 @@ struct WorkerState {
     map: Option<(Vec<Vec<f32>>, Vec<[f32; 2]>)>,
     /// The block embeddings of the last take, kept to place it once the map exists.
     last_blocks: Option<(u64, Vec<Vec<f32>>)>,
+    /// The last take, resumed by the next generation where it begins to differ.
+    cache: TakeCache,
 }
 
 impl WorkerState {
@@ -312,6 +383,7 @@ impl WorkerState {
                     has_locgen: model.has_locgen(),
                 };
                 self.model = Some(model);
+                self.cache.clear();
                 self.map = None;
                 self.last_blocks = None;
                 self.send(Reply::ModelLoaded(Arc::new(info)));
@@ -323,49 +395,24 @@ impl WorkerState {
         }
     }
 
+    /// Generates the take `request` asks for, resuming the last one where it begins to
+    /// differ, and streams its frames to the UI as they become final.
     fn generate(&mut self, id: u64, request: &TakeRequest) {
-        let Some(model) = self.model.as_mut() else {
+        let Some(model) = self.model.as_ref() else {
             self.send(Reply::GenerateFailed { id, error: "no model is loaded".into(), cancelled: false });
             return;
         };
-        let start = Instant::now();
-        let (wanted, replies, ctx) = (self.wanted.clone(), self.replies.clone(), self.ctx.clone());
-        let mut last_sent = 0.0f32;
-        let result = request.generate(model, &mut |fraction| {
-            if fraction - last_sent >= 0.05 || fraction >= 1.0 {
-                last_sent = fraction;
-                let _ = replies.send(Reply::Progress { id, fraction });
-                ctx.request_repaint();
-            }
-            wanted.load(Ordering::SeqCst) == id
-        });
+        let mut events = Streaming { id, model_dir: &model.dir, options: &request.options, wanted: &self.wanted, replies: &self.replies, ctx: &self.ctx, last_sent: 0.0, start: Instant::now() };
+        let result = request.generate_with(model, &mut self.cache, &mut events);
+        let millis = events.start.elapsed().as_secs_f64() * 1e3;
         match result {
             Ok(g) => {
-                let frames = g.motion.frames();
-                let mut colors = vec![[128, 128, 128]; frames];
-                for s in &g.segments {
-                    for c in &mut colors[s.start_frame.min(frames)..s.end_frame.min(frames)] {
-                        *c = class_color(s.class);
-                    }
-                }
                 let path = self.map.as_ref().filter(|(emb, _)| !emb.is_empty()).map(|(emb, pts)| tsne::project(&g.block_embeddings, emb, pts, tsne::PROJECT_K)).unwrap_or_default();
+                let model_dir = model.dir.clone();
                 if self.map.is_none() {
-                    self.last_blocks = Some((id, g.block_embeddings));
+                    self.last_blocks = Some((id, g.block_embeddings.clone()));
                 }
-                let take = Take {
-                    id,
-                    model_dir: model.dir.clone(),
-                    motion: Arc::new(g.motion),
-                    segments: g.segments,
-                    frame_colors: Arc::new(colors),
-                    block_classes: g.block_classes,
-                    path,
-                    options: request.options.clone(),
-                    warnings: g.warnings,
-                    contacts: Arc::new(g.contacts),
-                    cycle: g.cycle,
-                    millis: start.elapsed().as_secs_f64() * 1e3,
-                };
+                let take = Take::of(id, model_dir, g, request.options.clone(), path, millis, true);
                 self.send(Reply::Generated(Arc::new(take)));
             }
             Err(e) => {

@@ -4,11 +4,11 @@
 //! its keys and path, and a final projection restores the skeleton's bone lengths.
 
 use anyhow::{bail, Context, Result};
-use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::foot_lock::{foot_lock, FootLocked, Travel};
+use super::finish::{chunks, Chunk, ChunkFinish, Finishing};
+use super::foot_lock::Travel;
 use super::given::GivenStart;
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
@@ -16,17 +16,18 @@ use super::keys::{place_keys, KeyConstraint, PlacedKey};
 use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
 use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
+use super::reuse::{block_prints, settled_poses, take_print, Checkpoint, RolloutState, TakeCache, TakeRecord};
 use super::steer::Steering;
 use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
 use crate::data::features::Placement;
 use crate::model::glogen::GloGen;
-use crate::model::rollout::{rollout, RolloutSteps};
+use crate::model::rollout::{rollout_blocks, RolloutSteps};
 use crate::model::spec::MAX_CLASS_STRENGTH;
 use crate::model::target::{target_condition, Target};
 use crate::motion::contacts::FootContacts;
 use crate::motion::cycle::Cycle;
-use crate::motion::{solve_local_poses, Motion};
+use crate::motion::Motion;
 
 pub struct Generated {
     pub motion: Motion,
@@ -44,19 +45,48 @@ pub struct Generated {
     pub cycle: Option<Cycle>,
 }
 
+/// What a caller sees of a take while it is made.
+pub trait TakeEvents {
+    /// The fraction done; false cancels.
+    fn progress(&mut self, fraction: f32) -> bool;
+
+    /// Whether [`TakeEvents::frames`] is wanted (the take so far is a copy).
+    fn wants_frames(&self) -> bool {
+        false
+    }
+
+    /// The take so far, each time more of its frames are final: the finished take begins
+    /// with these frames, bit for bit.
+    fn frames(&mut self, _so_far: &Generated) {}
+}
+
+/// A progress callback alone.
+impl<F: FnMut(f32) -> bool> TakeEvents for F {
+    fn progress(&mut self, fraction: f32) -> bool {
+        self(fraction)
+    }
+}
+
 /// Generates a take as its timeline lays it out, from its start to its end (a loop is cut
 /// from one, [`super::looping`]). `progress` gets the fraction done and returns false to
 /// cancel.
 pub fn continuous_take(model: &GlocalModel, opts: &GenerateOptions, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
+    generate_reusing(model, opts, &mut TakeCache::default(), &mut &mut *progress)
+}
+
+/// [`continuous_take`], resuming the take in `cache` where this one begins to differ from
+/// it (see [`super::reuse`]) and keeping this one there for the next; `events` sees the
+/// take's frames as they become final. The take is the one a fresh generation makes.
+pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut TakeCache, events: &mut dyn TakeEvents) -> Result<Generated> {
     let spec = &model.spec;
     let timeline = SparseTimeline::new(spec, opts)?;
     let class_strength = opts.class_strength_for(spec);
     if !(0.0..=MAX_CLASS_STRENGTH).contains(&class_strength) {
         bail!("class strength must be between 0 and {MAX_CLASS_STRENGTH}, got {class_strength}");
     }
-    let (dim, total) = (spec.layout.dim(), timeline.total());
+    let (dim, total, t) = (spec.layout.dim(), timeline.total(), spec.block_len);
     // The start first: a file that cannot start the take is named before anything else.
-    let (mut sparse, start) = initial_features(model, &opts.init)?;
+    let (seed_block, start) = initial_features(model, &opts.init)?;
     let keys = place_keys(&timeline, model, &opts.keys, &opts.init)?;
     // GloGen's own poses are warped onto keys unless the ablation warps the dense frames alone.
     let key_poses: Vec<usize> = if opts.key_method == KeyMethod::DenseWarp { Vec::new() } else { keys.iter().map(|k| k.sparse).collect() };
@@ -64,10 +94,31 @@ pub fn continuous_take(model: &GlocalModel, opts: &GenerateOptions, progress: &m
     let mut targets = if model.glogen().reads_target() { keys.clone() } else { Vec::new() };
     targets.sort_by_key(|k| k.sparse);
     let constraints = take_constraints(model, opts, &timeline, keys)?;
-    let t = spec.block_len;
-    let block_segments = (0..plans.len()).map(|b| timeline.segment_at(t + b * t + t / 2)).collect();
+    let block_segments: Vec<usize> = (0..plans.len()).map(|b| timeline.segment_at(t + b * t + t / 2)).collect();
+    // Keys and held frames warp poses far behind the block being made; they and a path reach
+    // across the take's frames too.
+    let resumable = opts.keys.is_empty() && opts.held.is_empty();
+    let layout = if resumable && opts.path.is_none() { chunks(total, spec.stride as f32 / spec.fps) } else { vec![Chunk { core: 0..total, window: 0..total }] };
+    // A root path has laid out where the body goes; without one, the feet of a model whose
+    // network slides them say how far.
+    let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet } else { Travel::Kept };
+    let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints };
+    let interval_starts: Vec<usize> = timeline.frames.iter().map(|t| t.round() as usize).collect();
+    let segments = timeline.segment_spans(&spec.classes, &interval_starts, finishing.take_frames());
+    let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
 
-    spec.sparse_norm.normalize(&mut sparse);
+    let prints = (take_print(model, opts, &seed_block), block_prints(opts, &plans, &block_segments));
+    let resume = if resumable { cache.resume(prints.0, &prints.1) } else { None };
+    let fresh = || RolloutState { steering: Steering::new(model, opts), noise: StdRng::seed_from_u64(opts.seed), segment_noise: None };
+    let (mut sparse, state, first_block, mut embeddings, checkpoints) = match &resume {
+        Some(r) => (r.sparse(t, dim), r.record.checkpoints[r.block - 1].state.clone(), r.block, r.record.embeddings[..r.block].to_vec(), r.record.checkpoints[..r.block].to_vec()),
+        None => {
+            let mut sparse = seed_block;
+            spec.sparse_norm.normalize(&mut sparse);
+            (sparse, fresh(), 0, Vec::new(), Vec::new())
+        }
+    };
+    let chunked = (layout.len() > 1).then(|| ChunkFinish::resumed(&finishing, layout, resume.as_ref(), start, &timeline.frames));
     let mut steps = TakeSteps {
         model,
         opts,
@@ -75,41 +126,47 @@ pub fn continuous_take(model: &GlocalModel, opts: &GenerateOptions, progress: &m
         targets,
         start,
         cond: Vec::new(),
-        steering: Steering::new(model, opts),
-        noise: StdRng::seed_from_u64(opts.seed),
+        state,
         block_segments,
-        segment_noise: None,
         constraints: &constraints,
         strength: class_strength,
-        progress,
+        checkpoints: resumable.then_some(checkpoints),
+        chunked,
+        shown: Shown { segments: &segments, block_classes: &block_classes },
+        events,
     };
-    let embeddings = rollout(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, plans.len(), opts.join_seams, &mut steps)?;
-    let progress = steps.progress;
-    sparse.truncate(total * dim);
-    spec.sparse_norm.denormalize(&mut sparse);
-    let (sparse_positions, _) = spec.layout.decode(&sparse, start);
-    let dense = model.densify(&sparse_positions, opts.locgen);
-    if !progress(0.9) {
-        return Err(super::Error::Cancelled.into());
-    }
-    let (mut positions, interval_starts) = apply_pace(&dense, spec.layout.joints(), spec.stride, &timeline.frames);
-    let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, &spec.layout, spec.fps)).collect();
-    let skeleton = spec.layout.skeleton.clone();
-    let motion = if opts.project_bones {
-        let poses = solve_local_poses(&skeleton, &positions);
-        Motion::from_local_poses(skeleton, spec.fps, poses)
-    } else {
-        Motion::from_positions(skeleton, spec.fps, positions)
+    embeddings.extend(rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps)?);
+    let TakeSteps { checkpoints, chunked, events, .. } = steps;
+    let (motion, contacts, warnings, chunked) = match chunked {
+        Some(mut chunked) => {
+            chunked.advance(&sparse, total)?;
+            let motion = chunked.done.motion(model);
+            let contacts = chunked.done.contacts().clone();
+            (motion, contacts, Vec::new(), Some(chunked))
+        }
+        None => {
+            let mut whole = sparse[..total * dim].to_vec();
+            spec.sparse_norm.denormalize(&mut whole);
+            let (sparse_positions, _) = spec.layout.decode(&whole, start);
+            if !events.progress(0.9) {
+                return Err(super::Error::Cancelled.into());
+            }
+            let stretch = finishing.stretch(&sparse_positions, 0..total)?;
+            (stretch.motion, stretch.contacts, stretch.warnings, None)
+        }
     };
-    let segments = timeline.segment_spans(&spec.classes, &interval_starts, motion.frames());
-    // A root path has laid out where the body goes; without one, the feet of a model whose
-    // network slides them say how far.
-    let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet } else { Travel::Kept };
-    let FootLocked { motion, contacts } = foot_lock(motion, opts.foot_lock && spec.foot_lock, travel)?;
-    let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, &spec.layout));
-    progress(1.0);
-    let block_classes = plans.iter().map(|p| p.target).collect();
-    Ok(Generated { motion, segments, block_embeddings: embeddings, block_classes, contacts, warnings, cycle: None })
+    events.progress(1.0);
+    let generated = Generated { motion, segments: segments.clone(), block_embeddings: embeddings, block_classes: block_classes.clone(), contacts, warnings, cycle: None };
+    cache.record = checkpoints.map(|checkpoints| TakeRecord {
+        take_print: prints.0,
+        block_prints: prints.1,
+        checkpoints,
+        sparse,
+        embeddings: generated.block_embeddings.clone(),
+        times: timeline.frames.clone(),
+        chunks: chunked.map(ChunkFinish::into_record),
+    });
+    Ok(generated)
 }
 
 /// The take's constraints in the order they apply: the root path lays the take out, the keys
@@ -140,8 +197,16 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
     Ok(constraints)
 }
 
+/// What the caller is shown of a take while it is made, besides its frames.
+struct Shown<'a> {
+    segments: &'a [SegmentSpan],
+    block_classes: &'a [usize],
+}
+
 /// How the take's rollout goes block by block: the plan's class, the steering's easing and
-/// guidance, the variation's noise, and the constraints after each block.
+/// guidance, the variation's noise, and the constraints after each block; a resumable take
+/// keeps its state after each block, and a take finished in chunks finishes each chunk as
+/// soon as the rollout has settled its poses.
 struct TakeSteps<'a> {
     model: &'a GlocalModel,
     opts: &'a GenerateOptions,
@@ -152,16 +217,17 @@ struct TakeSteps<'a> {
     start: Placement,
     /// The conditioning of the block under way: its plan's class, then its target.
     cond: Vec<f32>,
-    steering: Steering,
-    noise: StdRng,
+    state: RolloutState,
     /// The segment each block belongs to (its plan's target).
     block_segments: Vec<usize>,
-    /// The segment with its own seed whose blocks are under way, and its noise.
-    segment_noise: Option<(usize, StdRng)>,
     constraints: &'a [Box<dyn TakeConstraint>],
     /// The guidance of the block under way.
     strength: f32,
-    progress: &'a mut dyn FnMut(f32) -> bool,
+    /// The state after each block made, for a take that can be resumed.
+    checkpoints: Option<Vec<Checkpoint>>,
+    chunked: Option<ChunkFinish<'a>>,
+    shown: Shown<'a>,
+    events: &'a mut dyn TakeEvents,
 }
 
 impl TakeSteps<'_> {
@@ -186,10 +252,10 @@ impl TakeSteps<'_> {
     /// draws start from that seed, so the segment can be rerolled alone.
     fn enter_segment(&mut self, b: usize) {
         let segment = self.block_segments[b];
-        let entering = self.segment_noise.as_ref().is_none_or(|(s, _)| *s != segment);
+        let entering = self.state.segment_noise.as_ref().is_none_or(|(s, _)| *s != segment);
         if let Some(seed) = self.opts.timeline.segments[segment].seed.filter(|_| entering) {
-            self.segment_noise = Some((segment, StdRng::seed_from_u64(seed)));
-            self.steering.reseed(seed);
+            self.state.segment_noise = Some((segment, StdRng::seed_from_u64(seed)));
+            self.state.steering.reseed(seed);
         }
     }
 
@@ -197,13 +263,37 @@ impl TakeSteps<'_> {
     /// has one, else from the take's.
     fn vary(&mut self, b: usize, input: &mut [f32]) {
         let own_seed = self.opts.timeline.segments[self.block_segments[b]].seed;
-        let (noise, variation) = match (own_seed, self.segment_noise.as_mut()) {
+        let state = &mut self.state;
+        let (noise, variation) = match (own_seed, state.segment_noise.as_mut()) {
             (Some(seed), Some((_, noise))) => (noise, variation_for(seed)),
-            _ => (&mut self.noise, if self.opts.seed == 0 { 0.0 } else { self.opts.variation }),
+            _ => (&mut state.noise, if self.opts.seed == 0 { 0.0 } else { self.opts.variation }),
         };
         if variation > 0.0 {
             input.iter_mut().for_each(|v| *v += variation * noise.random_range(-1.0f32..1.0));
         }
+    }
+
+    /// After block `b`: its state kept, and the chunks its poses settle finished and shown.
+    fn settle(&mut self, b: usize, sparse: &[f32]) -> Result<()> {
+        let spec = &self.model.spec;
+        let settled = settled_poses(b + 1, spec.block_len);
+        if let Some(checkpoints) = self.checkpoints.as_mut() {
+            checkpoints.push(Checkpoint { state: self.state.clone(), unsettled: sparse[settled * spec.layout.dim()..].to_vec() });
+        }
+        let Some(chunked) = self.chunked.as_mut() else { return Ok(()) };
+        if chunked.advance(sparse, settled)? && self.events.wants_frames() {
+            let so_far = Generated {
+                motion: chunked.done.motion(self.model),
+                segments: self.shown.segments.to_vec(),
+                block_embeddings: Vec::new(),
+                block_classes: self.shown.block_classes.to_vec(),
+                contacts: chunked.done.contacts().clone(),
+                warnings: Vec::new(),
+                cycle: None,
+            };
+            self.events.frames(&so_far);
+        }
+        Ok(())
     }
 }
 
@@ -216,7 +306,7 @@ impl RolloutSteps for TakeSteps<'_> {
         self.cond = self.plans[b].class.clone();
         self.aim(sparse);
         self.enter_segment(b);
-        self.strength = self.steering.block(&self.plans[b], input, sparse);
+        self.strength = self.state.steering.block(&self.plans[b], input, sparse);
         self.vary(b, input);
         self.strength
     }
@@ -232,9 +322,9 @@ impl RolloutSteps for TakeSteps<'_> {
         let dim = spec.layout.dim();
         let context = sparse.len() - spec.block_len * dim;
         if moved_before {
-            self.steering.amend_last(self.model, &sparse[context - dim..context], &sparse[context..]);
+            self.state.steering.amend_last(self.model, &sparse[context - dim..context], &sparse[context..]);
         }
-        self.steering.record(self.model, self.plans[b].target, &sparse[sparse.len() - dim..], block);
+        self.state.steering.record(self.model, self.plans[b].target, &sparse[sparse.len() - dim..], block);
     }
 
     fn appended(&mut self, b: usize, glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut [f32]) -> Result<()> {
@@ -242,57 +332,10 @@ impl RolloutSteps for TakeSteps<'_> {
         for constraint in self.constraints {
             constraint.on_block(&block, (glogen, &mut *ws), sparse);
         }
-        if !(self.progress)(0.8 * (b + 1) as f32 / self.plans.len() as f32) {
+        self.settle(b, sparse)?;
+        if !self.events.progress(0.8 * (b + 1) as f32 / self.plans.len() as f32) {
             return Err(super::Error::Cancelled.into());
         }
         Ok(())
-    }
-}
-
-/// Stretches each sparse interval (native `stride` frames) to span the output frames `times`
-/// puts its poses at (`stride * pace` apart, [`SparseTimeline::frames`]), by linear
-/// interpolation in time. Returns the frames and the output frame at which each sparse pose
-/// falls.
-fn apply_pace(dense: &[Vec3], joints: usize, stride: usize, times: &[f64]) -> (Vec<Vec3>, Vec<usize>) {
-    let native_frames = dense.len() / joints;
-    let intervals = times.len().saturating_sub(1);
-    let total = times.last().copied().unwrap_or(0.0).floor() as usize + 1;
-    let mut out = Vec::with_capacity(total * joints);
-    let mut interval = 0;
-    for f in 0..total {
-        let tf = f as f64;
-        while interval + 1 < intervals && times[interval + 1] <= tf {
-            interval += 1;
-        }
-        let local = if intervals == 0 { 0.0 } else { (tf - times[interval]) / (times[interval + 1] - times[interval]) };
-        let src = ((interval as f64 + local.clamp(0.0, 1.0)) * stride as f64).min((native_frames - 1) as f64);
-        let a = src.floor() as usize;
-        let b = (a + 1).min(native_frames - 1);
-        let w = (src - a as f64) as f32;
-        let (fa, fb) = (&dense[a * joints..(a + 1) * joints], &dense[b * joints..(b + 1) * joints]);
-        out.extend(fa.iter().zip(fb).map(|(p, q)| p.lerp(*q, w)));
-    }
-    let starts = times.iter().map(|t| t.round() as usize).collect();
-    (out, starts)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn pace_stretches_time() {
-        let dense: Vec<Vec3> = (0..11).map(|f| Vec3::splat(f as f32)).collect();
-        let (out, starts) = apply_pace(&dense, 1, 5, &[0.0, 10.0, 20.0]);
-        assert_eq!(out.len(), 21);
-        assert_eq!(starts, vec![0, 10, 20]);
-        assert_eq!(out[10], Vec3::splat(5.0));
-        assert_eq!(out[5], Vec3::splat(2.5));
-        // Fractional: the first interval takes 7.5 frames, the second 2.5.
-        let (frac, starts) = apply_pace(&dense, 1, 5, &[0.0, 7.5, 10.0]);
-        assert_eq!(frac.len(), 11);
-        assert_eq!(starts, vec![0, 8, 10]);
-        assert!((frac[5].x - 5.0 / 1.5).abs() < 1e-4);
-        assert_eq!(frac[10], Vec3::splat(10.0));
     }
 }

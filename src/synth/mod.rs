@@ -5,6 +5,7 @@ pub mod constraints;
 pub mod export;
 pub mod foot_lock;
 pub mod generate;
+mod finish;
 mod given;
 pub mod held;
 pub mod held_frames;
@@ -20,6 +21,7 @@ pub mod path_follow;
 mod plan;
 pub mod preset;
 pub mod project;
+mod reuse;
 pub mod render;
 pub mod rig;
 mod steer;
@@ -53,8 +55,9 @@ pub(crate) fn raised_cosine(x: f32) -> f32 {
     }
 }
 
-pub use generate::Generated;
-pub use take::generate;
+pub use generate::{generate_reusing, Generated, TakeEvents};
+pub use reuse::TakeCache;
+pub use take::{generate, generate_with};
 pub use options::{GenerateOptions, KeyMethod, Transition, DEFAULT_TRANSITION_SECONDS};
 pub use plan::SegmentSpan;
 pub use constraints::{Key, KeySource, RootPath, Waypoint};

@@ -25,6 +25,7 @@ pub(super) struct Pace {
 
 /// Per class, how far its joints move per sparse step at its training speed (with and
 /// without travel), and the take's last blocks' own steps.
+#[derive(Clone)]
 pub(super) struct RecentPace {
     reference: Vec<(f32, f32)>,
     blocks: VecDeque<(usize, f32, f32)>,

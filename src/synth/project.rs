@@ -10,7 +10,7 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::constraints::KeySource;
-use super::{generate, GenerateOptions, Generated, InitPose, Segment, Timeline, Transition};
+use super::{generate, generate_with, GenerateOptions, Generated, InitPose, Segment, TakeCache, TakeEvents, Timeline, Transition};
 use crate::data::input::read_text;
 use crate::data::joint_map::UserJointMap;
 use crate::model::glocal::GlocalModel;
@@ -53,6 +53,11 @@ impl Request {
     /// Generates the take; `progress` as for [`generate`].
     pub fn generate(&self, model: &GlocalModel, progress: &mut dyn FnMut(f32) -> bool) -> Result<Generated> {
         generate(model, &self.engine_options(), progress)
+    }
+
+    /// Generates the take resuming `cache`'s, as [`generate_with`] does.
+    pub fn generate_with(&self, model: &GlocalModel, cache: &mut TakeCache, events: &mut dyn TakeEvents) -> Result<Generated> {
+        generate_with(model, &self.engine_options(), cache, events)
     }
 }
 

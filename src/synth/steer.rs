@@ -4,6 +4,8 @@
 //! The plan (`plan::SparseTimeline::plan`) says what each block asks for; this says what
 //! the motion so far makes of it.
 
+use std::sync::Arc;
+
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -81,6 +83,7 @@ const LOOP_TOLERANCE: f32 = 0.25;
 
 /// A context being eased towards a real window of its class, by a growing share at each of
 /// its `blocks` blocks (the seam join keeps the easing from popping).
+#[derive(Clone)]
 struct Easing {
     /// A class change (not a keep-alive).
     change: bool,
@@ -93,8 +96,10 @@ struct Easing {
 }
 
 /// The steering's state over a take.
+#[derive(Clone)]
 pub(super) struct Steering {
-    bank: AnchorBank,
+    /// The seed windows, the same all take long: shared by the copies a resumable rollout keeps.
+    bank: Arc<AnchorBank>,
     pace: RecentPace,
     easing: Option<Easing>,
     /// The class the context was last anchored on (or started from).
@@ -123,7 +128,7 @@ impl Steering {
             InitPose::File { .. } => None,
         };
         Self {
-            bank: AnchorBank::new(model),
+            bank: Arc::new(AnchorBank::new(model)),
             pace: RecentPace::new(model),
             easing: None,
             context_class: start_window.map(|(class, _)| class),

@@ -1,0 +1,397 @@
+//! Finishing a take: its sparse poses made into frames (LocGen over the interpolation, pace,
+//! the bones projected, the feet locked), in chunks of [`CHUNK_SECONDS`].
+//!
+//! Each chunk is finished from the sparse poses of its own stretch and [`MARGIN_SECONDS`]
+//! either side (the spline, LocGen's windows and the foot lock all look a little ahead and
+//! behind), and only its own stretch is kept. A chunk is placed where the one before it
+//! left the body and joined onto that one's look-ahead over [`JOIN_SECONDS`], so the take
+//! has no seam at chunk boundaries. So a frame depends on the sparse poses near it and on the
+//! chunks before it, never on what comes more than a margin after it: a take's frames are
+//! final as soon as the rollout is a margin past them (they stream as they are made), and an
+//! edit late in a take leaves every chunk before it as it was (they are reused).
+//!
+//! A take with keys, a root path or held frames is finished whole: those reach across the
+//! take (a key's warp, the path's layout by arc length, a held stretch's alignment).
+
+use std::ops::Range;
+
+use anyhow::Result;
+use glam::{Quat, Vec3};
+
+use super::foot_lock::{foot_lock, FootLocked, Travel};
+use super::plan::TakeConstraint;
+use super::reuse::{settled_poses, Resume};
+use super::smoothstep;
+use crate::data::features::{wrap, FeatureLayout, Placement};
+use crate::model::glocal::GlocalModel;
+use crate::motion::contacts::FootContacts;
+use crate::motion::{solve_local_poses, LocalPose, Motion};
+
+/// The length of a chunk of the take (at pace 1).
+pub const CHUNK_SECONDS: f32 = 20.0;
+/// Sparse poses a chunk reads before and after its own (at pace 1).
+const MARGIN_SECONDS: f32 = 2.0;
+/// The join of a chunk onto the look-ahead of the chunk before it.
+const JOIN_SECONDS: f32 = 0.5;
+
+/// The sparse poses one chunk finishes (`core`) and those it reads (`window`).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Chunk {
+    pub core: Range<usize>,
+    pub window: Range<usize>,
+}
+
+/// The chunks of a take of `total` sparse poses, `step_seconds` apart at pace 1: one when
+/// the take is shorter than one and a half chunks, the last absorbing what is left.
+pub(super) fn chunks(total: usize, step_seconds: f32) -> Vec<Chunk> {
+    let length = (CHUNK_SECONDS / step_seconds).round().max(2.0) as usize;
+    let margin = (MARGIN_SECONDS / step_seconds).round().max(1.0) as usize;
+    let mut starts = vec![0];
+    while starts.last().unwrap() + length + length / 2 < total {
+        starts.push(starts.last().unwrap() + length);
+    }
+    let ends = starts.iter().skip(1).copied().chain([total]);
+    starts.iter().zip(ends).map(|(&s, e)| Chunk { core: s..e, window: s.saturating_sub(margin)..(e + margin).min(total) }).collect()
+}
+
+/// How the sparse poses of a stretch become frames of the take.
+pub(super) struct Finishing<'a> {
+    pub model: &'a GlocalModel,
+    pub locgen: bool,
+    pub project_bones: bool,
+    pub foot_lock: bool,
+    pub travel: Travel,
+    /// The paced frame of each sparse pose (fractional).
+    pub times: &'a [f64],
+    /// Applied to the stretch that starts the take (all of them finish a take made whole).
+    pub constraints: &'a [Box<dyn TakeConstraint>],
+}
+
+/// A finished stretch: frames `first..first + motion.frames()` of the take.
+pub(super) struct Stretch {
+    pub first: usize,
+    pub motion: Motion,
+    pub contacts: FootContacts,
+    pub warnings: Vec<String>,
+}
+
+impl Finishing<'_> {
+    /// The take's frames: `floor` of the last pose's time, plus one.
+    pub fn take_frames(&self) -> usize {
+        self.times.last().copied().unwrap_or(0.0).floor() as usize + 1
+    }
+
+    /// The first frame at or after sparse pose `i` (the take's end past the last).
+    pub fn frame_of(&self, i: usize) -> usize {
+        match self.times.get(i) {
+            Some(t) => t.ceil() as usize,
+            None => self.take_frames(),
+        }
+    }
+
+    /// The frames sparse poses `window` cover: from the first pose's to the last one's.
+    fn frames_of(&self, window: &Range<usize>) -> Range<usize> {
+        let end = if window.end == self.times.len() { self.take_frames() } else { self.times[window.end - 1].floor() as usize + 1 };
+        self.frame_of(window.start)..end
+    }
+
+    /// Finishes the stretch of sparse poses `window`, whose decoded positions are `sparse`.
+    pub fn stretch(&self, sparse: &[Vec3], window: Range<usize>) -> Result<Stretch> {
+        let spec = &self.model.spec;
+        let layout = &spec.layout;
+        let dense = self.model.densify(sparse, self.locgen);
+        let frames = self.frames_of(&window);
+        let mut positions = apply_pace(&dense, layout.joints(), spec.stride, &self.times[window.clone()], frames.clone());
+        let starts_take = window.start == 0;
+        let constraints = if starts_take { self.constraints } else { &[] };
+        let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, layout, spec.fps)).collect();
+        let skeleton = layout.skeleton.clone();
+        let motion = if self.project_bones {
+            Motion::from_local_poses(skeleton, spec.fps, solve_local_poses(&layout.skeleton, &positions))
+        } else {
+            Motion::from_positions(skeleton, spec.fps, positions)
+        };
+        let FootLocked { motion, contacts } = foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)?;
+        let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
+        Ok(Stretch { first: frames.start, motion, contacts, warnings })
+    }
+}
+
+/// Stretches sparse intervals (native `stride` frames each) to the frames `frames` of the
+/// paced take, where `times` puts the stretch's sparse poses, by linear interpolation in time.
+pub(super) fn apply_pace(dense: &[Vec3], joints: usize, stride: usize, times: &[f64], frames: Range<usize>) -> Vec<Vec3> {
+    let native_frames = dense.len() / joints;
+    let intervals = times.len().saturating_sub(1);
+    let mut out = Vec::with_capacity(frames.len() * joints);
+    let mut interval = 0;
+    for f in frames {
+        let tf = f as f64;
+        while interval + 1 < intervals && times[interval + 1] <= tf {
+            interval += 1;
+        }
+        let local = if intervals == 0 { 0.0 } else { (tf - times[interval]) / (times[interval + 1] - times[interval]) };
+        let src = ((interval as f64 + local.clamp(0.0, 1.0)) * stride as f64).min((native_frames - 1) as f64);
+        let a = src.floor() as usize;
+        let b = (a + 1).min(native_frames - 1);
+        let w = (src - a as f64) as f32;
+        let (fa, fb) = (&dense[a * joints..(a + 1) * joints], &dense[b * joints..(b + 1) * joints]);
+        out.extend(fa.iter().zip(fb).map(|(p, q)| p.lerp(*q, w)));
+    }
+    out
+}
+
+/// Chunks finished as the rollout settles their sparse poses.
+pub(super) struct ChunkFinish<'a> {
+    finishing: &'a Finishing<'a>,
+    pub done: FinishedChunks,
+    /// The settled sparse poses decoded (model units), and where each stands.
+    decoded: Vec<Vec3>,
+    placements: Vec<Placement>,
+    start: Placement,
+}
+
+/// What a take finished in chunks keeps for the next one.
+pub(super) struct ChunkRecord {
+    done: FinishedChunks,
+    decoded: Vec<Vec3>,
+    placements: Vec<Placement>,
+}
+
+impl<'a> ChunkFinish<'a> {
+    /// Chunks laid out as `layout`, from a take starting at `start`, keeping those of the
+    /// resumed take that read only poses it had settled, at the same times (`times`).
+    pub fn resumed(finishing: &'a Finishing<'a>, layout: Vec<Chunk>, resume: Option<&Resume<'_>>, start: Placement, times: &[f64]) -> Self {
+        let fresh = || Self { finishing, done: FinishedChunks::new(layout.clone(), finishing.model.spec.layout.joints(), finishing.project_bones), decoded: Vec::new(), placements: Vec::new(), start };
+        let Some((resume, old)) = resume.and_then(|r| Some((r, r.record.chunks.as_ref()?))) else { return fresh() };
+        let settled = settled_poses(resume.block, finishing.model.spec.block_len);
+        let same = |k: usize| {
+            let window = layout[k].window.clone();
+            old.done.layout[k] == layout[k] && window.end <= settled && resume.record.times.get(window.clone()) == times.get(window)
+        };
+        let keep = (0..old.done.done().min(layout.len())).take_while(|&k| same(k)).count();
+        let joints = finishing.model.spec.layout.joints();
+        let poses = old.placements.len().min(settled);
+        Self { finishing, done: old.done.kept(layout, keep), decoded: old.decoded[..poses * joints].to_vec(), placements: old.placements[..poses].to_vec(), start }
+    }
+
+    /// Finishes every chunk whose poses are among the first `settled` of `sparse`
+    /// (normalised); returns whether any was.
+    pub fn advance(&mut self, sparse: &[f32], settled: usize) -> Result<bool> {
+        let spec = &self.finishing.model.spec;
+        let (dim, joints) = (spec.layout.dim(), spec.layout.joints());
+        let settled = settled.min(self.finishing.times.len());
+        for i in self.placements.len()..settled {
+            let mut pose = sparse[i * dim..(i + 1) * dim].to_vec();
+            spec.sparse_norm.denormalize(&mut pose);
+            let (positions, place) = spec.layout.decode(&pose, self.placements.last().copied().unwrap_or(self.start));
+            self.decoded.extend(positions);
+            self.placements.push(place);
+        }
+        let before = self.done.done();
+        while let Some(chunk) = self.done.next().filter(|c| c.window.end <= settled).cloned() {
+            let stretch = self.finishing.stretch(&self.decoded[chunk.window.start * joints..chunk.window.end * joints], chunk.window.clone())?;
+            self.done.push(stretch, self.finishing.frame_of(chunk.core.start)..self.finishing.frame_of(chunk.core.end), &spec.layout);
+        }
+        Ok(self.done.done() > before)
+    }
+
+    pub fn into_record(self) -> ChunkRecord {
+        ChunkRecord { done: self.done, decoded: self.decoded, placements: self.placements }
+    }
+}
+
+/// The frames of a chunk past its own, as the take placed them: the next chunk joins onto
+/// them.
+#[derive(Clone)]
+struct LookAhead {
+    first: usize,
+    positions: Vec<Vec3>,
+}
+
+/// The take's frames, chunk after chunk (see the module docs).
+#[derive(Clone)]
+pub(super) struct FinishedChunks {
+    pub layout: Vec<Chunk>,
+    joints: usize,
+    positions: Vec<Vec3>,
+    /// The local poses of the frames, when bones are projected.
+    poses: Option<Vec<LocalPose>>,
+    contacts: FootContacts,
+    /// Per chunk done: the take's frames after it and its look-ahead.
+    ends: Vec<usize>,
+    look_aheads: Vec<LookAhead>,
+}
+
+impl FinishedChunks {
+    pub fn new(layout: Vec<Chunk>, joints: usize, project_bones: bool) -> Self {
+        Self { layout, joints, positions: Vec::new(), poses: project_bones.then(Vec::new), contacts: FootContacts::default(), ends: Vec::new(), look_aheads: Vec::new() }
+    }
+
+    /// Chunks finished so far.
+    pub fn done(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// The next chunk to finish, if any.
+    pub fn next(&self) -> Option<&Chunk> {
+        self.layout.get(self.done())
+    }
+
+    /// The first `keep` chunks of an earlier take whose chunks are laid out as `layout`'s
+    /// first `keep` (the caller has checked their sparse poses are the same).
+    pub fn kept(&self, layout: Vec<Chunk>, keep: usize) -> Self {
+        let mut kept = Self::new(layout, self.joints, self.poses.is_some());
+        if keep == 0 {
+            return kept;
+        }
+        let frames = self.ends[keep - 1];
+        kept.positions = self.positions[..frames * self.joints].to_vec();
+        kept.poses = self.poses.as_ref().map(|p| p[..frames].to_vec());
+        kept.contacts = self.contacts.slice(0..frames);
+        kept.ends = self.ends[..keep].to_vec();
+        kept.look_aheads = self.look_aheads[..keep].to_vec();
+        kept
+    }
+
+    /// Adds the next chunk, finished as `stretch`, whose own frames are `core`: turned and
+    /// placed where the chunk before left the body (LocGen's turns drift a take's heading a
+    /// little from its sparse poses', and the foot lock its travel) and joined onto that
+    /// chunk's look-ahead.
+    pub fn push(&mut self, stretch: Stretch, core: Range<usize>, layout: &FeatureLayout) {
+        let j = self.joints;
+        let local = |f: usize| f - stretch.first;
+        let previous = self.look_aheads.last().cloned();
+        let own_start = stretch.motion.frame(local(core.start));
+        let placing = previous
+            .as_ref()
+            .and_then(|p| p.positions.get((core.start - p.first) * j..(core.start - p.first + 1) * j))
+            .map_or(Placing::none(), |before| Placing::onto(layout.placement(own_start), layout.placement(before), own_start[0].y, before[0].y));
+        let placed = placing.apply(&stretch.motion, local(core.start));
+        let mut positions = placed.positions().to_vec();
+        let mut poses = placed.local_poses;
+        if let Some(previous) = previous {
+            let blended = join(&mut positions, j, &previous, core.start, JOIN_SECONDS * stretch.motion.fps);
+            if let (Some(poses), false) = (poses.as_mut(), blended.is_empty()) {
+                let solved = solve_local_poses(&stretch.motion.skeleton, &positions[..blended.len() * j]);
+                let fk = Motion::from_local_poses(stretch.motion.skeleton.clone(), stretch.motion.fps, solved);
+                positions[..blended.len() * j].copy_from_slice(fk.positions());
+                poses.splice(..blended.len(), fk.local_poses.unwrap_or_default());
+            }
+        }
+        let own = core.len();
+        self.positions.extend_from_slice(&positions[..own * j]);
+        if let (Some(all), Some(poses)) = (self.poses.as_mut(), poses.as_mut()) {
+            all.extend(poses.drain(..own));
+        }
+        let contacts = stretch.contacts.slice(local(core.start)..local(core.end));
+        self.contacts.left.extend(contacts.left);
+        self.contacts.right.extend(contacts.right);
+        self.ends.push(core.end);
+        self.look_aheads.push(LookAhead { first: core.end, positions: positions[own * j..].to_vec() });
+    }
+
+    /// The take so far.
+    pub fn motion(&self, model: &GlocalModel) -> Motion {
+        let spec = &model.spec;
+        match &self.poses {
+            Some(poses) => Motion::from_local_poses(spec.layout.skeleton.clone(), spec.fps, poses.clone()),
+            None => Motion::from_positions(spec.layout.skeleton.clone(), spec.fps, self.positions.clone()),
+        }
+    }
+
+    pub fn contacts(&self) -> &FootContacts {
+        &self.contacts
+    }
+}
+
+/// A turn about the vertical through `pivot`, then a move by `offset`: what brings a
+/// chunk's first frame onto where the chunk before left the body.
+struct Placing {
+    turn: Quat,
+    pivot: Vec3,
+    offset: Vec3,
+}
+
+impl Placing {
+    fn none() -> Self {
+        Self { turn: Quat::IDENTITY, pivot: Vec3::ZERO, offset: Vec3::ZERO }
+    }
+
+    /// From a frame placed at `from` (its root at height `from_y`) onto one at `onto`.
+    fn onto(from: Placement, onto: Placement, from_y: f32, onto_y: f32) -> Self {
+        let pivot = Vec3::new(from.x, from_y, from.z);
+        Self { turn: Quat::from_rotation_y(wrap(onto.heading - from.heading)), pivot, offset: Vec3::new(onto.x, onto_y, onto.z) - pivot }
+    }
+
+    fn point(&self, p: Vec3) -> Vec3 {
+        self.pivot + self.offset + self.turn * (p - self.pivot)
+    }
+
+    /// Frames `from..` of `motion`, placed (its roots' transforms, when it has local poses,
+    /// and its positions by forward kinematics of them).
+    fn apply(&self, motion: &Motion, from: usize) -> Motion {
+        let j = motion.joints();
+        match &motion.local_poses {
+            Some(poses) => {
+                let mut poses = poses[from..].to_vec();
+                let roots: Vec<usize> = (0..j).filter(|&k| motion.skeleton.parents()[k].is_none()).collect();
+                for pose in &mut poses {
+                    for &r in &roots {
+                        pose.translations[r] = self.point(pose.translations[r]);
+                        pose.rotations[r] = self.turn * pose.rotations[r];
+                    }
+                }
+                Motion::from_local_poses(motion.skeleton.clone(), motion.fps, poses)
+            }
+            None => Motion::from_positions(motion.skeleton.clone(), motion.fps, motion.positions()[from * j..].iter().map(|&p| self.point(p)).collect()),
+        }
+    }
+}
+
+/// Fades `positions` (frames from `first`) in from the chunk before's look-ahead over
+/// `join_frames`: returns the frames changed (empty when the look-ahead does not reach).
+fn join(positions: &mut [Vec3], joints: usize, previous: &LookAhead, first: usize, join_frames: f32) -> Range<usize> {
+    let available = (previous.positions.len() / joints).saturating_sub(first - previous.first);
+    let n = (join_frames.round() as usize).min(available).min(positions.len() / joints);
+    for f in 0..n {
+        let w = smoothstep((f + 1) as f32 / (n + 1) as f32);
+        let before = &previous.positions[(first - previous.first + f) * joints..][..joints];
+        for (p, q) in positions[f * joints..(f + 1) * joints].iter_mut().zip(before) {
+            *p = q.lerp(*p, w);
+        }
+    }
+    0..n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pace_stretches_time() {
+        let dense: Vec<Vec3> = (0..11).map(|f| Vec3::splat(f as f32)).collect();
+        let out = apply_pace(&dense, 1, 5, &[0.0, 10.0, 20.0], 0..21);
+        assert_eq!(out.len(), 21);
+        assert_eq!(out[10], Vec3::splat(5.0));
+        assert_eq!(out[5], Vec3::splat(2.5));
+        // Fractional: the first interval takes 7.5 frames, the second 2.5.
+        let frac = apply_pace(&dense, 1, 5, &[0.0, 7.5, 10.0], 0..11);
+        assert_eq!(frac.len(), 11);
+        assert!((frac[5].x - 5.0 / 1.5).abs() < 1e-4);
+        assert_eq!(frac[10], Vec3::splat(10.0));
+        // A window of it gives the same frames.
+        assert_eq!(apply_pace(&dense[5..], 1, 5, &[7.5, 10.0], 8..11), frac[8..11].to_vec());
+    }
+
+    #[test]
+    fn chunks_cover_the_take_once() {
+        assert_eq!(chunks(120, 0.2), vec![Chunk { core: 0..120, window: 0..120 }]);
+        let long = chunks(1500, 0.2);
+        assert_eq!(long.len(), 15);
+        assert_eq!(long[1], Chunk { core: 100..200, window: 90..210 });
+        assert_eq!(long[14].core, 1400..1500);
+        assert!(long.windows(2).all(|w| w[0].core.end == w[1].core.start));
+        // The last absorbs a remainder under half a chunk.
+        assert_eq!(chunks(1549, 0.2).last().unwrap().core, 1400..1549);
+    }
+}
