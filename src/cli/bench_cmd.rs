@@ -42,6 +42,16 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// An edit in the last 20% of a 300 s timeline: resumed and as the studio makes it,
+    /// against generating the edited take whole, in the same run.
+    Edit {
+        #[arg(long, default_value = "models/h36m")]
+        model: PathBuf,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Time to generate 10 s, 60 s and 600 s of dense motion with a shipped model.
     Generate {
         #[arg(long, default_value = "models/h36m")]
@@ -135,6 +145,10 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 })
             }
         },
+        BenchCommand::Edit { model, repeats, json } => {
+            let r = super::bench_edit::bench_edit(&model, repeats.max(1))?;
+            print(&r, json, || r.text())
+        }
         BenchCommand::Generate { model, repeats, class_strength, no_foot_lock, json } => {
             let r = bench_generate(&model, repeats, class_strength, !no_foot_lock)?;
             print(&r, json, || {

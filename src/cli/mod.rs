@@ -12,6 +12,7 @@ macro_rules! say {
 
 mod args;
 mod bench_cmd;
+mod bench_edit;
 mod data_cmd;
 mod eval_cmd;
 mod synth_cmd;

@@ -21,6 +21,13 @@ pub trait RolloutSteps {
         1.0
     }
 
+    /// Block `b`'s poses when they are given (held frames): GloGen does not make them (nor
+    /// an embedding: the rollout returns an empty one), and no seam join moves the block
+    /// before.
+    fn given(&self, _b: usize) -> Option<Vec<f32>> {
+        None
+    }
+
     /// Whether the seam join may move the block before block `b` (b > 0): otherwise only its
     /// last pose is seen, and stays (observed or given poses).
     fn may_move_block_before(&self, _b: usize) -> bool {
@@ -64,6 +71,13 @@ pub fn rollout_blocks(glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut Vec
         let context = sparse.len() - t * dim;
         let mut input = sparse[context..].to_vec();
         let strength = steps.ask(b, &mut input, sparse);
+        if let Some(given) = steps.given(b) {
+            embeddings.push(Vec::new());
+            steps.made(b, false, sparse, &given);
+            sparse.extend_from_slice(&given);
+            steps.appended(b, glogen, ws, sparse)?;
+            continue;
+        }
         let movable = b > 0 && steps.may_move_block_before(b);
         let before = if movable { context } else { sparse.len() - dim };
         embeddings.push(glogen.rollout_block(ws, &input, steps.class(b), strength, join_seams.then_some(&mut sparse[before..]), &mut out));

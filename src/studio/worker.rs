@@ -216,7 +216,7 @@ pub struct Worker {
 fn start_thread(ctx: egui::Context, wanted: Arc<AtomicU64>) -> std::io::Result<(Sender<Job>, Receiver<Reply>)> {
     let (tx, requests) = channel();
     let (replies, rx) = channel();
-    let state = WorkerState { ctx, replies, wanted, model: None, map: None, last_blocks: None, cache: TakeCache::default() };
+    let state = WorkerState { ctx, replies, wanted, model: None, map: None, last_blocks: None, cache: TakeCache::default(), last_embeddings: Vec::new() };
     std::thread::Builder::new().name("glocal-worker".into()).spawn(move || state.run(&requests))?;
     Ok((tx, rx))
 }
@@ -296,6 +296,8 @@ struct WorkerState {
     last_blocks: Option<(u64, Vec<Vec<f32>>)>,
     /// The last take, resumed by the next generation where it begins to differ.
     cache: TakeCache,
+    /// The block embeddings of the last take: a held block's place on the seed map.
+    last_embeddings: Vec<Vec<f32>>,
 }
 
 impl WorkerState {
@@ -384,6 +386,7 @@ impl WorkerState {
                 };
                 self.model = Some(model);
                 self.cache.clear();
+                self.last_embeddings.clear();
                 self.map = None;
                 self.last_blocks = None;
                 self.send(Reply::ModelLoaded(Arc::new(info)));
@@ -406,7 +409,9 @@ impl WorkerState {
         let result = request.generate_with(model, &mut self.cache, &mut events);
         let millis = events.start.elapsed().as_secs_f64() * 1e3;
         match result {
-            Ok(g) => {
+            Ok(mut g) => {
+                g.block_embeddings = with_held_blocks(g.block_embeddings, &self.last_embeddings);
+                self.last_embeddings = g.block_embeddings.clone();
                 let path = self.map.as_ref().filter(|(emb, _)| !emb.is_empty()).map(|(emb, pts)| tsne::project(&g.block_embeddings, emb, pts, tsne::PROJECT_K)).unwrap_or_default();
                 let model_dir = model.dir.clone();
                 if self.map.is_none() {
@@ -448,6 +453,29 @@ impl WorkerState {
 }
 
 /// The text of a caught panic.
+/// A take's block embeddings with its held blocks' (which GloGen did not make, so have none)
+/// filled in: the last take's block at the same place where it has one, else the nearest
+/// block of this take before it, or after it.
+fn with_held_blocks(mut blocks: Vec<Vec<f32>>, last: &[Vec<f32>]) -> Vec<Vec<f32>> {
+    for b in 0..blocks.len() {
+        if blocks[b].is_empty() {
+            if let Some(e) = last.get(b).filter(|e| !e.is_empty()) {
+                blocks[b] = e.clone();
+            }
+        }
+    }
+    let known: Vec<usize> = (0..blocks.len()).filter(|&b| !blocks[b].is_empty()).collect();
+    for b in 0..blocks.len() {
+        if blocks[b].is_empty() {
+            let nearest = known.iter().rev().find(|&&k| k < b).or_else(|| known.iter().find(|&&k| k > b));
+            if let Some(&k) = nearest {
+                blocks[b] = blocks[k].clone();
+            }
+        }
+    }
+    blocks
+}
+
 fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
     panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_else(|| "a panic".into())
 }

@@ -19,6 +19,7 @@ use anyhow::Result;
 use glam::{Quat, Vec3};
 
 use super::foot_lock::{foot_lock, FootLocked, Travel};
+use super::held::HeldConstraint;
 use super::plan::TakeConstraint;
 use super::reuse::{settled_poses, Resume};
 use super::smoothstep;
@@ -64,7 +65,7 @@ pub(super) struct Finishing<'a> {
     /// The paced frame of each sparse pose (fractional).
     pub times: &'a [f64],
     /// Applied to the stretch that starts the take (all of them finish a take made whole).
-    pub constraints: &'a [Box<dyn TakeConstraint>],
+    pub constraints: &'a [Box<dyn TakeConstraint + 'a>],
 }
 
 /// A finished stretch: frames `first..first + motion.frames()` of the take.
@@ -114,6 +115,90 @@ impl Finishing<'_> {
         let FootLocked { motion, contacts } = foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)?;
         let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
         Ok(Stretch { first: frames.start, motion, contacts, warnings })
+    }
+}
+
+impl Finishing<'_> {
+    /// A take that holds all but its `held` constraint's free frames: only the stretches of
+    /// sparse poses around each run of free frames (a margin either side) are finished, the
+    /// held frames put in around them and the joins made as a take finished whole makes them
+    /// (the constraints of the take's start apply to a stretch that starts it).
+    pub fn around_free_frames(&self, sparse: &[Vec3], held: &HeldConstraint) -> Result<Stretch> {
+        let spec = &self.model.spec;
+        let (layout, j) = (&spec.layout, spec.layout.joints());
+        let frames = self.take_frames();
+        let mut positions = vec![Vec3::ZERO; frames * j];
+        for f in 0..frames {
+            if let Some(pose) = held.held(f) {
+                positions[f * j..(f + 1) * j].copy_from_slice(pose);
+            }
+        }
+        let windows = self.free_windows(held.free_frames());
+        for window in &windows {
+            let dense = self.model.densify(&sparse[window.start * j..window.end * j], self.locgen);
+            let frames = self.frames_of(window);
+            let paced = apply_pace(&dense, j, spec.stride, &self.times[window.clone()], frames.clone());
+            positions[frames.start * j..frames.end * j].copy_from_slice(&paced);
+        }
+        held.on_dense(&mut positions, layout, spec.fps);
+        let mut poses: Vec<LocalPose> = Vec::new();
+        let mut contacts = FootContacts { left: vec![false; frames], right: vec![false; frames] };
+        let skeleton = layout.skeleton.clone();
+        let mut at = 0;
+        for window in &windows {
+            let frames = self.frames_of(window);
+            let part = &positions[frames.start * j..frames.end * j];
+            let motion = if self.project_bones {
+                Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, part))
+            } else {
+                Motion::from_positions(skeleton.clone(), spec.fps, part.to_vec())
+            };
+            let FootLocked { motion, contacts: locked } = foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)?;
+            positions[frames.start * j..frames.end * j].copy_from_slice(motion.positions());
+            contacts.left[frames.clone()].copy_from_slice(&locked.left);
+            contacts.right[frames.clone()].copy_from_slice(&locked.right);
+            if let Some(window_poses) = motion.local_poses {
+                poses.extend((at..frames.start).map(|f| stand_in(&positions[f * j..(f + 1) * j])));
+                poses.extend(window_poses);
+                at = frames.end;
+            }
+        }
+        let poses = self.project_bones.then(|| {
+            poses.extend((at..frames).map(|f| stand_in(&positions[f * j..(f + 1) * j])));
+            poses
+        });
+        let mut motion = Motion::from_positions(skeleton, spec.fps, positions);
+        motion.local_poses = poses;
+        let motion = self.constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
+        Ok(Stretch { first: 0, motion, contacts, warnings: Vec::new() })
+    }
+
+}
+
+/// A held frame's place in the poses until the held constraint puts its pose there (it
+/// replaces every held frame's pose).
+fn stand_in(frame: &[Vec3]) -> LocalPose {
+    LocalPose { rotations: vec![Quat::IDENTITY; frame.len()], translations: frame.to_vec() }
+}
+
+impl Finishing<'_> {
+    /// The stretches of sparse poses to finish for runs `free` of frames: from a margin
+    /// before the held frame before each run to a margin after the held frame after it,
+    /// merged where they overlap.
+    fn free_windows(&self, free: &[Range<usize>]) -> Vec<Range<usize>> {
+        let margin = (MARGIN_SECONDS * self.model.spec.fps / self.model.spec.stride as f32).round().max(1.0) as usize;
+        let total = self.times.len();
+        let mut windows: Vec<Range<usize>> = Vec::new();
+        for run in free {
+            let first = self.times.partition_point(|&t| t <= run.start.saturating_sub(1) as f64).saturating_sub(1);
+            let last = self.times.partition_point(|&t| t < run.end as f64);
+            let window = first.saturating_sub(margin)..(last + margin + 1).min(total);
+            match windows.last_mut() {
+                Some(before) if before.end >= window.start => before.end = before.end.max(window.end),
+                _ => windows.push(window),
+            }
+        }
+        windows
     }
 }
 

@@ -32,7 +32,8 @@ use crate::motion::Motion;
 pub struct Generated {
     pub motion: Motion,
     pub segments: Vec<SegmentSpan>,
-    /// GloGen's encoder embedding of each generated block's input (the t-SNE path).
+    /// GloGen's encoder embedding of each generated block's input (the t-SNE path); empty
+    /// for a block of held frames, which GloGen did not make.
     pub block_embeddings: Vec<Vec<f32>>,
     /// Class (segment) of each block.
     pub block_classes: Vec<usize>,
@@ -93,7 +94,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let plans = timeline.plan(model, opts.transition == Transition::Anchor, &key_poses);
     let mut targets = if model.glogen().reads_target() { keys.clone() } else { Vec::new() };
     targets.sort_by_key(|k| k.sparse);
-    let constraints = take_constraints(model, opts, &timeline, keys)?;
+    let held = if opts.held.is_empty() { None } else { Some(HeldConstraint::new(spec, &opts.held, &timeline, keys.iter().map(|k| k.frame).collect())?) };
+    let constraints = take_constraints(model, opts, &timeline, keys, held.as_ref())?;
     let block_segments: Vec<usize> = (0..plans.len()).map(|b| timeline.segment_at(t + b * t + t / 2)).collect();
     // Keys and held frames warp poses far behind the block being made; they and a path reach
     // across the take's frames too.
@@ -107,8 +109,10 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let segments = timeline.segment_spans(&spec.classes, &interval_starts, finishing.take_frames());
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
 
-    let prints = (take_print(model, opts, &seed_block), block_prints(opts, &plans, &block_segments));
-    let resume = if resumable { cache.resume(prints.0, &prints.1) } else { None };
+    // Only a resumable take is printed: the print of a request's held frames would cost
+    // more than the blocks it could spare.
+    let prints = resumable.then(|| (take_print(model, opts, &seed_block), block_prints(opts, &plans, &block_segments)));
+    let resume = prints.as_ref().and_then(|(take, blocks)| cache.resume(*take, blocks));
     let fresh = || RolloutState { steering: Steering::new(model, opts), noise: StdRng::seed_from_u64(opts.seed), segment_noise: None };
     let (mut sparse, state, first_block, mut embeddings, checkpoints) = match &resume {
         Some(r) => (r.sparse(t, dim), r.record.checkpoints[r.block - 1].state.clone(), r.block, r.record.embeddings[..r.block].to_vec(), r.record.checkpoints[..r.block].to_vec()),
@@ -129,6 +133,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
         state,
         block_segments,
         constraints: &constraints,
+        held: held.as_ref(),
         strength: class_strength,
         checkpoints: resumable.then_some(checkpoints),
         chunked,
@@ -151,15 +156,18 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
             if !events.progress(0.9) {
                 return Err(super::Error::Cancelled.into());
             }
-            let stretch = finishing.stretch(&sparse_positions, 0..total)?;
+            let stretch = match held.as_ref().filter(|_| opts.keys.is_empty() && opts.path.is_none()) {
+                Some(held) => finishing.around_free_frames(&sparse_positions, held)?,
+                None => finishing.stretch(&sparse_positions, 0..total)?,
+            };
             (stretch.motion, stretch.contacts, stretch.warnings, None)
         }
     };
     events.progress(1.0);
     let generated = Generated { motion, segments: segments.clone(), block_embeddings: embeddings, block_classes: block_classes.clone(), contacts, warnings, cycle: None };
-    cache.record = checkpoints.map(|checkpoints| TakeRecord {
-        take_print: prints.0,
-        block_prints: prints.1,
+    cache.record = checkpoints.zip(prints).map(|(checkpoints, (take_print, block_prints))| TakeRecord {
+        take_print,
+        block_prints,
         checkpoints,
         sparse,
         embeddings: generated.block_embeddings.clone(),
@@ -171,16 +179,17 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
 
 /// The take's constraints in the order they apply: the root path lays the take out, the keys
 /// pin it, a file start's given frames are put back as given, and held frames as held.
-fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>) -> Result<Vec<Box<dyn TakeConstraint>>> {
+/// `held` is the request's held frames as a constraint, kept by the caller (the rollout and
+/// the finishing read them too).
+fn take_constraints<'a>(model: &GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>, held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
     let spec = &model.spec;
-    let mut constraints: Vec<Box<dyn TakeConstraint>> = Vec::new();
+    let mut constraints: Vec<Box<dyn TakeConstraint + 'a>> = Vec::new();
     if let Some(path) = &opts.path {
         path.check().context("root path")?;
         let units_per_metre = 1.0 / spec.layout.skeleton.meters_per_unit();
         constraints.push(Box::new(PathConstraint { path: GroundPath::new(path, units_per_metre), units_per_metre }));
     }
     let first_key = keys.iter().map(|k| k.frame).min();
-    let key_frames = keys.iter().map(|k| k.frame).collect();
     if !keys.is_empty() {
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
         constraints.push(Box::new(KeyConstraint { keys, step_seconds, method: opts.key_method }));
@@ -191,8 +200,8 @@ fn take_constraints(model: &GlocalModel, opts: &GenerateOptions, timeline: &Spar
         constraints.push(Box::new(GivenStart { frames, until: first_key.unwrap_or(usize::MAX) }));
     }
     // Last: the held frames come out exactly as held, whatever the others did.
-    if !opts.held.is_empty() {
-        constraints.push(Box::new(HeldConstraint::new(spec, &opts.held, timeline, key_frames)?));
+    if let Some(held) = held {
+        constraints.push(Box::new(held));
     }
     Ok(constraints)
 }
@@ -220,7 +229,9 @@ struct TakeSteps<'a> {
     state: RolloutState,
     /// The segment each block belongs to (its plan's target).
     block_segments: Vec<usize>,
-    constraints: &'a [Box<dyn TakeConstraint>],
+    constraints: &'a [Box<dyn TakeConstraint + 'a>],
+    /// The held frames, whose blocks GloGen need not make.
+    held: Option<&'a HeldConstraint>,
     /// The guidance of the block under way.
     strength: f32,
     /// The state after each block made, for a take that can be resumed.
@@ -309,6 +320,11 @@ impl RolloutSteps for TakeSteps<'_> {
         self.strength = self.state.steering.block(&self.plans[b], input, sparse);
         self.vary(b, input);
         self.strength
+    }
+
+    fn given(&self, b: usize) -> Option<Vec<f32>> {
+        let t = self.model.spec.block_len;
+        self.held?.held_block(t + b * t..t + (b + 1) * t)
     }
 
     /// The seed and a block that holds a key stay where they are: the join sees their last

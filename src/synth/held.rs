@@ -164,8 +164,19 @@ impl HeldConstraint {
         Some(PlacedKey { sparse: i, frame: 0, pose: Vec::new(), features, fix_root: false, given_sparse: given, given_frame: 0 })
     }
 
+    /// Runs of frames between held ones: all a take of these held frames has to make.
+    pub(super) fn free_frames(&self) -> &[Range<usize>] {
+        &self.free
+    }
+
+    /// The normalised sparse poses of frames `poses` when all of them are held: a block of
+    /// them need not be made.
+    pub(super) fn held_block(&self, poses: Range<usize>) -> Option<Vec<f32>> {
+        poses.map(|i| self.sparse.get(i)?.as_deref()).collect::<Option<Vec<&[f32]>>>().map(|p| p.concat())
+    }
+
     /// The held world position of frame `f`.
-    fn held(&self, f: usize) -> Option<&[Vec3]> {
+    pub(super) fn held(&self, f: usize) -> Option<&[Vec3]> {
         self.positions.get(f)?.as_deref()
     }
 

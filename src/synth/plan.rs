@@ -201,6 +201,22 @@ pub(super) trait TakeConstraint {
     }
 }
 
+/// A constraint borrowed from where the take keeps it (held frames, which the rollout and the
+/// finishing read besides).
+impl<T: TakeConstraint + ?Sized> TakeConstraint for &T {
+    fn on_block(&self, block: &PlannedBlock<'_>, rollout: (&GloGen, &mut BlockWorkspace), sparse: &mut [f32]) {
+        (**self).on_block(block, rollout, sparse)
+    }
+
+    fn on_dense(&self, positions: &mut [Vec3], layout: &FeatureLayout, fps: f32) -> Vec<String> {
+        (**self).on_dense(positions, layout, fps)
+    }
+
+    fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
+        (**self).on_finished(motion, layout)
+    }
+}
+
 /// A block of the rollout as the constraints see it: its plan, the guidance it was made with
 /// and whether seams are joined.
 pub(super) struct PlannedBlock<'a> {
