@@ -246,7 +246,7 @@ fn bench_memory(take_seconds: f32, json: bool) -> Result<()> {
             .map(|p| {
                 let change = last.map_or(String::new(), |l| format!(" ({:+.0} MB)", p.rss_mb - l));
                 last = Some(p.rss_mb);
-                format!("{:<52} {:>6} frames  resident {:7.1} MB{change}  peak {:7.1} MB", p.what, p.frames, p.rss_mb, p.peak_mb)
+                format!("{:<52} {:>6} frames  resident {:7.1} MB{change}  peak {:7.1} MB  after malloc_trim {:7.1} MB", p.what, p.frames, p.rss_mb, p.peak_mb, p.trimmed_mb)
             })
             .collect::<Vec<_>>()
             .join("\n")

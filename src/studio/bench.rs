@@ -17,7 +17,9 @@
 //! counted (pipeline and texture creation, the take's upload).
 //!
 //! [`measure_memory`] reads the studio's resident memory (VmRSS and its peak VmHWM from
-//! /proc/self/status) with its default take, holding a long take, and after closing it.
+//! /proc/self/status) with its default take, holding a long take, and after closing it; and
+//! at each step again once glibc's allocator has given its free memory back, which tells
+//! what the studio holds from what the allocator keeps.
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -319,6 +321,18 @@ pub struct MemoryPoint {
     pub rss_mb: f64,
     /// VmHWM: the most resident so far.
     pub peak_mb: f64,
+    /// VmRSS once the allocator has given its free memory back (glibc's `malloc_trim`):
+    /// what the studio still holds, without what the allocator keeps for later.
+    pub trimmed_mb: f64,
+}
+
+/// Gives the allocator's free memory back to the system, where it can (glibc).
+fn trim_heap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only releases free memory; it has no preconditions.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 /// A field of /proc/self/status in kB (VmRSS, VmHWM), as megabytes.
@@ -386,7 +400,9 @@ impl MemoryRun {
             MemoryStep::New => "File > New (the long take is the previous take)".to_string(),
             MemoryStep::Again => "one more take (the long one no longer held)".to_string(),
         };
-        self.points.push(MemoryPoint { what, frames, rss_mb: status_mb("VmRSS"), peak_mb: status_mb("VmHWM") });
+        let (rss_mb, peak_mb) = (status_mb("VmRSS"), status_mb("VmHWM"));
+        trim_heap();
+        self.points.push(MemoryPoint { what, frames, rss_mb, peak_mb, trimmed_mb: status_mb("VmRSS") });
         self.played = 0;
         self.take_before = self.take_id();
         let app = &mut self.studio.app;
