@@ -9,11 +9,14 @@
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
+use eframe::egui_wgpu::RenderState;
 use egui_kittest::wgpu::{create_render_state, default_wgpu_setup, WgpuTestRenderer};
 use egui_kittest::{Harness, SnapshotOptions};
 use glocal::data::archive::DataRoot;
 use glocal::data::registry::{self, Dataset};
+use glocal::model::glocal::GlocalModel;
 use glocal::motion::Motion;
+use glocal::synth::{generate, GenerateOptions, Segment, Timeline};
 use glocal::studio::viewport::{Layer, PathEdit, PathOverlay, Scene, ViewSettings, Viewport};
 use image::RgbaImage;
 
@@ -57,6 +60,11 @@ struct State {
 
 fn harness(size: egui::Vec2, layers: Vec<Layer>, settings: ViewSettings) -> Harness<'static, State> {
     let render_state = create_render_state(default_wgpu_setup(), eframe::egui_wgpu::RendererOptions::PREDICTABLE);
+    harness_on(render_state, size, layers, settings)
+}
+
+/// A harness drawing with `render_state` (kept by the caller to read the viewport's resources).
+fn harness_on(render_state: RenderState, size: egui::Vec2, layers: Vec<Layer>, settings: ViewSettings) -> Harness<'static, State> {
     Viewport::register(&render_state);
     let state = State { viewport: Viewport::new(), layers, frame: 30, settings, path: Vec::new(), path_editing: false, path_edits: Vec::new() };
     Harness::builder().with_size(size).renderer(WgpuTestRenderer::from_render_state(render_state)).build_ui_state(
@@ -359,4 +367,52 @@ fn bench_parts() {
         e.render().unwrap();
     }
     println!("empty egui: {:.1} ms wall, {:.1} ms CPU", start.elapsed().as_secs_f64() * 50.0, (cpu_ms() - cpu) / 20.0);
+}
+
+/// A take of `seconds` from the shipped h36m model, its classes in turn, 60 s each.
+fn h36m_take(seconds: f32, seed: u64) -> Arc<Motion> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
+    let model = GlocalModel::load(&dir).unwrap_or_else(|e| panic!("h36m: {e:#}"));
+    let classes = &model.spec.classes;
+    let segments = (0..(seconds / 60.0).ceil() as usize).map(|k| Segment::new(classes[k % classes.len()].clone(), (seconds - 60.0 * k as f32).min(60.0))).collect();
+    let options = GenerateOptions { timeline: Timeline { segments }, seed, ..Default::default() };
+    let take = generate(&model, &options, &mut |_| true).unwrap_or_else(|e| panic!("a {seconds} s take: {e:#}"));
+    Arc::new(take.motion)
+}
+
+/// A ten-minute take from the shipped h36m model draws with ghosts and the trail on, and its
+/// geometry (the trail, the one buffer as long as the take) is uploaded once per take: two
+/// frames of one take, or the trail hidden and shown again, upload nothing more; a new take
+/// uploads once more.
+#[test]
+fn a_long_take_is_uploaded_once() {
+    let long = h36m_take(600.0, 1);
+    assert!(long.frames() >= 600 * 25, "{} frames", long.frames());
+    let render_state = create_render_state(default_wgpu_setup(), eframe::egui_wgpu::RendererOptions::PREDICTABLE);
+    let settings = ViewSettings { ghosts: 3, ghost_step: 5, trail: true, ..ViewSettings::default() };
+    let mut h = harness_on(render_state.clone(), egui::vec2(640.0, 400.0), vec![layer(long, [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)], settings);
+    h.state_mut().frame = 9000;
+    let first = render(&mut h);
+    assert_eq!(Viewport::geometry_uploads(&render_state), 1);
+    h.state_mut().frame = 9020;
+    let later = render(&mut h);
+    assert_eq!(Viewport::geometry_uploads(&render_state), 1, "a second frame of the same take uploaded it again");
+    assert_ne!(first, later, "the figure and its ghosts did not move between frames 9000 and 9020");
+    // The trail shows: hiding it changes the image (and showing it again uploads nothing).
+    h.state_mut().settings.trail = false;
+    let without = render(&mut h);
+    assert!(differing_pixels(&later, &without) > 50, "the trail is not drawn");
+    h.state_mut().settings.trail = true;
+    assert_eq!(render(&mut h), later);
+    assert_eq!(Viewport::geometry_uploads(&render_state), 1);
+    // The blue half of the take (its second five minutes): the figure in its colour.
+    assert!(count_centre(&later, 0.5, |p| p[2] > 150 && p[0] < 120) > 50, "no blue figure at the centre");
+    h.state_mut().layers = vec![layer(h36m_take(60.0, 2), [ORANGE, BLUE], glam::Vec3::ZERO, 1.0)];
+    h.state_mut().frame = 100;
+    render(&mut h);
+    assert_eq!(Viewport::geometry_uploads(&render_state), 2, "a new take was not uploaded once");
+}
+
+fn differing_pixels(a: &RgbaImage, b: &RgbaImage) -> usize {
+    a.pixels().zip(b.pixels()).filter(|(p, q)| p.0.iter().zip(q.0).any(|(x, y)| x.abs_diff(y) > 8)).count()
 }

@@ -30,12 +30,21 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Studio frame time during playback (ghosts on) against an empty window, 1280x800.
+    /// Studio frame time during playback (ghosts and trail on) against an empty window,
+    /// 1280x800; or (`--memory`) its resident memory holding a long take and after closing it.
     /// Needs a display (`xvfb-run -a -s "-screen 0 1280x800x24" glocal bench studio`).
     #[cfg(feature = "studio")]
     Studio {
         #[arg(long, default_value_t = 10.0)]
         seconds: f64,
+        /// Play a take this long (the model's classes in turn, 60 s each) instead of the
+        /// default take.
+        #[arg(long)]
+        take_seconds: Option<f32>,
+        /// Report resident memory (VmRSS, VmHWM) with the default take, holding a take of
+        /// `--take-seconds` (default 3600), after File > New and after one more take.
+        #[arg(long)]
+        memory: bool,
         /// Measure one window in this process (used by the command itself).
         #[arg(long, hide = true)]
         only: Option<String>,
@@ -92,9 +101,13 @@ pub fn run(command: BenchCommand) -> Result<()> {
             })
         }
         #[cfg(feature = "studio")]
-        BenchCommand::Studio { seconds, only, json } => match only.as_deref() {
+        BenchCommand::Studio { memory: true, take_seconds, json, .. } => bench_memory(take_seconds.unwrap_or(3600.0), json),
+        #[cfg(feature = "studio")]
+        BenchCommand::Studio { seconds, take_seconds, only, json, memory: false } => match only.as_deref() {
             Some(which) => {
-                let stats = crate::studio::bench::measure(which == "empty", seconds)?;
+                use crate::studio::bench::{measure, Window};
+                let window = if which == "empty" { Window::Empty } else { Window::Studio { take_seconds } };
+                let stats = measure(window, seconds)?;
                 say!("{}", serde_json::to_string(&stats)?);
                 Ok(())
             }
@@ -109,7 +122,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                         if !json {
                             eprintln!("round {round}/{ROUNDS}: {which} window, {seconds} s...");
                         }
-                        runs.push(measure_in_child(which, seconds)?);
+                        runs.push(measure_in_child(which, seconds, take_seconds)?);
                     }
                 }
                 let (empty, studio) = (FrameStats::pool(&empties), FrameStats::pool(&studios));
@@ -117,7 +130,9 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 let median_ratio = studio.median_ms / empty.median_ms;
                 let cpu_ratio = studio.cpu_ms / empty.cpu_ms;
                 let round_ratios: Vec<f64> = studios.iter().zip(&empties).map(|(s, e)| s.mean_ms / e.mean_ms).collect();
+                let studio_name = take_seconds.map_or_else(|| "studio playing, ghosts on".to_string(), |s| format!("studio playing {s} s, ghosts+trail"));
                 let r = serde_json::json!({
+                    "take_seconds": take_seconds,
                     "empty": empty,
                     "studio": studio,
                     "ratio": ratio,
@@ -139,7 +154,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                         studio.width,
                         studio.height,
                         line("empty window", &empty),
-                        line("studio playing, ghosts on", &studio),
+                        line(&studio_name, &studio),
                         round_ratios.iter().map(|r| format!("{r:.2}x")).collect::<Vec<_>>().join(", ")
                     )
                 })
@@ -233,13 +248,36 @@ fn constraint_cost(runs: &[GenerateRun]) -> Option<String> {
     Some(format!("keys and path: {:.2}x the unconstrained 60 s take", with.ms / plain.ms))
 }
 
+/// `glocal bench studio --memory`: the studio's resident memory at each step, with what each
+/// step changed.
+#[cfg(feature = "studio")]
+fn bench_memory(take_seconds: f32, json: bool) -> Result<()> {
+    let points = crate::studio::bench::measure_memory(take_seconds)?;
+    print(&points, json, || {
+        let mut last: Option<f64> = None;
+        points
+            .iter()
+            .map(|p| {
+                let change = last.map_or(String::new(), |l| format!(" ({:+.0} MB)", p.rss_mb - l));
+                last = Some(p.rss_mb);
+                format!("{:<52} {:>6} frames  resident {:7.1} MB{change}  peak {:7.1} MB  after malloc_trim {:7.1} MB", p.what, p.frames, p.rss_mb, p.peak_mb, p.trimmed_mb)
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    })
+}
+
 /// Runs `glocal bench studio --only WHICH` in a child process (a process can open only one
 /// event loop) and reads its statistics, frame intervals included.
 #[cfg(feature = "studio")]
-fn measure_in_child(which: &str, seconds: f64) -> Result<crate::studio::bench::FrameStats> {
+fn measure_in_child(which: &str, seconds: f64, take_seconds: Option<f32>) -> Result<crate::studio::bench::FrameStats> {
     let exe = std::env::current_exe()?;
+    let mut args = vec!["bench".to_string(), "studio".into(), "--only".into(), which.into(), "--seconds".into(), seconds.to_string()];
+    if let Some(s) = take_seconds {
+        args.extend(["--take-seconds".to_string(), s.to_string()]);
+    }
     let out = std::process::Command::new(exe)
-        .args(["bench", "studio", "--only", which, "--seconds", &seconds.to_string()])
+        .args(&args)
         .stdin(std::process::Stdio::null())
         .output()?;
     let stderr = String::from_utf8_lossy(&out.stderr);

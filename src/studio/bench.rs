@@ -11,9 +11,15 @@
 //! per frame (every thread, llvmpipe's rasteriser threads included), which a loaded machine
 //! disturbs much less.
 //!
-//! The studio is measured in its steady state: the model loaded, the default take generated,
-//! the worker idle (the seed map built), playing with ghosts on; the first frames after that
-//! are not counted (pipeline and texture creation).
+//! The studio is measured in its steady state: the model loaded, the default take (or, with
+//! `--take-seconds`, a long timeline of the model's classes) generated, the worker idle (the
+//! seed map built), playing with ghosts and the trail on; the first frames after that are not
+//! counted (pipeline and texture creation, the take's upload).
+//!
+//! [`measure_memory`] reads the studio's resident memory (VmRSS and its peak VmHWM from
+//! /proc/self/status) with its default take, holding a long take, and after closing it; and
+//! at each step again once glibc's allocator has given its free memory back, which tells
+//! what the studio holds from what the allocator keeps.
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -23,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use super::app::{StudioApp, StudioOptions};
 use super::viewport::Viewport;
+use crate::synth::{Segment, Timeline};
 
 /// Frames not counted once the measured state is reached.
 const WARMUP_FRAMES: usize = 10;
@@ -174,25 +181,94 @@ impl eframe::App for Empty {
     }
 }
 
-/// The studio's measured state: a take playing with ghosts on, nothing generating, the seed
-/// map built (the worker builds it right after the first take, on another thread).
-fn studio_ready(app: &mut StudioApp) -> bool {
-    let frames = app.engine.take.as_ref().map_or(0, |t| t.motion.frames());
-    let idle = app.engine.pending.is_none() && app.engine.model_loading.is_none() && (app.engine.map.is_some() || app.engine.map_error.is_some());
-    if frames < 2 || !idle {
-        return false;
-    }
-    if !app.playback.playing {
-        app.editing.doc.view.ghosts = app.editing.doc.view.ghosts.max(3);
-        app.playback.toggle(frames, &app.editing.doc.playback);
-    }
-    app.playback.playing
+/// Which window a run measures.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Window {
+    /// An empty eframe window.
+    Empty,
+    /// The studio playing a take with ghosts and the trail on: its default take, or (with
+    /// `take_seconds`) a timeline of the model's classes, [`LONG_SEGMENT_SECONDS`] each, that
+    /// long.
+    Studio { take_seconds: Option<f32> },
 }
 
-/// Runs one window for `seconds` of measured frames: the studio playing its default take
-/// with ghosts on, or (`empty`) a window with nothing in it.
-pub fn measure(empty: bool, seconds: f64) -> Result<FrameStats> {
-    let out = Arc::new(Mutex::new(Err("the window closed before it was measured".to_string())));
+/// Length of each segment of a long bench take.
+pub const LONG_SEGMENT_SECONDS: f32 = 60.0;
+
+/// A timeline `seconds` long of the model's classes in turn, [`LONG_SEGMENT_SECONDS`] each
+/// (the last one shorter if need be).
+pub fn long_timeline(classes: &[String], seconds: f32) -> Timeline {
+    let mut segments = Vec::new();
+    let mut left = seconds;
+    while left > 0.05 && !classes.is_empty() {
+        let length = left.min(LONG_SEGMENT_SECONDS);
+        segments.push(Segment::new(classes[segments.len() % classes.len()].clone(), length));
+        left -= length;
+    }
+    Timeline { segments }
+}
+
+/// The studio with the take a bench asks for: once the model is loaded its timeline is
+/// replaced by [`long_timeline`] (when `take_seconds` is given), and the take is the one
+/// measured once it is generated.
+struct BenchStudio {
+    app: StudioApp,
+    take_seconds: Option<f32>,
+}
+
+impl BenchStudio {
+    /// Whether the studio shows the take asked for, idle (nothing generating, the seed map
+    /// built: the worker builds it right after the first take, on another thread).
+    fn has_take(&mut self) -> bool {
+        let app = &mut self.app;
+        let idle = app.engine.pending.is_none() && app.engine.model_loading.is_none() && app.engine.regen_at.is_none() && (app.engine.map.is_some() || app.engine.map_error.is_some());
+        let Some(seconds) = self.take_seconds else {
+            return idle && app.engine.take.as_ref().is_some_and(|t| t.motion.frames() >= 2);
+        };
+        let Some(model) = app.engine.model.clone() else { return false };
+        let wanted = long_timeline(&model.spec.classes, seconds);
+        if app.editing.doc.options.timeline != wanted {
+            app.edit(|d| d.options.timeline = wanted.clone());
+        }
+        idle && app.engine.take.as_ref().is_some_and(|t| t.options.timeline == wanted && t.motion.frames() >= 2)
+    }
+
+    /// The measured state: the take asked for playing with ghosts and the trail on.
+    fn ready(&mut self) -> bool {
+        if !self.has_take() {
+            return false;
+        }
+        start_playing(&mut self.app);
+        self.app.playback.playing
+    }
+}
+
+/// Plays the take shown with (at least) three ghosts and the trail.
+fn start_playing(app: &mut StudioApp) {
+    let frames = app.engine.take.as_ref().map_or(0, |t| t.motion.frames());
+    if !app.playback.playing {
+        let view = &mut app.editing.doc.view;
+        view.ghosts = view.ghosts.max(3);
+        view.trail = true;
+        app.playback.toggle(frames, &app.editing.doc.playback);
+    }
+}
+
+impl eframe::App for BenchStudio {
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        self.app.clear_color(visuals)
+    }
+
+    fn logic(&mut self, ctx: &egui::Context, frame: &mut eframe::Frame) {
+        self.app.logic(ctx, frame);
+    }
+
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.app.ui(ui, frame);
+    }
+}
+
+fn window_options() -> eframe::NativeOptions {
     let mut options = eframe::NativeOptions {
         renderer: eframe::Renderer::Wgpu,
         viewport: egui::ViewportBuilder::default().with_inner_size([1280.0, 800.0]).with_title("Glocal Studio benchmark"),
@@ -200,19 +276,31 @@ pub fn measure(empty: bool, seconds: f64) -> Result<FrameStats> {
         ..Default::default()
     };
     options.wgpu_options.surface.present_mode = eframe::wgpu::PresentMode::AutoNoVsync;
+    options
+}
+
+/// The studio as the benches run it: nothing remembered between runs, the viewport's
+/// pipelines installed.
+fn bench_studio(cc: &eframe::CreationContext<'_>, take_seconds: Option<f32>) -> BenchStudio {
+    if let Some(rs) = &cc.wgpu_render_state {
+        Viewport::register(rs);
+    }
+    let options = StudioOptions { autosave: None, restore_autosave: false, ..Default::default() };
+    BenchStudio { app: StudioApp::new(cc, options), take_seconds }
+}
+
+/// Runs one window for `seconds` of measured frames.
+pub fn measure(window: Window, seconds: f64) -> Result<FrameStats> {
+    let out = Arc::new(Mutex::new(Err("the window closed before it was measured".to_string())));
     let sink = out.clone();
     eframe::run_native(
         "glocal-bench",
-        options,
+        window_options(),
         Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
-            if empty {
-                return Ok(Box::new(Timed::new(Empty, seconds, sink, |_| true)));
-            }
-            if let Some(rs) = &cc.wgpu_render_state {
-                Viewport::register(rs);
-            }
-            let options = StudioOptions { autosave: None, restore_autosave: false, ..Default::default() };
-            Ok(Box::new(Timed::new(StudioApp::new(cc, options), seconds, sink, studio_ready)))
+            Ok(match window {
+                Window::Empty => Box::new(Timed::new(Empty, seconds, sink, |_| true)),
+                Window::Studio { take_seconds } => Box::new(Timed::new(bench_studio(cc, take_seconds), seconds, sink, BenchStudio::ready)),
+            })
         }),
     )
     .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;
@@ -221,6 +309,184 @@ pub fn measure(empty: bool, seconds: f64) -> Result<FrameStats> {
         anyhow::bail!("only {} frames were measured", stats.frames);
     }
     Ok(stats)
+}
+
+/// Resident memory of this process at one point of the memory bench, megabytes.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct MemoryPoint {
+    pub what: String,
+    /// Frames of the take shown.
+    pub frames: usize,
+    /// VmRSS: resident now.
+    pub rss_mb: f64,
+    /// VmHWM: the most resident so far.
+    pub peak_mb: f64,
+    /// VmRSS once the allocator has given its free memory back (glibc's `malloc_trim`):
+    /// what the studio still holds, without what the allocator keeps for later.
+    pub trimmed_mb: f64,
+}
+
+/// Gives the allocator's free memory back to the system, where it can (glibc).
+fn trim_heap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only releases free memory; it has no preconditions.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+/// A field of /proc/self/status in kB (VmRSS, VmHWM), as megabytes.
+fn status_mb(field: &str) -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let kb = status.lines().find_map(|l| l.strip_prefix(field)?.strip_prefix(':')?.trim().strip_suffix("kB")?.trim().parse::<f64>().ok());
+    kb.unwrap_or(0.0) / 1024.0
+}
+
+/// The steps of the memory bench, in order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum MemoryStep {
+    /// The model loaded, its default take playing.
+    Default,
+    /// The long take playing.
+    Long,
+    /// File > New: the default timeline's take playing (the long one is now the previous take).
+    New,
+    /// One more take generated (the long one gone from the previous take as well).
+    Again,
+}
+
+/// Frames played at each step before its memory is read (the viewport has uploaded the take).
+const MEMORY_FRAMES: usize = 30;
+
+/// The studio going through [`MemoryStep`]s, reading its memory at each.
+struct MemoryRun {
+    studio: BenchStudio,
+    long_seconds: f32,
+    step: MemoryStep,
+    /// Frames played at this step.
+    played: usize,
+    /// The take's id when the step began (a step that generates waits for another).
+    take_before: Option<u64>,
+    opened: Instant,
+    points: Vec<MemoryPoint>,
+    out: Arc<Mutex<Result<Vec<MemoryPoint>, String>>>,
+    done: bool,
+}
+
+impl MemoryRun {
+    fn take_id(&self) -> Option<u64> {
+        self.studio.app.engine.take.as_ref().map(|t| t.id)
+    }
+
+    /// Whether the step's take is on screen and playing.
+    fn step_ready(&mut self) -> bool {
+        let new_take = self.take_id() != self.take_before;
+        let ready = match self.step {
+            MemoryStep::Default | MemoryStep::Long => self.studio.has_take(),
+            MemoryStep::New | MemoryStep::Again => new_take && self.studio.has_take(),
+        };
+        if ready {
+            start_playing(&mut self.studio.app);
+        }
+        ready
+    }
+
+    /// Reads the memory of the step just played and starts the next one.
+    fn next_step(&mut self, ctx: &egui::Context) {
+        let frames = self.studio.app.engine.take.as_ref().map_or(0, |t| t.motion.frames());
+        let what = match self.step {
+            MemoryStep::Default => "model loaded, default take".to_string(),
+            MemoryStep::Long => format!("{:.0}-minute take", self.long_seconds / 60.0),
+            MemoryStep::New => "File > New (the long take is the previous take)".to_string(),
+            MemoryStep::Again => "one more take (the long one no longer held)".to_string(),
+        };
+        let (rss_mb, peak_mb) = (status_mb("VmRSS"), status_mb("VmHWM"));
+        trim_heap();
+        self.points.push(MemoryPoint { what, frames, rss_mb, peak_mb, trimmed_mb: status_mb("VmRSS") });
+        self.played = 0;
+        self.take_before = self.take_id();
+        let app = &mut self.studio.app;
+        app.playback.playing = false;
+        self.step = match self.step {
+            MemoryStep::Default => {
+                self.studio.take_seconds = Some(self.long_seconds);
+                MemoryStep::Long
+            }
+            MemoryStep::Long => {
+                self.studio.take_seconds = None;
+                app.new_project();
+                MemoryStep::New
+            }
+            MemoryStep::New => {
+                app.regenerate();
+                MemoryStep::Again
+            }
+            MemoryStep::Again => {
+                let points = std::mem::take(&mut self.points);
+                self.finish(ctx, Ok(points));
+                return;
+            }
+        };
+    }
+
+    fn finish(&mut self, ctx: &egui::Context, result: Result<Vec<MemoryPoint>, String>) {
+        if let Ok(mut out) = self.out.lock() {
+            *out = result;
+        }
+        self.done = true;
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+}
+
+impl eframe::App for MemoryRun {
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        self.studio.clear_color(visuals)
+    }
+
+    fn logic(&mut self, ctx: &egui::Context, frame: &mut eframe::Frame) {
+        self.studio.logic(ctx, frame);
+    }
+
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.studio.ui(ui, frame);
+        let ctx = ui.ctx().clone();
+        if self.done {
+            return;
+        }
+        ctx.request_repaint();
+        if self.opened.elapsed() > MEMORY_TIMEOUT {
+            self.finish(&ctx, Err(format!("the memory bench did not finish within {} s (at {:?})", MEMORY_TIMEOUT.as_secs(), self.step)));
+            return;
+        }
+        if !self.step_ready() {
+            return;
+        }
+        self.played += 1;
+        if self.played >= MEMORY_FRAMES {
+            self.next_step(&ctx);
+        }
+    }
+}
+
+/// Longest the memory bench may take (a one-hour take is generated on the way).
+const MEMORY_TIMEOUT: Duration = Duration::from_secs(1200);
+
+/// The studio's resident memory: with its default take, holding a `long_seconds` take, after
+/// File > New, and after one more take.
+pub fn measure_memory(long_seconds: f32) -> Result<Vec<MemoryPoint>> {
+    let out = Arc::new(Mutex::new(Err("the window closed before it was measured".to_string())));
+    let sink = out.clone();
+    eframe::run_native(
+        "glocal-bench",
+        window_options(),
+        Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
+            let studio = bench_studio(cc, None);
+            Ok(Box::new(MemoryRun { studio, long_seconds, step: MemoryStep::Default, played: 0, take_before: None, opened: Instant::now(), points: Vec::new(), out: sink, done: false }))
+        }),
+    )
+    .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;
+    let points = out.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone().map_err(|e| anyhow::anyhow!(e))?;
+    Ok(points)
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! the take from that seed.
 
 use egui::{Color32, RichText};
-use egui_plot::{Legend, Line, MarkerShape, Plot, PlotPoints, Points};
+use egui_plot::{Legend, MarkerShape, Plot, PlotPoints, Points};
 
 use super::app::StudioApp;
 use super::panels::InitTab;
@@ -116,15 +116,170 @@ fn chosen_seed(init: &InitPose, classes: &[String], by_class: &[Vec<usize>]) -> 
 }
 
 /// The take's blocks on the map, coloured by class, joined in order, the one playing ringed.
-fn plot_take_path(plot: &mut egui_plot::PlotUi, t: &Take, current_block: Option<usize>) {
-    let path: Vec<[f64; 2]> = t.path.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect();
-    plot.line(Line::new("take", PlotPoints::new(path.clone())).color(Color32::from_gray(230)).width(1.5).allow_hover(false));
-    for (b, p) in path.iter().enumerate() {
-        let c = t.block_classes.get(b).map_or(Color32::GRAY, |&c| color32(class_color(c)));
-        plot.points(Points::new("take", PlotPoints::new(vec![*p])).shape(MarkerShape::Diamond).radius(4.5).color(c).allow_hover(false));
+/// The path itself is a [`TakePath`] (one mesh per take); the ring alone changes as it plays.
+fn plot_take_path<'a>(plot: &mut egui_plot::PlotUi<'a>, t: &'a Take, current_block: Option<usize>) {
+    plot.add(TakePath::new(t));
+    if let Some(p) = current_block.and_then(|b| t.path.get(b)) {
+        let ring = PlotPoints::new(vec![[f64::from(p[0]), f64::from(p[1])]]);
+        plot.points(Points::new("take", ring).shape(MarkerShape::Circle).radius(6.0).filled(false).color(Color32::from_rgb(255, 90, 60)).allow_hover(false));
     }
-    if let Some(b) = current_block {
-        plot.points(Points::new("take", PlotPoints::new(vec![path[b]])).shape(MarkerShape::Circle).radius(6.0).filled(false).color(Color32::from_rgb(255, 90, 60)).allow_hover(false));
+}
+
+/// Width of the line joining the blocks, points.
+const PATH_WIDTH: f32 = 1.5;
+/// Half the diagonal of a block's diamond, points.
+const DIAMOND_RADIUS: f32 = 4.5;
+
+/// A take's path through the seed map as one plot item: an image of the line through the
+/// blocks and a diamond on each, drawn once per take (again only when the plot is zoomed,
+/// panned or resized). A ten-minute take has 300 blocks whose joins cross the whole map;
+/// as shapes, re-tessellated and rasterised every frame (the egui plot items it was), they
+/// cost a software rasteriser more than the rest of the window; as an image, one quad.
+struct TakePath<'a> {
+    base: egui_plot::PlotItemBase,
+    take: &'a Take,
+}
+
+/// What an image of the path was drawn for: the take, and where the plot put it on screen.
+#[derive(Clone, PartialEq)]
+struct PathKey {
+    take: u64,
+    /// The take's blocks placed so far (its path arrives after it, once the map exists).
+    blocks: usize,
+    frame: egui::Rect,
+    bounds: egui_plot::PlotBounds,
+    pixels_per_point: f32,
+}
+
+/// The path's image, kept in egui's memory between frames.
+#[derive(Clone)]
+struct CachedPath {
+    key: PathKey,
+    texture: egui::TextureHandle,
+}
+
+impl<'a> TakePath<'a> {
+    fn new(take: &'a Take) -> Self {
+        Self { base: egui_plot::PlotItemBase::new("take".into()), take }
+    }
+
+    /// The path drawn over the plot's frame, `pixels_per_point` pixels a point.
+    fn draw(&self, transform: &egui_plot::PlotTransform, pixels_per_point: f32) -> egui::ColorImage {
+        let frame = *transform.frame();
+        let size = [(frame.width() * pixels_per_point).round().max(1.0) as usize, (frame.height() * pixels_per_point).round().max(1.0) as usize];
+        let mut canvas = Canvas { size, pixels: vec![Color32::TRANSPARENT; size[0] * size[1]] };
+        let pixel = |p: &[f32; 2]| (transform.position_from_point(&egui_plot::PlotPoint::new(p[0], p[1])) - frame.min) * pixels_per_point;
+        let points: Vec<egui::Vec2> = self.take.path.iter().map(pixel).collect();
+        let line = Color32::from_gray(230);
+        for pair in points.windows(2) {
+            canvas.segment(pair[0], pair[1], PATH_WIDTH * pixels_per_point, line);
+        }
+        for (b, &centre) in points.iter().enumerate() {
+            let color = self.take.block_classes.get(b).map_or(Color32::GRAY, |&c| color32(class_color(c)));
+            canvas.diamond(centre, DIAMOND_RADIUS * pixels_per_point, color);
+        }
+        egui::ColorImage::new(size, canvas.pixels)
+    }
+}
+
+/// An image drawn on the CPU with anti-aliased lines and diamonds (premultiplied colours).
+struct Canvas {
+    size: [usize; 2],
+    pixels: Vec<Color32>,
+}
+
+impl Canvas {
+    /// Paints `color` with coverage 0..1 over pixel (x, y), if it is in the image.
+    fn blend(&mut self, x: i64, y: i64, color: Color32, coverage: f32) {
+        if coverage <= 0.0 || x < 0 || y < 0 || x as usize >= self.size[0] || y as usize >= self.size[1] {
+            return;
+        }
+        let dst = &mut self.pixels[y as usize * self.size[0] + x as usize];
+        let src = color.gamma_multiply(coverage.min(1.0));
+        let keep = 1.0 - f32::from(src.a()) / 255.0;
+        let mix = |s: u8, d: u8| (f32::from(s) + f32::from(d) * keep).round().min(255.0) as u8;
+        *dst = Color32::from_rgba_premultiplied(mix(src.r(), dst.r()), mix(src.g(), dst.g()), mix(src.b(), dst.b()), mix(src.a(), dst.a()));
+    }
+
+    /// A line `width` pixels wide from `a` to `b`: each pixel within reach once, covered by
+    /// how much of it lies within the line.
+    fn segment(&mut self, a: egui::Vec2, b: egui::Vec2, width: f32, color: Color32) {
+        let reach = width / 2.0 + 1.0;
+        let (lo, hi) = (a.min(b) - egui::Vec2::splat(reach), a.max(b) + egui::Vec2::splat(reach));
+        let along = b - a;
+        let length_sq = along.length_sq().max(1e-6);
+        // Rows of the line's bounding box, and in each only the columns near the line.
+        for y in lo.y.floor() as i64..=hi.y.ceil() as i64 {
+            let py = y as f32 + 0.5;
+            let (x0, x1) = if along.y.abs() < 1e-3 {
+                (lo.x, hi.x)
+            } else {
+                let xa = a.x + (py - reach - a.y) / along.y * along.x;
+                let xb = a.x + (py + reach - a.y) / along.y * along.x;
+                (xa.min(xb).max(lo.x) - reach, xa.max(xb).min(hi.x) + reach)
+            };
+            for x in x0.floor() as i64..=x1.ceil() as i64 {
+                let p = egui::vec2(x as f32 + 0.5, py);
+                let t = ((p - a).dot(along) / length_sq).clamp(0.0, 1.0);
+                let distance = (p - (a + along * t)).length();
+                self.blend(x, y, color, width / 2.0 + 0.5 - distance);
+            }
+        }
+    }
+
+    /// A filled diamond (a square on its corner) `radius` pixels from centre to corner.
+    fn diamond(&mut self, centre: egui::Vec2, radius: f32, color: Color32) {
+        let reach = radius.ceil() as i64 + 1;
+        let (cx, cy) = (centre.x.floor() as i64, centre.y.floor() as i64);
+        for y in cy - reach..=cy + reach {
+            for x in cx - reach..=cx + reach {
+                let d = (x as f32 + 0.5 - centre.x).abs() + (y as f32 + 0.5 - centre.y).abs();
+                self.blend(x, y, color, (radius - d) / std::f32::consts::SQRT_2 + 0.5);
+            }
+        }
+    }
+}
+
+impl egui_plot::PlotItem for TakePath<'_> {
+    fn shapes(&self, ui: &egui::Ui, transform: &egui_plot::PlotTransform, shapes: &mut Vec<egui::Shape>) {
+        let pixels_per_point = ui.ctx().pixels_per_point();
+        let key = PathKey { take: self.take.id, blocks: self.take.path.len(), frame: *transform.frame(), bounds: *transform.bounds(), pixels_per_point };
+        let id = ui.scope_id().with("take_path");
+        let cached = ui.data(|d| d.get_temp::<CachedPath>(id)).filter(|c| c.key == key);
+        let texture = cached.map_or_else(
+            || {
+                let texture = ui.ctx().load_texture("glocal_take_path", self.draw(transform, pixels_per_point), egui::TextureOptions::NEAREST);
+                ui.data_mut(|d| d.insert_temp(id, CachedPath { key, texture: texture.clone() }));
+                texture
+            },
+            |c| c.texture,
+        );
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        shapes.push(egui::Shape::image(texture.id(), *transform.frame(), uv, Color32::WHITE));
+    }
+
+    fn initialize(&mut self, _x_range: std::ops::RangeInclusive<f64>) {}
+
+    fn color(&self) -> Color32 {
+        Color32::from_gray(230)
+    }
+
+    fn geometry(&self) -> egui_plot::PlotGeometry<'_> {
+        egui_plot::PlotGeometry::None
+    }
+
+    /// Nothing of its own: each block sits at a weighted mean of seeds' positions
+    /// ([`super::tsne::project`]), inside the seeds' bounds, which the plot already fits.
+    fn bounds(&self) -> egui_plot::PlotBounds {
+        egui_plot::PlotBounds::NOTHING
+    }
+
+    fn base(&self) -> &egui_plot::PlotItemBase {
+        &self.base
+    }
+
+    fn base_mut(&mut self) -> &mut egui_plot::PlotItemBase {
+        &mut self.base
     }
 }
 

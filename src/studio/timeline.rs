@@ -562,14 +562,33 @@ fn contacts_track(painter: &egui::Painter, visuals: &egui::Visuals, input: &Inpu
         let half = track.height() / 2.0;
         for (row, side) in Side::BOTH.into_iter().enumerate() {
             let top = track.top() + row as f32 * half;
-            for (start, end) in runs(contacts.side(side)) {
-                let (x0, x1) = (track.left() + start as f32 / fps * scale, track.left() + end as f32 / fps * scale);
-                painter.rect_filled(Rect::from_min_max(pos2(x0, top + 1.5), pos2(x1.max(x0 + 1.0), top + half - 1.5)), 1.0, CONTACT_COLOR);
+            for (x0, x1) in stance_bars(contacts.side(side), scale / fps) {
+                let (x0, x1) = (track.left() + x0, track.left() + x1);
+                painter.rect_filled(Rect::from_min_max(pos2(x0, top + 1.5), pos2(x1, top + half - 1.5)), 1.0, CONTACT_COLOR);
             }
         }
     }
     // Over the bars, which reach the take's end.
     painter.text(track.right_center() - vec2(4.0, 0.0), Align2::RIGHT_CENTER, "feet", FontId::proportional(10.0), visuals.text_color());
+}
+
+/// A foot's stances as bars on the feet track, `pixels_per_frame` wide a frame, from the
+/// track's left: stances less than a pixel apart make one bar, each at least a pixel wide.
+/// A ten-minute take has more stances than the track has pixels; one bar each cost more to
+/// draw every frame than the rest of the timeline.
+fn stance_bars(planted: &[bool], pixels_per_frame: f32) -> Vec<(f32, f32)> {
+    let mut bars: Vec<(f32, f32)> = Vec::new();
+    for (start, end) in runs(planted) {
+        let (x0, x1) = (start as f32 * pixels_per_frame, end as f32 * pixels_per_frame);
+        match bars.last_mut() {
+            Some(last) if x0 <= last.1 + 1.0 => last.1 = last.1.max(x1),
+            _ => bars.push((x0, x1)),
+        }
+    }
+    for bar in &mut bars {
+        bar.1 = bar.1.max(bar.0 + 1.0);
+    }
+    bars
 }
 
 /// When the take passes each waypoint: its own time where it has one; between two timed
@@ -604,6 +623,19 @@ pub fn waypoint_times(path: &RootPath, take_seconds: f32) -> Vec<f32> {
 mod tests {
     use super::*;
     use crate::synth::constraints::Waypoint;
+
+    #[test]
+    fn stances_closer_than_a_pixel_make_one_bar() {
+        // Three stances: the first two two frames apart, the third ten frames on.
+        let mut planted = vec![false; 30];
+        for t in (2..5).chain(7..9).chain(19..22) {
+            planted[t] = true;
+        }
+        // Half a pixel a frame: the first gap is one pixel, the second five.
+        assert_eq!(stance_bars(&planted, 0.5), vec![(1.0, 4.5), (9.5, 11.0)]);
+        // Ten pixels a frame: every stance its own bar.
+        assert_eq!(stance_bars(&planted, 10.0), vec![(20.0, 50.0), (70.0, 90.0), (190.0, 220.0)]);
+    }
 
     #[test]
     fn untimed_waypoints_are_spread_by_arc_length() {

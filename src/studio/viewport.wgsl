@@ -135,7 +135,8 @@ fn fs_line(in: LineOut) -> @location(0) vec4<f32> {
     return vec4<f32>(linear_to_srgb(in.color.rgb), in.color.a * fade);
 }
 
-// ---- Root trajectory trail: line list over every take's whole ground path ----
+// ---- Root trajectory trail: every take's whole ground path, simplified and faded, and its
+// recent part at every frame, highlighted ----
 
 struct TrailIn {
     @location(0) position: vec3<f32>,
@@ -145,8 +146,9 @@ struct TrailIn {
     @location(3) color: vec4<f32>,
 };
 
-@vertex
-fn vs_trail(v: TrailIn) -> LineOut {
+// A trail or overlay vertex; `highlight` lightens the recent part (the full-resolution
+// pass over the recent frames does; the simplified whole path underneath does not).
+fn trail_line(v: TrailIn, highlight: bool) -> LineOut {
     let current = min(globals.trail.x, v.last_frame);
     let d = v.frame - current;
     var rgb = srgb_to_linear(v.color.rgb);
@@ -158,7 +160,7 @@ fn vs_trail(v: TrailIn) -> LineOut {
         if d <= 0.5 {
             alpha = 0.5;
         }
-        if d <= 0.5 && d >= -globals.trail.y {
+        if highlight && d <= 0.5 && d >= -globals.trail.y {
             // The recent part, lightened towards white.
             rgb = mix(rgb, vec3<f32>(1.0), 0.35);
             alpha = 1.0;
@@ -171,6 +173,16 @@ fn vs_trail(v: TrailIn) -> LineOut {
     out.world = vec3<f32>(globals.grid.x, p.y, globals.grid.z);
     out.color = vec4<f32>(rgb, alpha * v.color.a);
     return out;
+}
+
+@vertex
+fn vs_trail(v: TrailIn) -> LineOut {
+    return trail_line(v, true);
+}
+
+@vertex
+fn vs_trail_faded(v: TrailIn) -> LineOut {
+    return trail_line(v, false);
 }
 
 // ---- Blit of the offscreen image into egui's pass ----

@@ -79,6 +79,24 @@ pub(super) struct TrailVertex {
     pub color: [u8; 4],
 }
 
+/// The root trail of every layer of a scene, built once per take (see `Viewport::trail`):
+/// one line list holding, first, each layer's whole path simplified for the faded trail,
+/// then each layer's path at every frame, of which only the highlighted recent part is drawn.
+pub(super) struct TrailGeometry {
+    pub vertices: Vec<TrailVertex>,
+    /// The simplified paths' vertices (at the start of `vertices`).
+    pub simplified: u32,
+}
+
+/// The trail in one frame's scene: its geometry (uploaded when `version` changes) and the
+/// vertices of its highlighted part.
+pub(super) struct TrailDraw {
+    pub version: u64,
+    pub geometry: Arc<TrailGeometry>,
+    /// Vertex ranges of the full-resolution paths drawn highlighted (one per layer).
+    pub highlighted: Vec<Range<u32>>,
+}
+
 /// One view's frame, built on the UI thread by `Viewport::ui`.
 pub(super) struct SceneCallback {
     pub view: egui::Id,
@@ -89,8 +107,7 @@ pub(super) struct SceneCallback {
     pub instances: Vec<Instance>,
     pub counts: [u32; 4],
     pub grid_vertices: u32,
-    /// The trail's version and vertices; uploaded when the version changes.
-    pub trail: Option<(u64, Arc<Vec<TrailVertex>>)>,
+    pub trail: Option<TrailDraw>,
     /// Lines in a fixed colour (the root path), `last_frame` negative; uploaded every frame
     /// (a path is a few vertices).
     pub overlay: Vec<TrailVertex>,
@@ -113,7 +130,6 @@ struct ViewGpu {
     instance_capacity: u64,
     trail: wgpu::Buffer,
     trail_capacity: u64,
-    trail_vertices: u32,
     trail_version: u64,
     overlay: wgpu::Buffer,
     overlay_capacity: u64,
@@ -129,6 +145,8 @@ pub(super) struct Resources {
     solid_opaque: wgpu::RenderPipeline,
     solid_blend: wgpu::RenderPipeline,
     grid: wgpu::RenderPipeline,
+    /// The trail's faded whole path, and its highlighted recent part.
+    trail_faded: wgpu::RenderPipeline,
     trail: wgpu::RenderPipeline,
     blit: wgpu::RenderPipeline,
     mesh_vertices: wgpu::Buffer,
@@ -137,6 +155,9 @@ pub(super) struct Resources {
     sphere: (Range<u32>, i32),
     views: HashMap<egui::Id, ViewGpu>,
     samples: u32,
+    /// Uploads of a take's geometry (the trail's vertices) by every view so far: once per
+    /// take shown, never per frame ([`super::Viewport::geometry_uploads`]).
+    pub geometry_uploads: u64,
 }
 
 fn buffer(device: &wgpu::Device, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -292,6 +313,7 @@ impl Resources {
             })
         };
         let grid = lines("glocal_viewport_grid", "vs_grid", &[]);
+        let trail_faded = lines("glocal_viewport_trail_faded", "vs_trail_faded", &[Some(trail_layout.clone())]);
         let trail = lines("glocal_viewport_trail", "vs_trail", &[Some(trail_layout)]);
 
         let blit = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -344,6 +366,7 @@ impl Resources {
             solid_opaque,
             solid_blend,
             grid,
+            trail_faded,
             trail,
             blit,
             mesh_vertices,
@@ -352,6 +375,7 @@ impl Resources {
             sphere: (cyl_count..cyl_count + sphere_count, cylinder.vertices.len() as i32),
             views: HashMap::new(),
             samples,
+            geometry_uploads: 0,
         }
     }
 
@@ -373,7 +397,6 @@ impl Resources {
                 instance_capacity,
                 trail: buffer(device, "glocal_viewport_trail", trail_capacity * std::mem::size_of::<TrailVertex>() as u64, wgpu::BufferUsages::VERTEX),
                 trail_capacity,
-                trail_vertices: 0,
                 trail_version: u64::MAX,
                 overlay: buffer(device, "glocal_viewport_overlay", 64 * std::mem::size_of::<TrailVertex>() as u64, wgpu::BufferUsages::VERTEX),
                 overlay_capacity: 64,
@@ -455,15 +478,23 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
         if !self.instances.is_empty() {
             queue.write_buffer(&view.instances, 0, bytemuck::cast_slice(&self.instances));
         }
+        let mut uploaded = false;
         match &self.trail {
-            Some((version, vertices)) if *version != view.trail_version => {
+            Some(TrailDraw { version, geometry, .. }) if *version != view.trail_version => {
+                let vertices = &geometry.vertices;
                 let vertex_size = std::mem::size_of::<TrailVertex>() as u64;
-                ensure_capacity(device, &mut view.trail, &mut view.trail_capacity, vertices.len() as u64, vertex_size, "glocal_viewport_trail");
+                let needed = vertices.len() as u64;
+                // A short take after a long one gives the long one's buffer back.
+                if needed.max(1024) * 4 < view.trail_capacity {
+                    view.trail_capacity = needed.max(1024).next_power_of_two();
+                    view.trail = buffer(device, "glocal_viewport_trail", view.trail_capacity * vertex_size, wgpu::BufferUsages::VERTEX);
+                }
+                ensure_capacity(device, &mut view.trail, &mut view.trail_capacity, needed, vertex_size, "glocal_viewport_trail");
                 if !vertices.is_empty() {
                     queue.write_buffer(&view.trail, 0, bytemuck::cast_slice(vertices.as_slice()));
                 }
-                view.trail_vertices = vertices.len() as u32;
                 view.trail_version = *version;
+                uploaded = true;
             }
             _ => {}
         }
@@ -473,6 +504,9 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
             queue.write_buffer(&view.overlay, 0, bytemuck::cast_slice(self.overlay.as_slice()));
         }
 
+        if uploaded {
+            res.geometry_uploads += 1;
+        }
         // From here on only shared borrows of the resources are needed.
         let res: &Resources = res;
         let view = &res.views[&self.view];
@@ -522,10 +556,14 @@ impl egui_wgpu::CallbackTrait for SceneCallback {
                 pass.set_pipeline(&res.grid);
                 pass.draw(0..self.grid_vertices, 0..1);
             }
-            if self.trail.is_some() && view.trail_vertices > 0 {
-                pass.set_pipeline(&res.trail);
+            if let Some(trail) = self.trail.as_ref().filter(|t| !t.geometry.vertices.is_empty()) {
                 pass.set_vertex_buffer(0, view.trail.slice(..));
-                pass.draw(0..view.trail_vertices, 0..1);
+                pass.set_pipeline(&res.trail_faded);
+                pass.draw(0..trail.geometry.simplified, 0..1);
+                pass.set_pipeline(&res.trail);
+                for range in trail.highlighted.iter().filter(|r| !r.is_empty()) {
+                    pass.draw(range.clone(), 0..1);
+                }
                 pass.set_vertex_buffer(0, res_mesh(&res.mesh_vertices));
             }
             if !self.overlay.is_empty() {
