@@ -36,9 +36,18 @@ pub struct Engine {
     pub(super) init_after_switch: bool,
     /// The model being loaded is a switch the user asked for ([`super::app::StudioApp::switch_model`]).
     pub(super) switching: bool,
+    /// Another document replaced the take's (File > New or Open): the next take does not keep
+    /// the one on screen as the previous take, so a closed take's memory is given back.
+    pub(super) document_closed: bool,
 }
 
 impl Engine {
+    /// The document on screen was closed: its takes are not compared with the next.
+    pub fn close_document(&mut self) {
+        self.previous = None;
+        self.document_closed = true;
+    }
+
     /// The worker, loading the model in `model_dir`.
     pub fn new(mut worker: Worker, model_dir: PathBuf) -> Self {
         worker.load_model(model_dir.clone());
@@ -57,6 +66,7 @@ impl Engine {
             auto_regen: true,
             init_after_switch: false,
             switching: false,
+            document_closed: false,
         }
     }
 

@@ -54,6 +54,7 @@ impl StudioApp {
             d.options.timeline = Document::default_timeline(&classes);
         });
         self.editing.mark_saved();
+        self.engine.close_document();
         self.editing.project_path = None;
         self.panels.fields.project_path = project::default_work_folder().join("project.glocal.json").display().to_string();
         self.editing.selected = None;
@@ -90,6 +91,7 @@ impl StudioApp {
                 let current_model = self.editing.doc.model.clone();
                 self.editing.saved = Some(p.clone());
                 self.editing.doc = p;
+                self.engine.close_document();
                 self.editing.project_path = Some(std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()));
                 self.panels.fields.project_path = shown.clone();
                 self.editing.selected = None;

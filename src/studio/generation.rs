@@ -88,11 +88,12 @@ impl StudioApp {
     }
 
     /// Puts `take` on screen. The take before it is kept for comparison, unless it was this
-    /// one's first frames.
+    /// one's first frames or another document's.
     fn show_take(&mut self, take: Arc<Take>) {
         let frames = take.motion.frames();
         let id = take.id;
-        if let Some(old) = self.engine.take.replace(take).filter(|old| old.id != id) {
+        let keep = !std::mem::take(&mut self.engine.document_closed);
+        if let Some(old) = self.engine.take.replace(take).filter(|old| old.id != id && keep) {
             let white = Arc::new(vec![PREVIOUS_TAKE_COLOR; old.motion.frames()]);
             self.engine.previous = Some((old, white));
         }
