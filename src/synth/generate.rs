@@ -284,6 +284,17 @@ impl TakeSteps<'_> {
         }
     }
 
+    /// The sparse poses block `b` makes.
+    fn block_poses(&self, b: usize) -> std::ops::Range<usize> {
+        let t = self.model.spec.block_len;
+        t + b * t..t + (b + 1) * t
+    }
+
+    /// Whether every pose of block `b` is held.
+    fn holds(&self, b: usize) -> bool {
+        self.held.is_some_and(|h| h.holds(self.block_poses(b)))
+    }
+
     /// After block `b`: its state kept, and the chunks its poses settle finished and shown.
     fn settle(&mut self, b: usize, sparse: &[f32]) -> Result<()> {
         let spec = &self.model.spec;
@@ -317,14 +328,17 @@ impl RolloutSteps for TakeSteps<'_> {
         self.cond = self.plans[b].class.clone();
         self.aim(sparse);
         self.enter_segment(b);
-        self.strength = self.state.steering.block(&self.plans[b], input, sparse);
+        // A held block is not made: there is nothing to steer (the steering takes up the
+        // take again at the next free block, easing into its class if that changed).
+        if !self.holds(b) {
+            self.strength = self.state.steering.block(&self.plans[b], input, sparse);
+        }
         self.vary(b, input);
         self.strength
     }
 
     fn given(&self, b: usize) -> Option<Vec<f32>> {
-        let t = self.model.spec.block_len;
-        self.held?.held_block(t + b * t..t + (b + 1) * t)
+        self.held?.held_block(self.block_poses(b))
     }
 
     /// The seed and a block that holds a key stay where they are: the join sees their last

@@ -169,10 +169,15 @@ impl HeldConstraint {
         &self.free
     }
 
-    /// The normalised sparse poses of frames `poses` when all of them are held: a block of
-    /// them need not be made.
+    /// The normalised sparse poses `poses` when all of them are held: a block of them need
+    /// not be made.
     pub(super) fn held_block(&self, poses: Range<usize>) -> Option<Vec<f32>> {
         poses.map(|i| self.sparse.get(i)?.as_deref()).collect::<Option<Vec<&[f32]>>>().map(|p| p.concat())
+    }
+
+    /// Whether all of the sparse poses `poses` are held.
+    pub(super) fn holds(&self, mut poses: Range<usize>) -> bool {
+        poses.all(|i| self.sparse.get(i).is_some_and(Option::is_some))
     }
 
     /// The held world position of frame `f`.
