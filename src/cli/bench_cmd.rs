@@ -31,7 +31,8 @@ pub enum BenchCommand {
         json: bool,
     },
     /// Studio frame time during playback (ghosts and trail on) against an empty window,
-    /// 1280x800; or (`--memory`) its resident memory holding a long take and after closing it.
+    /// 1280x800, and what an edit late in a 300 s take costs (as `bench edit`); or
+    /// (`--memory`) its resident memory holding a long take and after closing it.
     /// Needs a display (`xvfb-run -a -s "-screen 0 1280x800x24" glocal bench studio`).
     #[cfg(feature = "studio")]
     Studio {
@@ -131,7 +132,10 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 let cpu_ratio = studio.cpu_ms / empty.cpu_ms;
                 let round_ratios: Vec<f64> = studios.iter().zip(&empties).map(|(s, e)| s.mean_ms / e.mean_ms).collect();
                 let studio_name = take_seconds.map_or_else(|| "studio playing, ghosts on".to_string(), |s| format!("studio playing {s} s, ghosts+trail"));
+                // What an edit late in a long take costs the studio's worker, beside.
+                let edit = super::bench_edit::bench_edit(Path::new("models/h36m"), 3)?;
                 let r = serde_json::json!({
+                    "edit": edit,
                     "take_seconds": take_seconds,
                     "empty": empty,
                     "studio": studio,
@@ -156,7 +160,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                         line("empty window", &empty),
                         line(&studio_name, &studio),
                         round_ratios.iter().map(|r| format!("{r:.2}x")).collect::<Vec<_>>().join(", ")
-                    )
+                    ) + "\n" + &edit.text()
                 })
             }
         },
