@@ -21,7 +21,6 @@ use glam::{Quat, Vec3};
 use super::foot_lock::{foot_lock, FootLocked, Travel};
 use super::held::HeldConstraint;
 use super::plan::TakeConstraint;
-use super::reuse::{settled_poses, Resume};
 use super::smoothstep;
 use crate::data::features::{wrap, FeatureLayout, Placement};
 use crate::model::glocal::GlocalModel;
@@ -243,19 +242,21 @@ pub(super) struct ChunkRecord {
 }
 
 impl<'a> ChunkFinish<'a> {
-    /// Chunks laid out as `layout`, from a take starting at `start`, keeping those of the
-    /// resumed take that read only poses it had settled, at the same times (`times`).
-    pub fn resumed(finishing: &'a Finishing<'a>, layout: Vec<Chunk>, resume: Option<&Resume<'_>>, start: Placement, times: &[f64]) -> Self {
-        let fresh = || Self { finishing, done: FinishedChunks::new(layout.clone(), finishing.model.spec.layout.joints(), finishing.project_bones), decoded: Vec::new(), placements: Vec::new(), start };
-        let Some((resume, old)) = resume.and_then(|r| Some((r, r.record.chunks.as_ref()?))) else { return fresh() };
-        let settled = settled_poses(resume.block, finishing.model.spec.block_len);
+    /// Chunks laid out as `layout`, from a take starting at `start`, at the paced frames
+    /// `times`, keeping those of an earlier take (`kept`: its record, how many of its sparse
+    /// poses the new take shares, and its times) that read only poses it shares, at the same
+    /// times.
+    pub fn resumed(finishing: &'a Finishing<'a>, layout: Vec<Chunk>, kept: Option<(&ChunkRecord, usize, &[f64])>, start: Placement, times: &[f64]) -> Self {
+        let joints = finishing.model.spec.layout.joints();
+        let Some((old, shared, old_times)) = kept else {
+            return Self { finishing, done: FinishedChunks::new(layout, joints, finishing.project_bones), decoded: Vec::new(), placements: Vec::new(), start };
+        };
         let same = |k: usize| {
             let window = layout[k].window.clone();
-            old.done.layout[k] == layout[k] && window.end <= settled && resume.record.times.get(window.clone()) == times.get(window)
+            old.done.layout[k] == layout[k] && window.end <= shared && old_times.get(window.clone()) == times.get(window)
         };
         let keep = (0..old.done.done().min(layout.len())).take_while(|&k| same(k)).count();
-        let joints = finishing.model.spec.layout.joints();
-        let poses = old.placements.len().min(settled);
+        let poses = old.placements.len().min(shared);
         Self { finishing, done: old.done.kept(layout, keep), decoded: old.decoded[..poses * joints].to_vec(), placements: old.placements[..poses].to_vec(), start }
     }
 

@@ -122,7 +122,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
             (sparse, fresh(), 0, Vec::new(), Vec::new())
         }
     };
-    let chunked = (layout.len() > 1).then(|| ChunkFinish::resumed(&finishing, layout, resume.as_ref(), start, &timeline.frames));
+    let kept = resume.as_ref().and_then(|r| Some((r.record.chunks.as_ref()?, settled_poses(r.block, t), r.record.times.as_slice())));
+    let chunked = (layout.len() > 1).then(|| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
     let mut steps = TakeSteps {
         model,
         opts,
