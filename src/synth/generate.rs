@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::finish::{chunks, Chunk, ChunkFinish, Finishing};
+use super::finish::{chunks, Chunk, ChunkFinish, Finishing, Stretch};
 use super::foot_lock::Travel;
 use super::given::GivenStart;
 use super::held::HeldConstraint;
@@ -16,7 +16,7 @@ use super::keys::{place_keys, KeyConstraint, PlacedKey};
 use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
 use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
-use super::reuse::{block_prints, settled_poses, take_print, Checkpoint, RolloutState, TakeCache, TakeRecord};
+use super::reuse::{block_prints, settled_poses, take_print, Checkpoint, Resume, RolloutState, TakeCache, TakeRecord};
 use super::steer::Steering;
 use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
@@ -113,14 +113,9 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     // more than the blocks it could spare.
     let prints = resumable.then(|| (take_print(model, opts, &seed_block), block_prints(opts, &plans, &block_segments)));
     let resume = prints.as_ref().and_then(|(take, blocks)| cache.resume(*take, blocks));
-    let fresh = || RolloutState { steering: Steering::new(model, opts), noise: StdRng::seed_from_u64(opts.seed), segment_noise: None };
-    let (mut sparse, state, first_block, mut embeddings, checkpoints) = match &resume {
-        Some(r) => (r.sparse(t, dim), r.record.checkpoints[r.block - 1].state.clone(), r.block, r.record.embeddings[..r.block].to_vec(), r.record.checkpoints[..r.block].to_vec()),
-        None => {
-            let mut sparse = seed_block;
-            spec.sparse_norm.normalize(&mut sparse);
-            (sparse, fresh(), 0, Vec::new(), Vec::new())
-        }
+    let Resumed { mut sparse, state, first_block, mut embeddings, checkpoints } = match &resume {
+        Some(r) => Resumed::from(r, t, dim),
+        None => Resumed::fresh(model, opts, seed_block),
     };
     let kept = resume.as_ref().and_then(|r| Some((r.record.chunks.as_ref()?, settled_poses(r.block, t), r.record.times.as_slice())));
     let chunked = (layout.len() > 1).then(|| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
@@ -151,16 +146,9 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
             (motion, contacts, Vec::new(), Some(chunked))
         }
         None => {
-            let mut whole = sparse[..total * dim].to_vec();
-            spec.sparse_norm.denormalize(&mut whole);
-            let (sparse_positions, _) = spec.layout.decode(&whole, start);
-            if !events.progress(0.9) {
-                return Err(super::Error::Cancelled.into());
-            }
-            let stretch = match held.as_ref().filter(|_| opts.keys.is_empty() && opts.path.is_none()) {
-                Some(held) => finishing.around_free_frames(&sparse_positions, held)?,
-                None => finishing.stretch(&sparse_positions, 0..total)?,
-            };
+            // Held frames without keys or a path leave only their free runs to finish.
+            let held = held.as_ref().filter(|_| opts.keys.is_empty() && opts.path.is_none());
+            let stretch = finish_whole(&finishing, &sparse[..total * dim], start, held, events)?;
             (stretch.motion, stretch.contacts, stretch.warnings, None)
         }
     };
@@ -205,6 +193,47 @@ fn take_constraints<'a>(model: &GlocalModel, opts: &GenerateOptions, timeline: &
         constraints.push(Box::new(held));
     }
     Ok(constraints)
+}
+
+/// Where a take's rollout starts: its sparse poses so far (normalised), the rollout's state,
+/// the first block to make, and the embeddings and checkpoints of the blocks before it.
+struct Resumed {
+    sparse: Vec<f32>,
+    state: RolloutState,
+    first_block: usize,
+    embeddings: Vec<Vec<f32>>,
+    checkpoints: Vec<Checkpoint>,
+}
+
+impl Resumed {
+    /// From the starting poses `seed_block`.
+    fn fresh(model: &GlocalModel, opts: &GenerateOptions, mut seed_block: Vec<f32>) -> Self {
+        model.spec.sparse_norm.normalize(&mut seed_block);
+        let state = RolloutState { steering: Steering::new(model, opts), noise: StdRng::seed_from_u64(opts.seed), segment_noise: None };
+        Self { sparse: seed_block, state, first_block: 0, embeddings: Vec::new(), checkpoints: Vec::new() }
+    }
+
+    /// Where the cached take stood before the block `resume` starts at.
+    fn from(resume: &Resume<'_>, block_len: usize, dim: usize) -> Self {
+        let (record, block) = (resume.record, resume.block);
+        Self { sparse: resume.sparse(block_len, dim), state: record.checkpoints[block - 1].state.clone(), first_block: block, embeddings: record.embeddings[..block].to_vec(), checkpoints: record.checkpoints[..block].to_vec() }
+    }
+}
+
+/// A take finished whole from its sparse poses (normalised), or around the free runs of its
+/// `held` frames.
+fn finish_whole(finishing: &Finishing<'_>, sparse: &[f32], start: Placement, held: Option<&HeldConstraint>, events: &mut dyn TakeEvents) -> Result<Stretch> {
+    let spec = &finishing.model.spec;
+    let mut raw = sparse.to_vec();
+    spec.sparse_norm.denormalize(&mut raw);
+    let (positions, _) = spec.layout.decode(&raw, start);
+    if !events.progress(0.9) {
+        return Err(super::Error::Cancelled.into());
+    }
+    match held {
+        Some(held) => finishing.around_free_frames(&positions, held),
+        None => finishing.stretch(&positions, 0..positions.len() / spec.layout.joints()),
+    }
 }
 
 /// What the caller is shown of a take while it is made, besides its frames.
