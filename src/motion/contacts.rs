@@ -61,6 +61,21 @@ impl FootContacts {
     }
 }
 
+/// How far under the hip joints the seat is on a floor sit, metres: the buttocks under the
+/// hip sockets' centres, about 10 cm on an adult.
+pub const SEAT_DEPTH: f32 = 0.1;
+
+/// Per frame, the height of what carries the body, in the motion's units: the lowest foot
+/// joint, or on a floor sit with the feet raised the seat ([`SEAT_DEPTH`] under the lower hip
+/// joint) where that is lower. Never a hand: a hand reaching the ground does not carry the
+/// body, and a floor set under it leaves the feet hovering (the floor rule of DESIGN.md).
+pub fn support_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
+    let seat_depth = SEAT_DEPTH / motion.skeleton.meters_per_unit();
+    let hips = [roles.left.hip, roles.right.hip];
+    let seat = |t: usize| hips.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - seat_depth;
+    lowest_foot_heights(motion, roles).into_iter().enumerate().map(|(t, foot)| foot.min(seat(t))).collect()
+}
+
 /// The height of each frame's lowest foot joint, in the motion's units.
 pub fn lowest_foot_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
     let joints: Vec<usize> = Side::BOTH.iter().flat_map(|&s| roles.leg(s).foot_joints()).collect();
