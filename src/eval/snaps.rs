@@ -91,26 +91,27 @@ pub struct SnapTally {
 }
 
 impl SnapTally {
-    /// Adds take `m` (at [`COMMON_FPS`]), named `take`; returns its worst bone against
-    /// `limits`.
-    pub fn add(&mut self, limits: &SnapLimits, take: &str, m: &Motion) -> Option<Snap> {
+    /// Adds take `m` (at [`COMMON_FPS`]), named `take`; returns its bones over their `limits`,
+    /// farthest over first, or its nearest bone when none is over.
+    pub fn add(&mut self, limits: &SnapLimits, take: &str, m: &Motion) -> Vec<Snap> {
         let worst_per_bone = bone_turns(m).into_iter().filter_map(|(_, bone, turns)| {
             let limit = *limits.0.get(&bone)?;
             let (frame, degrees) = turns.iter().copied().enumerate().max_by(|a, b| a.1.total_cmp(&b.1))?;
             Some(Snap { take: take.to_string(), bone, frame: frame + 1, degrees, limit })
         });
-        let bones: Vec<Snap> = worst_per_bone.collect();
+        let mut bones: Vec<Snap> = worst_per_bone.collect();
+        bones.sort_by(|a, b| b.excess().total_cmp(&a.excess()));
         let over = bones.iter().filter(|s| s.degrees > s.limit).count();
         self.takes += 1;
         self.takes_over += usize::from(over > 0);
         self.bones_over += over;
-        let worst = bones.into_iter().max_by(|a, b| a.excess().total_cmp(&b.excess()));
-        if let Some(w) = &worst {
+        if let Some(w) = bones.first() {
             if self.worst.as_ref().is_none_or(|old| w.excess() > old.excess()) {
                 self.worst = Some(w.clone());
             }
         }
-        worst
+        bones.truncate(over.max(1));
+        bones
     }
 
     /// `2 of 160 takes, 3 bones; worst: ...`.

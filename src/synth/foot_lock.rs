@@ -79,6 +79,11 @@ const SOFT_REACH: f32 = 0.05;
 /// about 0.1-0.15 s): a body floating longer is set down on the floor ([`set_down`]).
 const LONGEST_FLIGHT_SECONDS: f32 = 0.4;
 
+/// A body is set down only by as much as its support is higher than this above the floor
+/// (metres): within the contact band, so the lock plants what it sets down, and a standing
+/// body's millimetres of bob over the smoothed floor stay.
+const FLOAT_TOLERANCE: f32 = 0.03;
+
 /// Half-width (frames) of each of the three moving averages that smooth the hips' shift.
 const SHIFT_SMOOTH_FRAMES: usize = 3;
 
@@ -227,7 +232,8 @@ fn levelled(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> (Motion
     let half = (cfg.floor_window * motion.fps).round() as usize;
     let support = support_heights(motion, roles);
     let floor = smoothed(&local_floor(&support, half), (LEVEL_SMOOTH_SECONDS * motion.fps / 2.0).round() as usize);
-    let above: Vec<f32> = support.iter().zip(&floor).map(|(s, f)| (s - f).max(0.0)).collect();
+    let near = FLOAT_TOLERANCE / motion.skeleton.meters_per_unit();
+    let above: Vec<f32> = support.iter().zip(&floor).map(|(s, f)| (s - f - near).max(0.0)).collect();
     let float = set_down(&above, motion.fps);
     let j = motion.joints();
     let mut positions = motion.positions().to_vec();

@@ -77,8 +77,9 @@ pub struct FirstTake {
     /// Fraction of the frames of locked contacts (per foot) whose foot is more than
     /// [`FEET_UP_M`] above the floor: markers drawn on the floor under a hovering foot.
     pub contacts_off_floor: f64,
-    /// The bone that turns farthest over its real p99.9 in one frame.
-    pub worst_turn: Option<Snap>,
+    /// The bones that turn farther than their real p99.9 in one frame, farthest over first (or
+    /// the nearest bone, when none does).
+    pub bone_turns: Vec<Snap>,
 }
 
 /// Every first take of `dataset`'s shipped model; `snaps` tallies their bone turns.
@@ -95,8 +96,8 @@ pub fn first_takes(dataset: Dataset, ctx: &SuiteContext, limits: &SnapLimits, sn
             let opts = GenerateOptions { timeline: recipe.timeline.parse()?, init, ..ctx.generation.clone() }.varied(recipe.seed);
             let g = generate(&model, &opts, &mut |_| true)?;
             let (feet_up, longest_float_s, contacts_off_floor) = feet_on_the_floor(&g.motion, &g.contacts)?;
-            let worst_turn = snaps.add(limits, &command, &g.motion.resample(COMMON_FPS));
-            Ok(FirstTake { command, seconds: g.motion.seconds(), feet_up, longest_float_s, contacts_off_floor, worst_turn })
+            let bone_turns = snaps.add(limits, &command, &g.motion.resample(COMMON_FPS));
+            Ok(FirstTake { command, seconds: g.motion.seconds(), feet_up, longest_float_s, contacts_off_floor, bone_turns })
         })
         .collect()
 }
@@ -170,7 +171,7 @@ pub fn markdown(dataset: Dataset, takes: &[FirstTake], md: &mut Markdown) {
             format!("{}%", fixed_or(100.0 * take.feet_up, 0, "-")),
             fixed_or(take.longest_float_s as f64, 1, "-"),
             format!("{}%", fixed_or(100.0 * take.contacts_off_floor, 0, "-")),
-            take.worst_turn.as_ref().map_or("-".to_string(), Snap::describe),
+            take.bone_turns.first().map_or("-".to_string(), Snap::describe),
         ]);
     }
     md.table(table);
