@@ -9,6 +9,7 @@ pub mod classifier;
 pub mod constraints;
 pub mod metrics;
 pub mod motion;
+pub mod snaps;
 pub mod suites;
 pub mod table;
 

@@ -27,11 +27,15 @@ pub struct ContactConfig {
     /// Half-width of the window whose lowest foot height is the local floor, seconds: wider
     /// than a swing phase, so every window holds a standing foot.
     pub floor_window: f32,
+    /// On a floor sit (the seat within `height_on` of the local floor), a slow foot this high
+    /// still rests on the floor: the network raises a seated body's feet 16-20 cm for a second
+    /// at a time, where someone sitting on the floor keeps them on it.
+    pub seated_height: f32,
 }
 
 impl Default for ContactConfig {
     fn default() -> Self {
-        Self { height_on: 0.05, speed_on: 0.35, height_off: 0.08, speed_off: 0.6, body_speed_fraction: 0.25, min_seconds: 0.1, floor_window: 1.0 }
+        Self { height_on: 0.05, speed_on: 0.35, height_off: 0.08, speed_off: 0.6, body_speed_fraction: 0.25, min_seconds: 0.1, floor_window: 1.0, seated_height: 0.25 }
     }
 }
 
@@ -61,6 +65,25 @@ impl FootContacts {
     }
 }
 
+/// How far under the hip joints the seat is on a floor sit, metres: the buttocks under the
+/// hip sockets' centres, about 10 cm on an adult.
+pub const SEAT_DEPTH: f32 = 0.1;
+
+/// Per frame, the height of what carries the body, in the motion's units: the lowest foot
+/// joint, or on a floor sit with the feet raised the seat ([`SEAT_DEPTH`] under the lower hip
+/// joint) where that is lower. Never a hand: a hand reaching the ground does not carry the
+/// body, and a floor set under it leaves the feet hovering (the floor rule of DESIGN.md).
+pub fn support_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
+    lowest_foot_heights(motion, roles).into_iter().zip(seat_heights(motion, roles)).map(|(foot, seat)| foot.min(seat)).collect()
+}
+
+/// Per frame, the height of the seat: [`SEAT_DEPTH`] under the lower hip joint.
+fn seat_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
+    let seat_depth = SEAT_DEPTH / motion.skeleton.meters_per_unit();
+    let hips = [roles.left.hip, roles.right.hip];
+    (0..motion.frames()).map(|t| hips.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - seat_depth).collect()
+}
+
 /// The height of each frame's lowest foot joint, in the motion's units.
 pub fn lowest_foot_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
     let joints: Vec<usize> = Side::BOTH.iter().flat_map(|&s| roles.leg(s).foot_joints()).collect();
@@ -75,12 +98,15 @@ pub fn local_floor(lowest: &[f32], half_window: usize) -> Vec<f32> {
         .collect()
 }
 
-/// Contacts of both feet over the local floor.
+/// Contacts of both feet over the local floor (of the feet, or the seat on a floor sit).
 pub fn foot_contacts(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> FootContacts {
     let half = (cfg.floor_window * motion.fps).round() as usize;
-    let floor = local_floor(&lowest_foot_heights(motion, roles), half);
+    let floor = local_floor(&support_heights(motion, roles), half);
+    let unit = motion.skeleton.meters_per_unit();
+    let seated: Vec<bool> = seat_heights(motion, roles).iter().zip(&floor).map(|(seat, floor)| (seat - floor) * unit <= cfg.height_on).collect();
+    let ground = Ground { floor: &floor, seated: &seated };
     let body = body_speeds(motion, roles.body_root);
-    let contacts = |leg: &Leg| leg_contacts(motion, leg, &floor, &body, cfg);
+    let contacts = |leg: &Leg| leg_contacts(motion, leg, &ground, &body, cfg);
     FootContacts { left: contacts(&roles.left), right: contacts(&roles.right) }
 }
 
@@ -110,20 +136,27 @@ where
         .collect()
 }
 
-/// One foot's contacts over `floor`, with the body moving at `body` (one each per frame).
-fn leg_contacts(motion: &Motion, leg: &Leg, floor: &[f32], body: &[f32], cfg: &ContactConfig) -> Vec<bool> {
+/// Per frame, the local floor and whether the body sits on it.
+struct Ground<'a> {
+    floor: &'a [f32],
+    seated: &'a [bool],
+}
+
+/// One foot's contacts over `ground`, with the body moving at `body` (one each per frame).
+fn leg_contacts(motion: &Motion, leg: &Leg, ground: &Ground<'_>, body: &[f32], cfg: &ContactConfig) -> Vec<bool> {
     let unit = motion.skeleton.meters_per_unit();
     let joints = leg.foot_joints();
     let frames = motion.frames();
     let mut out = Vec::with_capacity(frames);
     let mut on = false;
     for t in 0..frames {
-        let height = joints.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - floor[t];
+        let height = joints.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - ground.floor[t];
         let speed = joints.iter().map(|&j| joint_velocity(motion, j, t).length()).fold(f32::INFINITY, f32::min);
         let (h, v) = (height * unit, speed * unit);
         let relative = cfg.body_speed_fraction * body[t] * unit;
         let (speed_on, speed_off) = (cfg.speed_on.max(relative), cfg.speed_off.max(relative * cfg.speed_off / cfg.speed_on));
-        on = if on { h <= cfg.height_off && v <= speed_off } else { h <= cfg.height_on && v <= speed_on };
+        let (height_on, height_off) = if ground.seated[t] { (cfg.seated_height, cfg.seated_height) } else { (cfg.height_on, cfg.height_off) };
+        on = if on { h <= height_off && v <= speed_off } else { h <= height_on && v <= speed_on };
         out.push(on);
     }
     let min_frames = (cfg.min_seconds * motion.fps).round().max(1.0) as usize;

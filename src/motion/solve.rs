@@ -14,11 +14,19 @@
 //! - several children along one line (rest or actual): treated as one child along their mean
 //!   direction.
 //!
+//! A joint whose only rotation places end sites (two or more leaf children: a Human3.6M hand,
+//! its end and its thumb) that the input does not keep at their rest angles (a network's
+//! output; motion capture keeps them, [`keeps_shape`]) turns at most
+//! [`MAX_HAND_TURN_PER_FRAME`] from one frame to the next ([`limit_turns`]): the network sometimes bends such a hand 140 degrees back and spins its
+//! thumb once round in five frames, and the fit of two end sites nearly opposite each other
+//! swings about their bisector, so a hand end turned 79 degrees in one frame.
+//!
 //! The root's translation is its position; every other translation is its rest offset, so the
 //! result has the skeleton's rest bone lengths whatever the input's (a bone-length projection).
 //! Directions are taken from the input positions (not from the rebuilt ones), so errors do not
 //! accumulate down the chains; only bone-length differences do. Always solved against the rest
-//! pose, never against another frame, so frames are independent.
+//! pose, never against another frame, so frames are independent (but for the limited turn of
+//! an end-site joint, which follows the frame before).
 
 use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
@@ -45,9 +53,59 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
             }
         }
     }
+    let is_leaf = |j: usize| children[j].is_empty();
+    let end_site_joints: Vec<usize> = (0..n).filter(|&j| children[j].len() >= 2 && children[j].iter().all(|&(c, _)| is_leaf(c)) && !keeps_shape(positions, n, j, &children[j])).collect();
     let solver = FrameSolver { skeleton, children, eps };
     // Frames are independent: spread them over the cores, each thread with its own scratch.
-    positions.par_chunks_exact(n).map_init(|| Scratch::new(n), |scratch, frame| solver.solve(frame, scratch)).collect()
+    let mut poses: Vec<LocalPose> = positions.par_chunks_exact(n).map_init(|| Scratch::new(n), |scratch, frame| solver.solve(frame, scratch)).collect();
+    end_site_joints.into_iter().for_each(|j| limit_turns(&mut poses, j));
+    poses
+}
+
+/// Whether every frame of `positions` keeps joint `j`'s end sites (`children`, rest
+/// directions) at their rest angles to each other, within a degree: then one rotation places
+/// them all exactly (motion capture, or a take already solved), and nothing is limited.
+fn keeps_shape(positions: &[Vec3], n: usize, j: usize, children: &[(usize, Vec3)]) -> bool {
+    let tolerance = 1.0f32.to_radians();
+    positions.chunks_exact(n).all(|frame| {
+        let actual = |c: usize| (frame[c] - frame[j]).normalize_or_zero();
+        children.iter().zip(children.iter().skip(1)).all(|(&(a, rest_a), &(b, rest_b))| {
+            let (da, db) = (actual(a), actual(b));
+            da == Vec3::ZERO || db == Vec3::ZERO || (da.angle_between(db) - rest_a.angle_between(rest_b)).abs() <= tolerance
+        })
+    })
+}
+
+/// The most a joint that only places end sites turns (its local rotation) from one frame to
+/// the next, degrees: Human3.6M's real thumb turns at most 24 degrees a frame at 30 fps (p99.9
+/// of the S11 clips), the forearm's own turn included.
+const MAX_HAND_TURN_PER_FRAME: f32 = 20.0;
+
+/// Joint `j`'s local rotation turning at most [`MAX_HAND_TURN_PER_FRAME`] a frame: followed
+/// at that speed forwards and backwards in time, and the two halfway met, so a snap is spread
+/// evenly before and after it rather than trailing behind.
+fn limit_turns(poses: &mut [LocalPose], j: usize) {
+    let own: Vec<Quat> = poses.iter().map(|p| p.rotations[j]).collect();
+    let forwards = followed(own.iter().copied());
+    let mut backwards = followed(own.iter().rev().copied());
+    backwards.reverse();
+    for ((pose, a), b) in poses.iter_mut().zip(forwards).zip(backwards) {
+        pose.rotations[j] = a.slerp(b, 0.5).normalize();
+    }
+}
+
+/// `rotations` followed in order, turning at most [`MAX_HAND_TURN_PER_FRAME`] a step.
+fn followed(rotations: impl Iterator<Item = Quat>) -> Vec<Quat> {
+    let limit = MAX_HAND_TURN_PER_FRAME.to_radians();
+    let mut out: Vec<Quat> = Vec::new();
+    for q in rotations {
+        let next = match out.last() {
+            Some(&p) if p.angle_between(q) > limit => p.slerp(q, limit / p.angle_between(q)).normalize(),
+            _ => q,
+        };
+        out.push(next);
+    }
+    out
 }
 
 struct FrameSolver<'a> {

@@ -2,7 +2,8 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
-use super::{forward_kinematics, LocalPose, Skeleton};
+use super::contacts::support_heights;
+use super::{forward_kinematics, JointRoles, LocalPose, Skeleton};
 
 /// A take: world joint positions over time on one skeleton, optionally with the local
 /// joint transforms they came from (kept for exporting rotations, e.g. to BVH).
@@ -63,9 +64,18 @@ impl Motion {
             .collect()
     }
 
-    /// The height of the lowest joint over the whole take: where its floor is.
+    /// The height of the take's floor, where exports and the studio set it: the lowest its
+    /// feet go, or its seat on a floor sit ([`support_heights`]); not its lowest joint, which
+    /// a hand on the ground would set. A skeleton whose legs are not found falls back to its
+    /// lowest joint.
     pub fn floor_height(&self) -> f32 {
-        floor_height(&self.positions)
+        let Ok(roles) = JointRoles::new(&self.skeleton) else { return floor_height(&self.positions) };
+        let lowest = support_heights(self, &roles).into_iter().fold(f32::INFINITY, f32::min);
+        if lowest.is_finite() {
+            lowest
+        } else {
+            0.0
+        }
     }
 
     /// The take moved by `offset` (positions and the roots' local translations).

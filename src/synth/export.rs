@@ -63,7 +63,7 @@ struct JsonContacts {
 /// Writes `motion` (already cut to the range to export) to `path` in the format its
 /// extension names. BVH gets the skeleton's hierarchy with rotations solved against its
 /// rest pose and the take's frame time; JSON and NPY get world positions. The take is set on
-/// the floor (its lowest joint at height 0), as animation tools expect: the models' own
+/// the floor (its feet, or its seat on a floor sit, at height 0: [`Motion::floor_height`]), as animation tools expect: the models' own
 /// worlds keep the dataset's origin (Human3.6M's hips at 0, its feet near -0.9 m).
 pub fn export(motion: &Motion, segments: &[SegmentSpan], path: &Path) -> Result<()> {
     export_with_contacts(motion, segments, None, path)

@@ -13,7 +13,7 @@
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use crate::motion::contacts::{box_average, foot_contacts, local_floor, lowest_foot_heights, runs, ContactConfig, FootContacts};
+use crate::motion::contacts::{box_average, foot_contacts, local_floor, runs, support_heights, ContactConfig, FootContacts};
 use crate::motion::ik::{hip_offset, two_bone, MAX_STRETCH};
 use super::smoothstep;
 use crate::motion::{solve_local_poses, JointRoles, Motion, Side, Skeleton};
@@ -74,6 +74,15 @@ const CARRY_SMOOTH_SECONDS: f32 = 0.025;
 /// The fraction of a leg's length over which a planted leg's reach softens (see
 /// [`heel_lifted`]).
 const SOFT_REACH: f32 = 0.05;
+
+/// The longest both feet leave the floor in a run or a jump, seconds (a run's flight phase is
+/// about 0.1-0.15 s): a body floating longer is set down on the floor ([`set_down`]).
+const LONGEST_FLIGHT_SECONDS: f32 = 0.4;
+
+/// A body is set down only by as much as its support is higher than this above the floor
+/// (metres): within the contact band, so the lock plants what it sets down, and a standing
+/// body's millimetres of bob over the smoothed floor stay.
+const FLOAT_TOLERANCE: f32 = 0.03;
 
 /// Half-width (frames) of each of the three moving averages that smooth the hips' shift.
 const SHIFT_SMOOTH_FRAMES: usize = 3;
@@ -214,18 +223,39 @@ fn eased(runs: impl IntoIterator<Item = (usize, usize)>, frames: usize, ease: f3
     weight
 }
 
-/// The take moved up or down per frame so the floor under its stance feet is at height 0,
-/// and the mean height of that floor before.
+/// The take moved up or down per frame so the floor under its stance feet (or its seat, on
+/// a floor sit: [`support_heights`]) is at height 0, and set down where it floats, and the
+/// height of that floor at the first frame: the whole take is put back on the floor it starts
+/// on, where a file start's given frames stand (on the mean floor of a take that sank, a
+/// Bandai walk's given start stood 6 cm above the rest).
 fn levelled(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> (Motion, f32) {
     let half = (cfg.floor_window * motion.fps).round() as usize;
-    let floor = smoothed(&local_floor(&lowest_foot_heights(motion, roles), half), (LEVEL_SMOOTH_SECONDS * motion.fps / 2.0).round() as usize);
+    let support = support_heights(motion, roles);
+    let floor = smoothed(&local_floor(&support, half), (LEVEL_SMOOTH_SECONDS * motion.fps / 2.0).round() as usize);
+    let near = FLOAT_TOLERANCE / motion.skeleton.meters_per_unit();
+    let above: Vec<f32> = support.iter().zip(&floor).map(|(s, f)| (s - f - near).max(0.0)).collect();
+    let float = set_down(&above, motion.fps);
     let j = motion.joints();
     let mut positions = motion.positions().to_vec();
-    for (frame, lift) in positions.chunks_exact_mut(j).zip(&floor) {
-        frame.iter_mut().for_each(|p| p.y -= lift);
+    for ((frame, lift), down) in positions.chunks_exact_mut(j).zip(&floor).zip(&float) {
+        frame.iter_mut().for_each(|p| p.y -= lift + down);
     }
-    let mean = floor.iter().sum::<f32>() / floor.len().max(1) as f32;
-    (Motion::from_positions(motion.skeleton.clone(), motion.fps, positions), mean)
+    (Motion::from_positions(motion.skeleton.clone(), motion.fps, positions), floor.first().copied().unwrap_or(0.0))
+}
+
+/// Per frame, how far to set the body down so that a stretch with both feet (and the seat)
+/// off the floor longer than [`LONGEST_FLIGHT_SECONDS`] stands on it: `above` (the support's
+/// height over the floor) opened (the lowest within half a flight either side, then the
+/// highest of that within half a flight), which keeps every shorter lift (a run's flight
+/// phase, a step) and follows a longer one's height; smoothed, but never by more than the
+/// support is above the floor, so nothing goes under it. The network's sitting down and
+/// standing up lift both feet off the ground for up to 1.9 s instead of pushing through them.
+fn set_down(above: &[f32], fps: f32) -> Vec<f32> {
+    let half = (LONGEST_FLIGHT_SECONDS * fps / 2.0).round() as usize;
+    let within = |values: &[f32], t: usize, pick: fn(f32, f32) -> f32, start: f32| values[t.saturating_sub(half)..(t + half + 1).min(values.len())].iter().copied().fold(start, pick);
+    let eroded: Vec<f32> = (0..above.len()).map(|t| within(above, t, f32::min, f32::INFINITY)).collect();
+    let opened: Vec<f32> = (0..above.len()).map(|t| within(&eroded, t, f32::max, 0.0)).collect();
+    smoothed(&opened, SHIFT_SMOOTH_FRAMES).iter().zip(above).map(|(d, a)| d.min(*a)).collect()
 }
 
 /// A foot's joints (the ankle and everything below it), in index order.

@@ -6,8 +6,10 @@ use anyhow::{bail, Result};
 use serde_json::{json, Value};
 
 use super::context::SuiteContext;
+use super::first_takes::{self, FirstTake};
 use crate::data::registry::Dataset;
 use crate::eval::motion::{joint_speed_per_class, joint_speed_per_tag, joint_speed_sums, real_pools, BlockGrid, Measure, Pool, Summary, COMMON_FPS, DEFINITIONS};
+use crate::eval::snaps::{SnapLimits, SnapTally};
 use crate::eval::table::{fixed_or, Markdown, Table};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
@@ -45,20 +47,25 @@ impl MotionSuiteConfig {
 }
 
 /// Generated takes of every class under `base`'s options (with `foot_lock` as given), pooled per
-/// class; the seed block is cut off every take.
-fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, foot_lock: bool) -> Result<Vec<Pool>> {
+/// class; the seed block is cut off every take. Where `snaps` is given, every take's bone turns
+/// are tallied against its limits.
+fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, foot_lock: bool, mut snaps: Option<(&SnapLimits, &mut SnapTally)>) -> Result<Vec<Pool>> {
     let spec = model.spec.clone();
     let roles = JointRoles::new(&spec.layout.skeleton)?;
     let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
     let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
     let k = spec.classes.len();
     let mut pools: Vec<Pool> = (0..k).map(|_| Pool::default()).collect();
-    let take = |model: &GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
+    let mut take = |model: &GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
+        let label = format!("{} from {} variant {variant}, seed {seed}", segments.iter().map(|(c, s)| format!("{}:{s:.1}", spec.classes[*c])).collect::<Vec<_>>().join(","), spec.classes[init]);
         let segments = segments.into_iter().map(|(c, s)| Segment::new(spec.classes[c].clone(), s)).collect();
         let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..base.clone() }.varied(seed);
         let g = generate(model, &opts, &mut |_| true)?;
         let seed_frames = spec.block_len * spec.stride;
         let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
+        if let Some((limits, tally)) = snaps.as_mut() {
+            tally.add(limits, &label, &m);
+        }
         let to_common = |f: usize| ((f.saturating_sub(seed_frames)) as f32 * COMMON_FPS / spec.fps).round() as usize;
         Ok((m, g.segments.iter().skip(1).map(|s| to_common(s.start_frame)).collect()))
     };
@@ -115,6 +122,11 @@ struct ModelResult {
     /// Per class, the mean joint speed of each style (Bandai) or subject (Human3.6M), training
     /// split and test split, slowest first.
     tag_speeds: Vec<[Vec<(String, f64)>; 2]>,
+    /// Bones over the real p99.9 turn in one frame, in the shipped takes above.
+    snaps: SnapTally,
+    first_takes: Vec<FirstTake>,
+    /// Bones over the real p99.9 turn in one frame, in the first takes.
+    first_snaps: SnapTally,
 }
 
 /// Rows of the class-balanced table: (measure, label, digits).
@@ -185,9 +197,13 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
     let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
     let real = real_pools(&corpus, &roles, grid, cfg.take_seconds);
     log(&format!("motion: {dataset} generated, no foot lock"));
-    let unlocked = generated_pools(&model, cfg, &ctx.generation, false)?;
+    let unlocked = generated_pools(&model, cfg, &ctx.generation, false, None)?;
     log(&format!("motion: {dataset} generated, shipped"));
-    let shipped = generated_pools(&model, cfg, &ctx.generation, true)?;
+    let limits = SnapLimits::from_tracks(&corpus.test);
+    let mut snaps = SnapTally::default();
+    let shipped = generated_pools(&model, cfg, &ctx.generation, true, Some((&limits, &mut snaps)))?;
+    let mut first_snaps = SnapTally::default();
+    let first_takes = first_takes::first_takes(dataset, ctx, &limits, &mut first_snaps, log)?;
     let classes = spec.classes.len();
     let train_sums = joint_speed_sums(&corpus.train, classes);
     Ok(ModelResult {
@@ -197,6 +213,9 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
         sources: [Source::new("real", &real), Source::new("no lock", &unlocked), Source::new("generated", &shipped)],
         train_speed: joint_speed_per_class(&train_sums),
         tag_speeds: joint_speed_per_tag(&train_sums).into_iter().zip(joint_speed_per_tag(&joint_speed_sums(&corpus.test, classes))).map(|(a, b)| [a, b]).collect(),
+        snaps,
+        first_takes,
+        first_snaps,
     })
 }
 
@@ -216,6 +235,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
         cell(shipped.balanced[Measure::TransitionPeak] / real_p95, 2),
     ]);
     md.table(balanced_table);
+    md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}.\n", r.snaps.describe()));
     let profile = |p: &[Vec<f64>]| -> String {
         let k = p.first().map_or(0, Vec::len);
         (0..k).map(|i| cell(p.iter().map(|c| c[i]).sum::<f64>() / p.len() as f64, 2)).collect::<Vec<_>>().join(" ")
@@ -255,6 +275,8 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
     }
     md.table(per_class);
     tag_markdown(r, md);
+    first_takes::markdown(r.dataset, &r.first_takes, md);
+    md.text(&format!("\nBones over the real p99.9 in one frame, first takes: {}.\n", r.first_snaps.describe()));
 }
 
 /// Each class's joint speed by style or subject: how far the test split's own spread sits
@@ -275,5 +297,5 @@ fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
 }
 
 fn model_json(r: &ModelResult) -> Value {
-    json!({"dataset": r.dataset.name(), "model": r.dir, "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
+    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "first_takes": r.first_takes, "first_takes_bone_snaps": r.first_snaps, "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
 }
