@@ -115,9 +115,7 @@ impl Finishing<'_> {
         let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
         Ok(Stretch { first: frames.start, motion, contacts, warnings })
     }
-}
 
-impl Finishing<'_> {
     /// A take that holds all but its `held` constraint's free frames: only the stretches of
     /// sparse poses around each run of free frames (a margin either side) are finished, the
     /// held frames put in around them and the joins made as a take finished whole makes them
@@ -172,15 +170,6 @@ impl Finishing<'_> {
         Ok(Stretch { first: 0, motion, contacts, warnings: Vec::new() })
     }
 
-}
-
-/// A held frame's place in the poses until the held constraint puts its pose there (it
-/// replaces every held frame's pose).
-fn stand_in(frame: &[Vec3]) -> LocalPose {
-    LocalPose { rotations: vec![Quat::IDENTITY; frame.len()], translations: frame.to_vec() }
-}
-
-impl Finishing<'_> {
     /// The stretches of sparse poses to finish for runs `free` of frames: from a margin
     /// before the held frame before each run to a margin after the held frame after it,
     /// merged where they overlap.
@@ -199,6 +188,12 @@ impl Finishing<'_> {
         }
         windows
     }
+}
+
+/// A held frame's place in the poses until the held constraint puts its pose there (it
+/// replaces every held frame's pose).
+fn stand_in(frame: &[Vec3]) -> LocalPose {
+    LocalPose { rotations: vec![Quat::IDENTITY; frame.len()], translations: frame.to_vec() }
 }
 
 /// Stretches sparse intervals (native `stride` frames each) to the frames `frames` of the

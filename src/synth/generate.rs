@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::finish::{chunks, Chunk, ChunkFinish, Finishing, Stretch};
+use super::finish::{chunks, ChunkFinish, Finishing, Stretch};
 use super::foot_lock::Travel;
 use super::given::GivenStart;
 use super::held::HeldConstraint;
@@ -100,7 +100,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     // Keys and held frames warp poses far behind the block being made; they and a path reach
     // across the take's frames too.
     let resumable = opts.keys.is_empty() && opts.held.is_empty();
-    let layout = if resumable && opts.path.is_none() { chunks(total, spec.stride as f32 / spec.fps) } else { vec![Chunk { core: 0..total, window: 0..total }] };
+    // Takes of one chunk, and those keys, held frames or a path reach across, are finished whole.
+    let layout = Some(chunks(total, spec.stride as f32 / spec.fps)).filter(|l| resumable && opts.path.is_none() && l.len() > 1);
     // A root path has laid out where the body goes; without one, the feet of a model whose
     // network slides them say how far.
     let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet } else { Travel::Kept };
@@ -118,7 +119,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
         None => Resumed::fresh(model, opts, seed_block),
     };
     let kept = resume.as_ref().and_then(|r| Some((r.record.chunks.as_ref()?, settled_poses(r.block, t), r.record.times.as_slice())));
-    let chunked = (layout.len() > 1).then(|| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
+    let chunked = layout.map(|layout| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
     let mut steps = TakeSteps {
         model,
         opts,
