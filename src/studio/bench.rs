@@ -111,54 +111,89 @@ struct Timed<A> {
     started: Option<(Instant, f64)>,
     opened: Instant,
     intervals: Vec<f64>,
-    out: Arc<Mutex<Result<FrameStats, String>>>,
     ready: fn(&mut A) -> bool,
-    /// The statistics are written: eframe still runs a frame or two after `Close`, which
-    /// must not overwrite them.
-    done: bool,
 }
 
 impl<A> Timed<A> {
-    fn new(inner: A, seconds: f64, out: Arc<Mutex<Result<FrameStats, String>>>, ready: fn(&mut A) -> bool) -> Self {
-        Self { inner, seconds, seen: 0, last: None, started: None, opened: Instant::now(), intervals: Vec::new(), out, ready, done: false }
-    }
-
-    fn finish(&mut self, ctx: &egui::Context, result: Result<FrameStats, String>) {
-        if let Ok(mut out) = self.out.lock() {
-            *out = result;
-        }
-        self.done = true;
-        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    fn new(inner: A, seconds: f64, ready: fn(&mut A) -> bool) -> Self {
+        Self { inner, seconds, seen: 0, last: None, started: None, opened: Instant::now(), intervals: Vec::new(), ready }
     }
 }
 
-impl<A: eframe::App> eframe::App for Timed<A> {
+/// What a bench does in the window it measures, after each of the app's frames.
+trait Bench {
+    type App: eframe::App;
+    type Output;
+    fn app(&self) -> &Self::App;
+    fn app_mut(&mut self) -> &mut Self::App;
+    /// Looks at the frame just drawn; the bench's result once it is over.
+    fn frame(&mut self, ctx: &egui::Context) -> Option<Result<Self::Output, String>>;
+}
+
+/// A bench's window: the app's frames, repainted without pause until the bench has its
+/// result, which goes to `out`; then the window closes.
+struct BenchWindow<B: Bench> {
+    bench: B,
+    out: Arc<Mutex<Result<B::Output, String>>>,
+    /// The result is written: eframe still runs a frame or two after `Close`, which must not
+    /// overwrite it.
+    done: bool,
+}
+
+impl<B: Bench> BenchWindow<B> {
+    fn new(bench: B, out: Arc<Mutex<Result<B::Output, String>>>) -> Self {
+        Self { bench, out, done: false }
+    }
+}
+
+impl<B: Bench> eframe::App for BenchWindow<B> {
     /// The studio's panels show the window's clear colour: forwarded so the measured window
     /// looks (and costs) exactly like the real one.
     fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
-        self.inner.clear_color(visuals)
+        self.bench.app().clear_color(visuals)
     }
 
     fn logic(&mut self, ctx: &egui::Context, frame: &mut eframe::Frame) {
-        self.inner.logic(ctx, frame);
+        self.bench.app_mut().logic(ctx, frame);
     }
 
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        self.inner.ui(ui, frame);
+        self.bench.app_mut().ui(ui, frame);
         let ctx = ui.ctx().clone();
         if self.done {
             return;
         }
         ctx.request_repaint();
-        if !(self.ready)(&mut self.inner) {
-            if self.opened.elapsed() > READY_TIMEOUT {
-                self.finish(&ctx, Err(format!("the studio did not reach playback within {} s", READY_TIMEOUT.as_secs())));
+        if let Some(result) = self.bench.frame(&ctx) {
+            if let Ok(mut out) = self.out.lock() {
+                *out = result;
             }
-            return;
+            self.done = true;
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+}
+
+impl<A: eframe::App> Bench for Timed<A> {
+    type App = A;
+    type Output = FrameStats;
+
+    fn app(&self) -> &A {
+        &self.inner
+    }
+
+    fn app_mut(&mut self) -> &mut A {
+        &mut self.inner
+    }
+
+    fn frame(&mut self, ctx: &egui::Context) -> Option<Result<FrameStats, String>> {
+        if !(self.ready)(&mut self.inner) {
+            let late = self.opened.elapsed() > READY_TIMEOUT;
+            return late.then(|| Err(format!("the studio did not reach playback within {} s", READY_TIMEOUT.as_secs())));
         }
         self.seen += 1;
         if self.seen <= WARMUP_FRAMES {
-            return;
+            return None;
         }
         let now = Instant::now();
         let (started, cpu_start) = *self.started.get_or_insert_with(|| (now, process_cpu_ms()));
@@ -168,8 +203,9 @@ impl<A: eframe::App> eframe::App for Timed<A> {
         if (now - started).as_secs_f64() >= self.seconds && !self.intervals.is_empty() {
             let cpu = process_cpu_ms() - cpu_start;
             let stats = FrameStats::from_intervals(std::mem::take(&mut self.intervals), cpu, ctx.content_rect().size());
-            self.finish(&ctx, Ok(stats));
+            return Some(Ok(stats));
         }
+        None
     }
 }
 
@@ -298,8 +334,8 @@ pub fn measure(window: Window, seconds: f64) -> Result<FrameStats> {
         window_options(),
         Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
             Ok(match window {
-                Window::Empty => Box::new(Timed::new(Empty, seconds, sink, |_| true)),
-                Window::Studio { take_seconds } => Box::new(Timed::new(bench_studio(cc, take_seconds), seconds, sink, BenchStudio::ready)),
+                Window::Empty => Box::new(BenchWindow::new(Timed::new(Empty, seconds, |_| true), sink)),
+                Window::Studio { take_seconds } => Box::new(BenchWindow::new(Timed::new(bench_studio(cc, take_seconds), seconds, BenchStudio::ready), sink)),
             })
         }),
     )
@@ -369,8 +405,6 @@ struct MemoryRun {
     take_before: Option<u64>,
     opened: Instant,
     points: Vec<MemoryPoint>,
-    out: Arc<Mutex<Result<Vec<MemoryPoint>, String>>>,
-    done: bool,
 }
 
 impl MemoryRun {
@@ -391,8 +425,9 @@ impl MemoryRun {
         ready
     }
 
-    /// Reads the memory of the step just played and starts the next one.
-    fn next_step(&mut self, ctx: &egui::Context) {
+    /// Reads the memory of the step just played and starts the next one; after the last, the
+    /// points read.
+    fn next_step(&mut self) -> Option<Vec<MemoryPoint>> {
         let frames = self.studio.app.engine.take.as_ref().map_or(0, |t| t.motion.frames());
         let what = match self.step {
             MemoryStep::Default => "model loaded, default take".to_string(),
@@ -421,50 +456,36 @@ impl MemoryRun {
                 app.regenerate();
                 MemoryStep::Again
             }
-            MemoryStep::Again => {
-                let points = std::mem::take(&mut self.points);
-                self.finish(ctx, Ok(points));
-                return;
-            }
+            MemoryStep::Again => return Some(std::mem::take(&mut self.points)),
         };
-    }
-
-    fn finish(&mut self, ctx: &egui::Context, result: Result<Vec<MemoryPoint>, String>) {
-        if let Ok(mut out) = self.out.lock() {
-            *out = result;
-        }
-        self.done = true;
-        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        None
     }
 }
 
-impl eframe::App for MemoryRun {
-    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
-        self.studio.clear_color(visuals)
+impl Bench for MemoryRun {
+    type App = BenchStudio;
+    type Output = Vec<MemoryPoint>;
+
+    fn app(&self) -> &BenchStudio {
+        &self.studio
     }
 
-    fn logic(&mut self, ctx: &egui::Context, frame: &mut eframe::Frame) {
-        self.studio.logic(ctx, frame);
+    fn app_mut(&mut self) -> &mut BenchStudio {
+        &mut self.studio
     }
 
-    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        self.studio.ui(ui, frame);
-        let ctx = ui.ctx().clone();
-        if self.done {
-            return;
-        }
-        ctx.request_repaint();
+    fn frame(&mut self, _ctx: &egui::Context) -> Option<Result<Vec<MemoryPoint>, String>> {
         if self.opened.elapsed() > MEMORY_TIMEOUT {
-            self.finish(&ctx, Err(format!("the memory bench did not finish within {} s (at {:?})", MEMORY_TIMEOUT.as_secs(), self.step)));
-            return;
+            return Some(Err(format!("the memory bench did not finish within {} s (at {:?})", MEMORY_TIMEOUT.as_secs(), self.step)));
         }
         if !self.step_ready() {
-            return;
+            return None;
         }
         self.played += 1;
-        if self.played >= MEMORY_FRAMES {
-            self.next_step(&ctx);
+        if self.played < MEMORY_FRAMES {
+            return None;
         }
+        self.next_step().map(Ok)
     }
 }
 
@@ -481,7 +502,8 @@ pub fn measure_memory(long_seconds: f32) -> Result<Vec<MemoryPoint>> {
         window_options(),
         Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
             let studio = bench_studio(cc, None);
-            Ok(Box::new(MemoryRun { studio, long_seconds, step: MemoryStep::Default, played: 0, take_before: None, opened: Instant::now(), points: Vec::new(), out: sink, done: false }))
+            let run = MemoryRun { studio, long_seconds, step: MemoryStep::Default, played: 0, take_before: None, opened: Instant::now(), points: Vec::new() };
+            Ok(Box::new(BenchWindow::new(run, sink)))
         }),
     )
     .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;

@@ -7,30 +7,35 @@
 //! the floor with its waypoints; in path-edit mode a click on the ground adds a waypoint
 //! (the pointer's ray met with the ground plane) and a drag moves one ([`PathEdit`]). In pose
 //! mode, handles on the take's hands, feet, head and hips pose the frame on screen
-//! (`viewport/posing.rs`).
+//! (`viewport/posing.rs`). The camera and its pointer input are in `viewport/camera.rs`, the
+//! root's trail on the floor in `viewport/trail.rs`.
 //!
 //! Rendering (see `viewport/render.rs`): egui's render pass has no depth buffer by default, so
 //! the scene is drawn during the callback's `prepare` into an offscreen colour + depth image
 //! the size of the view (4x MSAA on GPUs, none on software rasterisers), and `paint` copies that image into egui's pass.
 
+mod camera;
 mod mesh;
 mod posing;
 mod projection;
 mod render;
 mod solids;
+mod trail;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use eframe::egui_wgpu::{self, wgpu};
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 
 use crate::motion::contacts::FootContacts;
 use crate::motion::{JointRoles, Motion, PoseRig, Side};
+use camera::{Camera, START_CAMERA};
 use posing::Posing;
 pub use posing::PosedFrame;
-use render::{Globals, Resources, SceneCallback, TrailDraw, TrailGeometry, TrailVertex};
+use render::{Globals, Resources, SceneCallback, TrailVertex};
 use solids::{cylinder, floor_disc, linear_rgba, sphere, Solids};
+use trail::TrailCache;
 pub use render::HostPass;
 
 /// One take drawn in the viewport.
@@ -104,25 +109,17 @@ const CONTACT_RADIUS: f32 = 0.06;
 /// A press within this many points of a waypoint or a pose handle grabs it.
 const GRAB_POINTS: f32 = 14.0;
 
-/// Vertical field of view.
-const FOV_Y: f32 = 40.0 * std::f32::consts::PI / 180.0;
 const BONE_RADIUS: f32 = 0.022;
 const JOINT_RADIUS: f32 = 0.03;
 const HEAD_RADIUS: f32 = 0.1;
 /// Bones shorter than this (metres, in the rest pose) are not drawn, nor their end joint.
 const MIN_BONE: f32 = 0.005;
-/// How far the faded trail may stray from the root's path, metres: under a pixel wherever the
-/// camera shows a whole body. A ten-minute walk's 15 000 frames make about 3 000 lines then,
-/// and a software rasteriser's cost is per line.
-const TRAIL_TOLERANCE: f32 = 0.002;
 /// Fewest frames of the trail highlighted before the current one.
 const MIN_HIGHLIGHT: usize = 30;
 /// Most ghosts drawn on each side of the current frame.
 const MAX_GHOSTS: usize = 32;
 /// Background (sRGB).
 const BACKGROUND: [u8; 3] = [30, 32, 38];
-
-const START_CAMERA: Camera = Camera { yaw: 0.6, pitch: 0.3, distance: 4.0, target: Vec3::new(0.0, 0.9, 0.0), pan: Vec3::ZERO };
 
 /// Camera state and interaction (orbit: drag, pan: right/middle drag or shift+drag, zoom:
 /// scroll, frame the take: double-click). Create once with [`Viewport::new`]; call
@@ -148,27 +145,6 @@ pub struct Viewport {
 impl Default for Viewport {
     fn default() -> Self {
         Self::new()
-    }
-}
-
-#[derive(Clone, Copy, Debug)]
-struct Camera {
-    /// Radians about +y; 0 looks from +z towards -z.
-    yaw: f32,
-    /// Radians above the horizon.
-    pitch: f32,
-    distance: f32,
-    /// Orbit centre when not following the root.
-    target: Vec3,
-    /// Orbit centre relative to the followed root point when following.
-    pan: Vec3,
-}
-
-impl Camera {
-    fn back(&self) -> Vec3 {
-        let (sy, cy) = self.yaw.sin_cos();
-        let (sp, cp) = self.pitch.sin_cos();
-        Vec3::new(cp * sy, sp, cp * cy)
     }
 }
 
@@ -253,21 +229,6 @@ impl LayerInfo {
         let rig = PoseRig::new(skeleton).ok();
         Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head, feet, rig }
     }
-}
-
-/// The trail of the layers shown, built once per take (and per offset, ground and colours).
-struct TrailCache {
-    key: Vec<(usize, usize, [u32; 3])>,
-    ground: u32,
-    version: u64,
-    geometry: Arc<TrailGeometry>,
-    /// Where each layer's full-resolution path starts in `geometry.vertices`.
-    full_starts: Vec<u32>,
-}
-
-fn next_version() -> u64 {
-    static NEXT: AtomicU64 = AtomicU64::new(1);
-    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 impl Viewport {
@@ -396,66 +357,6 @@ impl Viewport {
         }
     }
 
-    /// The followed point: the layers' mean root ground position at the current frame, at the
-    /// mean height of their bodies.
-    fn follow_point(&self, scene: &Scene) -> Vec3 {
-        let mut sum = Vec3::ZERO;
-        let mut height = 0.0;
-        let mut n = 0.0;
-        for (layer, info) in scene.layers.iter().zip(&self.layers) {
-            let m = &layer.motion;
-            if m.frames() == 0 || m.joints() == 0 {
-                continue;
-            }
-            let p = m.frame(scene.frame.min(m.frames() - 1))[info.root] * m.skeleton.meters_per_unit() + layer.offset;
-            sum += Vec3::new(p.x, 0.0, p.z);
-            height += info.centre_height;
-            n += 1.0;
-        }
-        if n == 0.0 {
-            return self.camera.target;
-        }
-        let ground = self.ground();
-        Vec3::new(sum.x / n, ground + height / n, sum.z / n)
-    }
-
-    fn handle_input(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
-        let cam = &mut self.camera;
-        let shift = ui.input(|i| i.modifiers.shift);
-        let delta = response.drag_delta();
-        let primary = response.dragged_by(egui::PointerButton::Primary);
-        let pan = response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) || (primary && shift);
-        if pan {
-            // Move the target so the point under the cursor follows it.
-            let units_per_point = 2.0 * cam.distance * (FOV_Y / 2.0).tan() / rect.height().max(1.0);
-            let back = cam.back();
-            let right = Vec3::Y.cross(back).normalize_or_zero();
-            let up = back.cross(right);
-            let shift = (-right * delta.x + up * delta.y) * units_per_point;
-            cam.target += shift;
-            cam.pan += shift;
-        } else if primary {
-            cam.yaw -= delta.x * 0.008;
-            cam.pitch = (cam.pitch + delta.y * 0.008).clamp(-1.45, 1.45);
-        }
-        if response.hovered() {
-            let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta.y, i.zoom_delta()));
-            // A wheel notch (about 50 points) zooms by 5%.
-            let factor = (-scroll * 0.001).exp() / zoom.max(1e-3);
-            cam.distance = (cam.distance * factor).clamp(0.2, 500.0);
-        }
-    }
-
-    /// The camera's view-projection and eye for an orbit centre and aspect ratio.
-    fn view_proj(&self, target: Vec3, aspect: f32) -> (Mat4, Vec3) {
-        let cam = self.camera;
-        let eye = target + cam.back() * cam.distance;
-        let view = Mat4::look_at_rh(eye, target, Vec3::Y);
-        let near = (cam.distance * 0.01).clamp(0.005, 1.0);
-        let far = cam.distance * 4.0 + 200.0;
-        (Mat4::perspective_rh(FOV_Y, aspect.max(1e-3), near, far) * view, eye)
-    }
-
     /// Path-edit mode: a press on a waypoint drags it, a click elsewhere on the ground adds
     /// one. Returns whether the pointer was used (the camera then does not move).
     fn edit_path(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect, path: PathOverlay, target: Vec3) -> bool {
@@ -505,108 +406,6 @@ impl Viewport {
             }
         }
         out
-    }
-
-    /// Fits the view: with follow-root, around the current poses; else the whole take.
-    fn frame_scene(&mut self, scene: &Scene, follow_point: Vec3) {
-        let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for (layer, info) in scene.layers.iter().zip(&self.layers) {
-            let m = &layer.motion;
-            if m.frames() == 0 {
-                continue;
-            }
-            if scene.settings.follow_root {
-                let mpu = m.skeleton.meters_per_unit();
-                let frame = m.frame(scene.frame.min(m.frames() - 1));
-                for &j in &info.joints {
-                    let p = frame[j] * mpu + layer.offset;
-                    min = min.min(p);
-                    max = max.max(p);
-                }
-            } else {
-                min = min.min(info.min + layer.offset);
-                max = max.max(info.max + layer.offset);
-            }
-        }
-        if !min.is_finite() || !max.is_finite() {
-            return;
-        }
-        let centre = (min + max) / 2.0;
-        let radius = ((max - min).length() / 2.0).max(0.6);
-        self.camera.distance = (radius / (FOV_Y / 2.0).sin() * 1.4).clamp(0.2, 500.0);
-        self.camera.target = centre;
-        self.camera.pan = if scene.settings.follow_root { Vec3::new(0.0, centre.y - follow_point.y, 0.0) } else { Vec3::ZERO };
-    }
-
-    /// The trail of the scene's layers: its geometry (made when a layer's take, colours or
-    /// offset changes) and, this frame, the highlighted part: the `window` frames up to the
-    /// current one.
-    fn trail(&mut self, scene: &Scene, window: usize) -> TrailDraw {
-        let ground = self.ground();
-        let key: Vec<_> = scene
-            .layers
-            .iter()
-            .map(|l| (Arc::as_ptr(&l.motion) as usize, Arc::as_ptr(&l.frame_colors) as usize, l.offset.to_array().map(f32::to_bits)))
-            .collect();
-        if self.trail.as_ref().is_none_or(|c| c.key != key || c.ground != ground.to_bits()) {
-            let (geometry, full_starts) = self.trail_geometry(scene, ground);
-            self.trail = Some(TrailCache { key, ground: ground.to_bits(), version: next_version(), geometry: Arc::new(geometry), full_starts });
-        }
-        let cache = self.trail.as_ref().expect("made above");
-        let highlighted = scene
-            .layers
-            .iter()
-            .zip(&cache.full_starts)
-            .map(|(layer, &start)| {
-                let frames = layer.motion.frames();
-                if frames < 2 {
-                    return 0..0;
-                }
-                // Line k joins frames k - 1 and k (vertices 2k - 2 and 2k - 1).
-                let current = scene.frame.min(frames - 1);
-                let (first, last) = (current.saturating_sub(window).max(1), (current + 1).min(frames - 1));
-                start + 2 * (first as u32 - 1)..start + 2 * last as u32
-            })
-            .collect();
-        TrailDraw { version: cache.version, geometry: cache.geometry.clone(), highlighted }
-    }
-
-    /// Every layer's root path on the ground: simplified for the faded whole, then at every
-    /// frame for the highlighted part; and where each layer's full path starts.
-    fn trail_geometry(&self, scene: &Scene, ground: f32) -> (TrailGeometry, Vec<u32>) {
-        let paths: Vec<Vec<TrailVertex>> = scene
-            .layers
-            .iter()
-            .zip(&self.layers)
-            .map(|(layer, info)| {
-                let m = &layer.motion;
-                let mpu = m.skeleton.meters_per_unit();
-                let last = m.frames().saturating_sub(1) as f32;
-                (0..m.frames())
-                    .map(|t| {
-                        let p = m.frame(t)[info.root] * mpu + layer.offset;
-                        let [r, g, b] = layer.frame_colors.get(t).copied().unwrap_or([200, 200, 200]);
-                        TrailVertex { position: [p.x, ground, p.z], frame: t as f32, last_frame: last, color: [r, g, b, 255] }
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut vertices = Vec::new();
-        for path in &paths {
-            let kept = simplify_path(path, TRAIL_TOLERANCE);
-            for pair in kept.windows(2) {
-                vertices.extend([path[pair[0]], path[pair[1]]]);
-            }
-        }
-        let simplified = vertices.len() as u32;
-        let mut full_starts = Vec::new();
-        for path in &paths {
-            full_starts.push(vertices.len() as u32);
-            for pair in path.windows(2) {
-                vertices.extend_from_slice(pair);
-            }
-        }
-        (TrailGeometry { vertices, simplified }, full_starts)
     }
 
     fn build(&mut self, scene: &Scene, target: Vec3, size_px: [u32; 2], aspect: f32) -> SceneCallback {
@@ -725,65 +524,5 @@ impl Viewport {
             trail,
             overlay,
         }
-    }
-}
-
-/// The vertices of a ground path (in order) kept when it may stray `tolerance` metres from
-/// it (Ramer-Douglas-Peucker on x and z), always the first and last, and both ends of every
-/// change of colour (so the simplified path's colours change where the take's do).
-fn simplify_path(path: &[TrailVertex], tolerance: f32) -> Vec<usize> {
-    if path.len() < 2 {
-        return Vec::new();
-    }
-    let xz = |k: usize| glam::Vec2::new(path[k].position[0], path[k].position[2]);
-    let mut keep = vec![false; path.len()];
-    keep[0] = true;
-    keep[path.len() - 1] = true;
-    for t in 1..path.len() {
-        if path[t].color != path[t - 1].color {
-            keep[t - 1] = true;
-            keep[t] = true;
-        }
-    }
-    let anchors: Vec<usize> = (0..path.len()).filter(|&k| keep[k]).collect();
-    let mut stack: Vec<(usize, usize)> = anchors.windows(2).map(|w| (w[0], w[1])).collect();
-    while let Some((a, b)) = stack.pop() {
-        if b <= a + 1 {
-            continue;
-        }
-        let (pa, pb) = (xz(a), xz(b));
-        let along = pb - pa;
-        let length = along.length();
-        let distance = |k: usize| {
-            let d = xz(k) - pa;
-            if length > 1e-6 { along.perp_dot(d).abs() / length } else { d.length() }
-        };
-        let (far, dist) = (a + 1..b).map(|k| (k, distance(k))).fold((a, -1.0f32), |best, c| if c.1 > best.1 { c } else { best });
-        if dist > tolerance {
-            keep[far] = true;
-            stack.push((a, far));
-            stack.push((far, b));
-        }
-    }
-    (0..path.len()).filter(|&k| keep[k]).collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn vertex(x: f32, z: f32, color: u8) -> TrailVertex {
-        TrailVertex { position: [x, 0.0, z], frame: 0.0, last_frame: 0.0, color: [color, 0, 0, 255] }
-    }
-
-    #[test]
-    fn simplified_path_keeps_corners_and_colour_changes() {
-        // A straight line with a 5 mm bump at 3, a corner at 6, a colour change between 8 and 9.
-        let mut path: Vec<TrailVertex> = (0..=6).map(|k| vertex(k as f32 * 0.1, if k == 3 { 0.005 } else { 0.0 }, 1)).collect();
-        path.extend((1..=2).map(|k| vertex(0.6, k as f32 * 0.1, 1)));
-        path.extend((3..=5).map(|k| vertex(0.6, k as f32 * 0.1, 2)));
-        assert_eq!(simplify_path(&path, 0.002), vec![0, 2, 3, 4, 6, 8, 9, 11]);
-        assert_eq!(simplify_path(&path, 0.01), vec![0, 6, 8, 9, 11]);
-        assert_eq!(simplify_path(&path[..1], 0.01), Vec::<usize>::new());
     }
 }
