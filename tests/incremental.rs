@@ -108,8 +108,8 @@ impl TakeEvents for Stream {
         true
     }
 
-    fn frames(&mut self, so_far: &Generated) {
-        self.shown.push(Generated { motion: so_far.motion.clone(), segments: so_far.segments.clone(), block_embeddings: Vec::new(), block_classes: Vec::new(), contacts: so_far.contacts.clone(), warnings: Vec::new(), cycle: None });
+    fn frames(&mut self, so_far: Generated) {
+        self.shown.push(so_far);
     }
 }
 

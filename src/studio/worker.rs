@@ -147,10 +147,9 @@ impl TakeEvents for Streaming<'_> {
         self.wanted.load(Ordering::SeqCst) == self.id
     }
 
-    fn frames(&mut self, so_far: &Generated) {
-        let partial = Generated { motion: so_far.motion.clone(), segments: so_far.segments.clone(), block_embeddings: Vec::new(), block_classes: so_far.block_classes.clone(), contacts: so_far.contacts.clone(), warnings: Vec::new(), cycle: None };
+    fn frames(&mut self, so_far: Generated) {
         let millis = self.start.elapsed().as_secs_f64() * 1e3;
-        let take = Take::of(self.id, self.model_dir.clone(), partial, self.options.clone(), Vec::new(), millis, false);
+        let take = Take::of(self.id, self.model_dir.clone(), so_far, self.options.clone(), Vec::new(), millis, false);
         let _ = self.replies.send(Reply::Streamed(Arc::new(take)));
         self.ctx.request_repaint();
     }

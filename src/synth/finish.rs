@@ -20,7 +20,7 @@ use glam::{Quat, Vec3};
 
 use super::foot_lock::{foot_lock, FootLocked, Travel};
 use super::held::HeldConstraint;
-use super::plan::TakeConstraint;
+use super::plan::{paced_frames, TakeConstraint};
 use super::smoothstep;
 use crate::data::features::{wrap, FeatureLayout, Placement};
 use crate::model::glocal::GlocalModel;
@@ -78,7 +78,7 @@ pub(super) struct Stretch {
 impl Finishing<'_> {
     /// The take's frames: `floor` of the last pose's time, plus one.
     pub fn take_frames(&self) -> usize {
-        self.times.last().copied().unwrap_or(0.0).floor() as usize + 1
+        paced_frames(self.times)
     }
 
     /// The first frame at or after sparse pose `i` (the take's end past the last).
@@ -105,15 +105,23 @@ impl Finishing<'_> {
         let starts_take = window.start == 0;
         let constraints = if starts_take { self.constraints } else { &[] };
         let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, layout, spec.fps)).collect();
-        let skeleton = layout.skeleton.clone();
+        let FootLocked { motion, contacts } = self.locked(positions)?;
+        let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
+        Ok(Stretch { first: frames.start, motion, contacts, warnings })
+    }
+
+    /// Frames of the paced take (model units) with the bones projected, when asked, and the
+    /// feet locked.
+    fn locked(&self, positions: Vec<Vec3>) -> Result<FootLocked> {
+        let spec = &self.model.spec;
+        let skeleton = spec.layout.skeleton.clone();
         let motion = if self.project_bones {
-            Motion::from_local_poses(skeleton, spec.fps, solve_local_poses(&layout.skeleton, &positions))
+            let poses = solve_local_poses(&skeleton, &positions);
+            Motion::from_local_poses(skeleton, spec.fps, poses)
         } else {
             Motion::from_positions(skeleton, spec.fps, positions)
         };
-        let FootLocked { motion, contacts } = foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)?;
-        let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
-        Ok(Stretch { first: frames.start, motion, contacts, warnings })
+        foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)
     }
 
     /// A take that holds all but its `held` constraint's free frames: only the stretches of
@@ -140,17 +148,10 @@ impl Finishing<'_> {
         held.on_dense(&mut positions, layout, spec.fps);
         let mut poses: Vec<LocalPose> = Vec::new();
         let mut contacts = FootContacts { left: vec![false; frames], right: vec![false; frames] };
-        let skeleton = layout.skeleton.clone();
         let mut at = 0;
         for window in &windows {
             let frames = self.frames_of(window);
-            let part = &positions[frames.start * j..frames.end * j];
-            let motion = if self.project_bones {
-                Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, part))
-            } else {
-                Motion::from_positions(skeleton.clone(), spec.fps, part.to_vec())
-            };
-            let FootLocked { motion, contacts: locked } = foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)?;
+            let FootLocked { motion, contacts: locked } = self.locked(positions[frames.start * j..frames.end * j].to_vec())?;
             positions[frames.start * j..frames.end * j].copy_from_slice(motion.positions());
             contacts.left[frames.clone()].copy_from_slice(&locked.left);
             contacts.right[frames.clone()].copy_from_slice(&locked.right);
@@ -164,7 +165,7 @@ impl Finishing<'_> {
             poses.extend((at..frames).map(|f| stand_in(&positions[f * j..(f + 1) * j])));
             poses
         });
-        let mut motion = Motion::from_positions(skeleton, spec.fps, positions);
+        let mut motion = Motion::from_positions(layout.skeleton.clone(), spec.fps, positions);
         motion.local_poses = poses;
         let motion = self.constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
         Ok(Stretch { first: 0, motion, contacts, warnings: Vec::new() })

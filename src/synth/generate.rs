@@ -58,7 +58,7 @@ pub trait TakeEvents {
 
     /// The take so far, each time more of its frames are final: the finished take begins
     /// with these frames, bit for bit.
-    fn frames(&mut self, _so_far: &Generated) {}
+    fn frames(&mut self, _so_far: Generated) {}
 }
 
 /// A progress callback alone.
@@ -106,8 +106,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     // network slides them say how far.
     let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet } else { Travel::Kept };
     let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints };
-    let interval_starts: Vec<usize> = timeline.frames.iter().map(|t| t.round() as usize).collect();
-    let segments = timeline.segment_spans(&spec.classes, &interval_starts, finishing.take_frames());
+    let segments = timeline.planned_spans(&spec.classes);
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
 
     // Only a resumable take is printed: the print of a request's held frames would cost
@@ -344,7 +343,7 @@ impl TakeSteps<'_> {
                 warnings: Vec::new(),
                 cycle: None,
             };
-            self.events.frames(&so_far);
+            self.events.frames(so_far);
         }
         Ok(())
     }

@@ -52,14 +52,7 @@ pub struct Kept {
 /// Where each segment of `opts`'s timeline falls in the take, before anything is generated
 /// (the spans [`super::generate`] reports).
 pub fn planned_spans(spec: &ModelSpec, opts: &GenerateOptions) -> Result<Vec<SegmentSpan>> {
-    let timeline = SparseTimeline::new(spec, opts)?;
-    let starts: Vec<usize> = timeline.frames.iter().map(|t| t.round() as usize).collect();
-    Ok(timeline.segment_spans(&spec.classes, &starts, take_frames(&timeline)))
-}
-
-/// Frames of the paced take.
-fn take_frames(timeline: &SparseTimeline) -> usize {
-    timeline.frames.last().copied().unwrap_or(0.0).floor() as usize + 1
+    Ok(SparseTimeline::new(spec, opts)?.planned_spans(&spec.classes))
 }
 
 /// Frames of the transition into segment `k` on each side of its boundary.
@@ -128,7 +121,7 @@ pub(super) struct HeldConstraint {
 impl HeldConstraint {
     pub(super) fn new(spec: &ModelSpec, held: &[HeldStretch], timeline: &SparseTimeline, key_frames: Vec<usize>) -> Result<Self> {
         let skeleton = &spec.layout.skeleton;
-        let frames = take_frames(timeline);
+        let frames = timeline.take_frames();
         check_held_seconds(held, spec.fps)?;
         let mut positions = vec![None; frames];
         let mut poses = vec![None; frames];

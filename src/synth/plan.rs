@@ -164,8 +164,19 @@ impl SparseTimeline {
         plans
     }
 
+    /// Frames of the paced take.
+    pub(super) fn take_frames(&self) -> usize {
+        paced_frames(&self.frames)
+    }
+
+    /// Where each segment falls in the paced take, each sparse pose at its nearest frame.
+    pub(super) fn planned_spans(&self, names: &[String]) -> Vec<SegmentSpan> {
+        let starts: Vec<usize> = self.frames.iter().map(|t| t.round() as usize).collect();
+        self.segment_spans(names, &starts, self.take_frames())
+    }
+
     /// Where each segment falls in the paced take.
-    pub(super) fn segment_spans(&self, names: &[String], interval_starts: &[usize], frames: usize) -> Vec<SegmentSpan> {
+    fn segment_spans(&self, names: &[String], interval_starts: &[usize], frames: usize) -> Vec<SegmentSpan> {
         let mut segments = Vec::new();
         let mut first_sparse = 0;
         let last = interval_starts.len() - 1;
@@ -178,6 +189,12 @@ impl SparseTimeline {
         }
         segments
     }
+}
+
+/// Frames of a take whose sparse poses fall at the paced frames `times`: the last one's,
+/// rounded down, plus one.
+pub(super) fn paced_frames(times: &[f64]) -> usize {
+    times.last().copied().unwrap_or(0.0).floor() as usize + 1
 }
 
 /// A constraint on the take besides its classes, applied where generation can meet it: on
