@@ -327,20 +327,10 @@ fn bench_studio(cc: &eframe::CreationContext<'_>, take_seconds: Option<f32>) -> 
 
 /// Runs one window for `seconds` of measured frames.
 pub fn measure(window: Window, seconds: f64) -> Result<FrameStats> {
-    let out = Arc::new(Mutex::new(Err("the window closed before it was measured".to_string())));
-    let sink = out.clone();
-    eframe::run_native(
-        "glocal-bench",
-        window_options(),
-        Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
-            Ok(match window {
-                Window::Empty => Box::new(BenchWindow::new(Timed::new(Empty, seconds, |_| true), sink)),
-                Window::Studio { take_seconds } => Box::new(BenchWindow::new(Timed::new(bench_studio(cc, take_seconds), seconds, BenchStudio::ready), sink)),
-            })
-        }),
-    )
-    .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;
-    let stats = out.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone().map_err(|e| anyhow::anyhow!(e))?;
+    let stats = run_window(move |cc, sink| match window {
+        Window::Empty => Box::new(BenchWindow::new(Timed::new(Empty, seconds, |_| true), sink)),
+        Window::Studio { take_seconds } => Box::new(BenchWindow::new(Timed::new(bench_studio(cc, take_seconds), seconds, BenchStudio::ready), sink)),
+    })?;
     if stats.frames < 2 {
         anyhow::bail!("only {} frames were measured", stats.frames);
     }
@@ -495,20 +485,22 @@ const MEMORY_TIMEOUT: Duration = Duration::from_secs(1200);
 /// The studio's resident memory: with its default take, holding a `long_seconds` take, after
 /// File > New, and after one more take.
 pub fn measure_memory(long_seconds: f32) -> Result<Vec<MemoryPoint>> {
+    run_window(move |cc, sink| {
+        let studio = bench_studio(cc, None);
+        let run = MemoryRun { studio, long_seconds, step: MemoryStep::Default, played: 0, take_before: None, opened: Instant::now(), points: Vec::new() };
+        Box::new(BenchWindow::new(run, sink))
+    })
+}
+
+/// Opens the bench window `make` builds (handing it the slot its result goes to), runs it
+/// until it closes, and returns the result.
+fn run_window<T: Clone + 'static>(make: impl FnOnce(&eframe::CreationContext<'_>, Arc<Mutex<Result<T, String>>>) -> Box<dyn eframe::App> + 'static) -> Result<T> {
     let out = Arc::new(Mutex::new(Err("the window closed before it was measured".to_string())));
     let sink = out.clone();
-    eframe::run_native(
-        "glocal-bench",
-        window_options(),
-        Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> {
-            let studio = bench_studio(cc, None);
-            let run = MemoryRun { studio, long_seconds, step: MemoryStep::Default, played: 0, take_before: None, opened: Instant::now(), points: Vec::new() };
-            Ok(Box::new(BenchWindow::new(run, sink)))
-        }),
-    )
-    .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;
-    let points = out.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone().map_err(|e| anyhow::anyhow!(e))?;
-    Ok(points)
+    eframe::run_native("glocal-bench", window_options(), Box::new(move |cc| -> std::result::Result<Box<dyn eframe::App>, _> { Ok(make(cc, sink)) }))
+        .map_err(|e| anyhow::anyhow!("the benchmark window could not open: {e}"))?;
+    let result = out.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone();
+    result.map_err(|e| anyhow::anyhow!(e))
 }
 
 #[cfg(test)]
