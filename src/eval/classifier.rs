@@ -112,9 +112,13 @@ impl Classifier {
             if record.config == *cfg && record.classes == corpus.classes && record.dataset == corpus.dataset.name() {
                 let varmap = VarMap::new();
                 let (g, f1, f2) = build(VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu), corpus.layout.dim(), cfg.hidden, corpus.classes.len())?;
-                crate::model::glocal::load_weights(&weights, &varmap)?;
-                log(&format!("classifier: cached {} (test accuracy {:.3})", weights.display(), record.test_accuracy));
-                return Ok(Self { record, layout: corpus.layout.clone(), gru: g, fc1: f1, fc2: f2, varmap });
+                // Weights of another feature layout (a model skeleton that changed since) are
+                // trained again.
+                if crate::model::glocal::load_weights(&weights, &varmap).is_ok() {
+                    log(&format!("classifier: cached {} (test accuracy {:.3})", weights.display(), record.test_accuracy));
+                    return Ok(Self { record, layout: corpus.layout.clone(), gru: g, fc1: f1, fc2: f2, varmap });
+                }
+                log(&format!("classifier: {} was trained on another feature layout; training again", weights.display()));
             }
         }
         let c = Self::train(corpus, cfg, log)?;

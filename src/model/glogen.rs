@@ -5,6 +5,8 @@
 use super::block::{BlockWorkspace, FrozenBlock};
 use super::seam::join_seam;
 use super::spec::{GloGenSpec, ModelSpec};
+use super::target::straight_way;
+use crate::data::features::Normalizer;
 
 #[derive(Clone, Debug)]
 pub struct GloGen {
@@ -17,12 +19,14 @@ pub struct GloGen {
     /// The class part of the conditioning vector, which guidance drops in its
     /// unconditioned pass (a target stays).
     class_len: usize,
+    /// The sparse poses' normalisation, which the straight way to a target reads.
+    norm: Normalizer,
 }
 
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
         let class_len = spec.glogen.class_len(spec.classes.len());
-        Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len }
+        Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone() }
     }
 
     pub fn block_len(&self) -> usize {
@@ -51,7 +55,7 @@ impl GloGen {
         let guided = cond.is_some() && self.spec.class_dropout > 0.0 && (strength - 1.0).abs() > 1e-6;
         if !guided {
             self.block.infer(ws, input, cond, 1, t, out);
-            self.offset_from_last(input, out);
+            self.add_base(input, class, out);
             return ws.last_encoding(1, t, hidden).to_vec();
         }
         // The conditioned and unconditioned passes as one batch of two: the weights stream
@@ -66,18 +70,26 @@ impl GloGen {
         for ((o, c), u) in out.iter_mut().zip(conditioned).zip(unconditioned) {
             *o = u + strength * (c - u);
         }
-        self.offset_from_last(input, out);
+        self.add_base(input, class, out);
         ws.last_encoding(2, t, hidden)[..t * 2 * hidden].to_vec()
     }
 
-    /// A residual GloGen's block is offsets from the last pose of its input.
-    fn offset_from_last(&self, input: &[f32], out: &mut [f32]) {
-        if !self.spec.residual {
-            return;
-        }
+    /// Whether a block with conditioning `cond` is on its way to a target.
+    fn aims(&self, cond: &[f32]) -> bool {
+        self.spec.target && cond.len() > self.class_len + self.dim + 1 && cond[self.class_len + self.dim + 1] != 0.0
+    }
+
+    /// What the network's block is an offset from: the straight way to the target when the
+    /// block has one ([`straight_way`]), else the last pose of its input for a residual GloGen.
+    fn add_base(&self, input: &[f32], cond: &[f32], out: &mut [f32]) {
         let last = &input[input.len() - self.dim..];
-        for pose in out.chunks_exact_mut(self.dim) {
-            pose.iter_mut().zip(last).for_each(|(o, l)| *o += l);
+        let way = if self.spec.target { straight_way(last, &cond[self.class_len..], self.block_len, &self.norm) } else { None };
+        if let Some(way) = way {
+            out.iter_mut().zip(&way).for_each(|(o, w)| *o += w);
+        } else if self.spec.residual {
+            for pose in out.chunks_exact_mut(self.dim) {
+                pose.iter_mut().zip(last).for_each(|(o, l)| *o += l);
+            }
         }
     }
 
@@ -96,7 +108,7 @@ impl GloGen {
     pub fn rollout_block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.block(ws, input, class, strength, out);
         if let Some(before) = join {
-            join_seam(before, out, self.dim, self.spec.seam_join);
+            join_seam(before, out, self.dim, self.spec.seam_join, !self.aims(class));
         }
         embedding
     }

@@ -24,7 +24,11 @@ use crate::data::features::ROOT_FEATURES;
 /// `before` is the whole block before or only its last pose; with [`SeamJoin::TwoSided`] a
 /// whole block takes half the shift, opposite, faded in over its last half, and the new
 /// block the other half, so neither block's first half carries all of the other's pose.
-pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin) {
+///
+/// A block on its way to a key (`steps: false`) keeps its root's steps: they are the
+/// straight line to where the key stands, and a step bent towards the context's would turn
+/// the whole way off it (Bandai's 2 s in-betweens strayed 13 cm from the line).
+pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin, steps: bool) {
     let poses = block.len() / dim;
     if poses < 2 {
         return;
@@ -32,8 +36,11 @@ pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJo
     let last = &before[before.len() - dim..];
     let shift: Vec<f32> = (0..dim)
         .map(|f| {
-            let target = if (1..ROOT_FEATURES).contains(&f) { 0.5 * (last[f] + block[dim + f]) } else { last[f] + block[dim + f] - block[f] };
-            target - block[f]
+            if (1..ROOT_FEATURES).contains(&f) {
+                if steps { 0.5 * (last[f] + block[dim + f]) - block[f] } else { 0.0 }
+            } else {
+                last[f] + block[dim + f] - 2.0 * block[f]
+            }
         })
         .collect();
     let share = seam_share(kind, before.len() == block.len());
@@ -68,9 +75,10 @@ fn join_fade(poses: usize) -> Vec<f32> {
 
 /// [`join_seam`] on a batch of blocks `[B, T, D]` onto the blocks before them `[B, T, D]`
 /// (or their last poses `[B, 1, D]`, which stay where they are), as differentiable tensor
-/// operations: what training on joined rollouts backpropagates through. Returns the joined
-/// blocks before and the joined blocks.
-pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin) -> candle_core::Result<(Tensor, Tensor)> {
+/// operations: what training on joined rollouts backpropagates through. `steps` `[B, 1, 1]`
+/// is 1 where a block's root steps are joined too, 0 where it is on its way to a key (all
+/// joined without it). Returns the joined blocks before and the joined blocks.
+pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin, steps: Option<&Tensor>) -> candle_core::Result<(Tensor, Tensor)> {
     let (_, poses, dim) = blocks.dims3()?;
     if poses < 2 {
         return Ok((before.clone(), blocks.clone()));
@@ -84,7 +92,12 @@ pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin) -> ca
     let root_target = ((&last + &second)? * 0.5)?;
     let pose_target = ((&last + &second)? - &first)?;
     let target = (root_target.broadcast_mul(&root)? + pose_target.broadcast_mul(&(1.0 - &root)?)?)?;
-    let shift = (target - first)?;
+    let mut shift = (target - first)?;
+    if let Some(steps) = steps {
+        // Per block, 1 on the pose's features and `steps` on the root's steps.
+        let weight = (1.0 - &root)?.broadcast_add(&root.broadcast_mul(steps)?)?;
+        shift = shift.broadcast_mul(&weight)?;
+    }
     let share = seam_share(kind, before.dim(1)? == poses) as f64;
     let fade = join_fade(poses);
     let head = Tensor::from_vec(fade.clone(), (1, poses, 1), device)?;
@@ -113,14 +126,19 @@ mod tests {
                 let blocks: Vec<f32> = (0..2 * poses * dim).map(value).collect();
                 let before: Vec<f32> = (0..2 * before_poses * dim).map(|i| value(i + 5000)).collect();
                 let tensor = |v: &[f32], p: usize| Tensor::from_vec(v.to_vec(), (2, p, dim), &Device::Cpu).unwrap();
-                let (joined_before, joined) = join_seams_tensor(&tensor(&before, before_poses), &tensor(&blocks, poses), kind).unwrap();
+                let steps = Tensor::from_vec(vec![1.0f32, 0.0], (2, 1, 1), &Device::Cpu).unwrap();
+                let (joined_before, joined) = join_seams_tensor(&tensor(&before, before_poses), &tensor(&blocks, poses), kind, Some(&steps)).unwrap();
                 let flat = |t: Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
                 let (joined_before, joined) = (flat(joined_before), flat(joined));
                 for b in 0..2 {
                     let (width, before_width) = (poses * dim, before_poses * dim);
                     let mut block = blocks[b * width..(b + 1) * width].to_vec();
                     let mut prior = before[b * before_width..(b + 1) * before_width].to_vec();
-                    join_seam(&mut prior, &mut block, dim, kind);
+                    join_seam(&mut prior, &mut block, dim, kind, b == 0);
+                    if b == 1 {
+                        let steps_kept = (0..poses).all(|k| (1..ROOT_FEATURES).all(|f| block[k * dim + f] == blocks[b * width + k * dim + f]));
+                        assert!(steps_kept, "a block on its way to a key had its root steps joined");
+                    }
                     assert_ne!(block, blocks[b * width..(b + 1) * width], "the join moved nothing");
                     assert_eq!(prior != before[b * before_width..(b + 1) * before_width], kind == SeamJoin::TwoSided, "{kind:?} moved the block before or left it");
                     let expected = joined[b * width..(b + 1) * width].iter().chain(&joined_before[b * before_width..(b + 1) * before_width]);
@@ -143,7 +161,7 @@ mod tests {
         let mut seams = Vec::new();
         for kind in [SeamJoin::OneSided, SeamJoin::TwoSided] {
             let (mut prior, mut joined) = (before.clone(), block.clone());
-            join_seam(&mut prior, &mut joined, dim, kind);
+            join_seam(&mut prior, &mut joined, dim, kind, true);
             let last = &prior[(poses - 1) * dim..];
             seams.push((ROOT_FEATURES..dim).map(|f| joined[f] - last[f]).collect::<Vec<f32>>());
         }

@@ -3,6 +3,12 @@
 //! are left to it, read beside the class by every step of the block. This is the in-between
 //! models' target and time-to-arrival input (Harvey et al. 2020); training draws the targets
 //! from the real clip ahead of each window.
+//!
+//! A block with a target predicts its poses as offsets from the straight way to it
+//! ([`straight_way`]): the context's last pose blended linearly into the target's, at the
+//! target's mean step, as linear interpolation would go. Untrained, the block is linear
+//! interpolation; training only has to learn how real motion differs from it (the two-stage
+//! in-betweeners start from the same line, Qin et al. 2022).
 
 use glam::{Quat, Vec3};
 
@@ -53,6 +59,53 @@ pub fn target_condition(layout: &FeatureLayout, norm: &Normalizer, block_len: us
     features
 }
 
+/// The straight way from `last` (the context's last normalised pose) to the target in
+/// `target` (a [`target_condition`]) over a block of `block_len` poses: the pose and the root's
+/// height blend linearly into the target's and reach it at its step (and stay), the root
+/// walks the straight line to the target at its mean step. `None` without a target.
+pub fn straight_way(last: &[f32], target: &[f32], block_len: usize, norm: &Normalizer) -> Option<Vec<f32>> {
+    let way = Way::to(target, last.len(), block_len, norm)?;
+    Some(way.shares.iter().zip(&way.ends).enumerate().map(|(i, (s, e))| last[i % last.len()] + s * (e - last[i % last.len()])).collect())
+}
+
+/// What the straight way to a target is made of, per pose of a block (`block_len * dim`
+/// values each): `last + shares * (ends - last)`, so training can form it from a context
+/// that is itself a prediction.
+pub struct Way {
+    /// How much of `ends` each feature has taken: the root's steps all of it, the others
+    /// `(k + 1) / steps` up to 1.
+    pub shares: Vec<f32>,
+    /// The target's features, its root step turned for each pose: a step is taken in the
+    /// heading of the pose before it, so with the way's even turn a constant step would bend
+    /// into an arc that misses the target; turned back by the turns made so far, the steps
+    /// add up to the straight line.
+    pub ends: Vec<f32>,
+}
+
+impl Way {
+    /// The way to `target` (a [`target_condition`] for poses of `dim` features, normalised by
+    /// `norm`); `None` without a target.
+    pub fn to(target: &[f32], dim: usize, block_len: usize, norm: &Normalizer) -> Option<Self> {
+        if target.len() < target_len(dim) || target[dim + 1] == 0.0 {
+            return None;
+        }
+        let steps = (target[dim] * block_len as f32).max(1.0);
+        let raw = |d: usize| target[d] * norm.std[d] + norm.mean[d];
+        let (step, turn) = (Vec3::new(raw(1), 0.0, raw(2)), raw(3));
+        let (mut shares, mut ends) = (Vec::with_capacity(block_len * dim), Vec::with_capacity(block_len * dim));
+        for k in 0..block_len {
+            let share = ((k + 1) as f32 / steps).min(1.0);
+            shares.extend((0..dim).map(|d| if (1..ROOT_FEATURES).contains(&d) { 1.0 } else { share }));
+            let turned = Quat::from_rotation_y(-(k as f32) * turn) * step;
+            ends.extend_from_slice(&target[..dim]);
+            let at = ends.len() - dim;
+            ends[at + 1] = (turned.x - norm.mean[1]) / norm.std[1];
+            ends[at + 2] = (turned.z - norm.mean[2]) / norm.std[2];
+        }
+        Some(Self { shares, ends })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -80,5 +133,30 @@ mod tests {
         assert_eq!(&free[1..4], &[0.0; 3]);
         assert_eq!(free[dim + 2], 0.0);
         assert!(target_condition(layout, &norm, 10, from, None).iter().all(|&v| v == 0.0));
+    }
+
+    /// Two features and a root step: halfway at the first of two steps, there at the second,
+    /// held after it; the root steps along the straight line to the target while the way
+    /// turns; no target, no way.
+    #[test]
+    fn the_straight_way_reaches_the_target_at_its_step() {
+        let last = [1.0, 0.0, 0.0, 0.0, 2.0];
+        let target = [3.0, 0.5, 0.0, 0.1, 4.0, 2.0 / 4.0, 1.0, 1.0];
+        let norm = Normalizer { mean: vec![0.0; 5], std: vec![1.0; 5] };
+        let way = straight_way(&last, &target, 4, &norm).unwrap();
+        let column = |d: usize| way.chunks_exact(5).map(|p| p[d]).collect::<Vec<_>>();
+        assert_eq!(column(0), [2.0, 3.0, 3.0, 3.0]);
+        assert_eq!(column(4), [3.0, 4.0, 4.0, 4.0]);
+        assert_eq!(column(3), [0.1; 4]);
+        // Each step turned back by the turns before it: together a straight line.
+        let (x, z) = (column(1), column(2));
+        let mut heading = 0.0f32;
+        let mut at = Vec3::ZERO;
+        for k in 0..4 {
+            at += Quat::from_rotation_y(heading) * Vec3::new(x[k], 0.0, z[k]);
+            heading += 0.1;
+            assert!(at.normalize().abs_diff_eq(Vec3::X, 1e-5), "step {k} leaves the line: {at:?}");
+        }
+        assert!(straight_way(&last, &[0.0; 8], 4, &norm).is_none());
     }
 }

@@ -162,7 +162,7 @@ impl TrainOptions {
                 block_len: 10,
                 locgen_window: 10,
                 min_clips: 3,
-                interpolation: Interpolation::CatmullRom,
+                interpolation: Interpolation::NaturalCubic,
             },
         }
     }

@@ -18,7 +18,7 @@ use crate::model::loss::joint_flow_loss;
 use crate::model::rollout::{rollout, OneClass};
 use crate::model::seam::join_seams_tensor;
 use crate::model::spec::{LossKind, ModelSpec};
-use crate::model::target::{target_condition, target_len, Target};
+use crate::model::target::{target_condition, target_len, Target, Way};
 
 /// Held-out windows a validation scores.
 const VALIDATION_WINDOWS: usize = 256;
@@ -195,12 +195,42 @@ impl GloGenTraining<'_> {
         rows.iter().map(|row| batch.cond(row)).collect()
     }
 
-    /// A block from `input` `[B, T, dim]`: a residual GloGen's is an offset from the input's
-    /// last pose.
+    /// `[B, 1, 1]`: 1 for each window of `cond` `[B, cond_dim]` without a target, 0 for those
+    /// on their way to one.
+    fn free_rows(&self, cond: &Tensor) -> Result<Tensor> {
+        let spec = self.0.spec;
+        let flag = spec.glogen.class_len(spec.classes.len()) + self.0.layout().dim() + 1;
+        Ok(cond.narrow(1, flag, 1)?.affine(-1.0, 1.0)?.unsqueeze(2)?)
+    }
+
+    /// A block from `input` `[B, T, dim]`, as [`GloGen::block`] makes it: a window with a
+    /// target is an offset from the straight way to it, else a residual GloGen's is an offset
+    /// from the input's last pose.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>) -> Result<Tensor> {
+        let spec = self.0.spec;
         let pred = block.forward(input, cond, true)?;
         let last = input.narrow(1, input.dim(1)? - 1, 1)?;
-        Ok(if self.0.spec.glogen.residual { pred.broadcast_add(&last)? } else { pred })
+        let free = if spec.glogen.residual { pred.broadcast_add(&last)? } else { pred.clone() };
+        let Some(cond) = cond.filter(|_| spec.glogen.target) else { return Ok(free) };
+        let (t, dim) = (spec.block_len, self.0.layout().dim());
+        let class_len = spec.glogen.class_len(spec.classes.len());
+        let rows = cond.to_vec2::<f32>()?;
+        // Per window, the way's ends and shares and whether it has one at all.
+        let (mut ends, mut shares, mut has) = (Vec::new(), Vec::new(), Vec::new());
+        for row in &rows {
+            let way = Way::to(&row[class_len..], dim, t, self.0.norm);
+            has.push(if way.is_some() { 1.0f32 } else { 0.0 });
+            let way = way.unwrap_or_else(|| Way { shares: vec![0.0; t * dim], ends: vec![0.0; t * dim] });
+            ends.extend(way.ends);
+            shares.extend(way.shares);
+        }
+        let b = rows.len();
+        let ends = Tensor::from_vec(ends, (b, t, dim), &Device::Cpu)?;
+        let shares = Tensor::from_vec(shares, (b, t, dim), &Device::Cpu)?;
+        let has = Tensor::from_vec(has, (b, 1, 1), &Device::Cpu)?;
+        let way = last.broadcast_add(&shares.mul(&ends.broadcast_sub(&last)?)?)?;
+        let aimed = pred.add(&way)?.broadcast_mul(&has)?;
+        Ok((aimed + free.broadcast_mul(&has.affine(-1.0, 1.0)?)?)?)
     }
 }
 
@@ -227,7 +257,11 @@ impl StageTraining for GloGenTraining<'_> {
                     Some(previous) => previous.clone(),
                     None => input.narrow(1, steps_in - 1, 1)?,
                 };
-                let (before, joined) = join_seams_tensor(&before, &pred, spec.seam_join)?;
+                let steps = match (spec.target, cond) {
+                    (true, Some(cond)) => Some(self.free_rows(cond)?),
+                    _ => None,
+                };
+                let (before, joined) = join_seams_tensor(&before, &pred, spec.seam_join, steps.as_ref())?;
                 if let Some(previous) = preds.last_mut() {
                     *previous = before;
                 }
