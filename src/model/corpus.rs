@@ -10,7 +10,11 @@ use rand::Rng;
 use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
-use crate::motion::{JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
+use crate::motion::{JointRoles, Motion, Skeleton};
+
+/// Bones shorter than this fraction of the skeleton's longest bone are duplicates or
+/// collapsed end sites, and their joints are left out of the model.
+const MIN_BONE_FRACTION: f32 = 0.02;
 
 pub struct Track {
     pub class: usize,
@@ -104,7 +108,7 @@ fn model_joints(skeleton: &Skeleton, body_root: usize) -> Vec<usize> {
         .filter(|&j| skeleton.parents()[j].is_some_and(|p| p != 0))
         .map(|j| skeleton.offsets()[j].length())
         .fold(0.0, f32::max);
-    let mut keep = skeleton.informative_joints(longest_limb * SHORT_BONE_FRACTION);
+    let mut keep = skeleton.informative_joints(longest_limb * MIN_BONE_FRACTION);
     let mut above = skeleton.parents()[body_root];
     while let Some(p) = above {
         keep.retain(|&j| j != p);

@@ -174,9 +174,10 @@ fn cases(model: &GlocalModel, tracks: &[Track], wanted: usize) -> Vec<(usize, us
     out
 }
 
-/// The clip as an NPY file on the model's skeleton, as a user would start a take from it.
+/// The clip as an NPY file on the model's skeleton, as a user would start a take from it
+/// (named by its joints too: a model of another skeleton writes its own).
 fn clip_file(dir: &Path, track: &Track, index: usize) -> Result<PathBuf> {
-    let path = dir.join(format!("clip-{index}.npy"));
+    let path = dir.join(format!("clip-{index}-{}j.npy", track.motion.joints()));
     if !path.exists() {
         write_atomic(&path, &motion_to_npy(&track.motion))?;
     }
