@@ -5,7 +5,7 @@
 use super::block::{BlockWorkspace, FrozenBlock};
 use super::seam::join_seam;
 use super::spec::{GloGenSpec, ModelSpec};
-use super::target::straight_way;
+use super::target::{has_target, straight_way};
 use crate::data::features::Normalizer;
 
 #[derive(Clone, Debug)]
@@ -76,7 +76,7 @@ impl GloGen {
 
     /// Whether a block with conditioning `cond` is on its way to a target.
     fn aims(&self, cond: &[f32]) -> bool {
-        self.spec.target && cond.len() > self.class_len + self.dim + 1 && cond[self.class_len + self.dim + 1] != 0.0
+        self.spec.target && has_target(&cond[self.class_len..], self.dim)
     }
 
     /// What the network's block is an offset from: the straight way to the target when the

@@ -24,6 +24,17 @@ pub fn target_len(pose_dim: usize) -> usize {
     pose_dim + TARGET_EXTRA
 }
 
+/// Where a target condition for poses of `pose_dim` features holds its flag (1 with a
+/// target, 0 without): after the pose and the steps left.
+pub fn target_flag(pose_dim: usize) -> usize {
+    pose_dim + 1
+}
+
+/// Whether `target` (a [`target_condition`] for poses of `pose_dim` features) holds a target.
+pub fn has_target(target: &[f32], pose_dim: usize) -> bool {
+    target.len() >= target_len(pose_dim) && target[target_flag(pose_dim)] != 0.0
+}
+
 /// A pose a block aims at.
 #[derive(Clone, Copy, Debug)]
 pub struct Target<'a> {
@@ -86,7 +97,7 @@ impl Way {
     /// The way to `target` (a [`target_condition`] for poses of `dim` features, normalised by
     /// `norm`); `None` without a target.
     pub fn to(target: &[f32], dim: usize, block_len: usize, norm: &Normalizer) -> Option<Self> {
-        if target.len() < target_len(dim) || target[dim + 1] == 0.0 {
+        if !has_target(target, dim) {
             return None;
         }
         let steps = (target[dim] * block_len as f32).max(1.0);

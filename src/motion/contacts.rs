@@ -74,7 +74,12 @@ pub const SEAT_DEPTH: f32 = 0.1;
 /// joint) where that is lower. Never a hand: a hand reaching the ground does not carry the
 /// body, and a floor set under it leaves the feet hovering (the floor rule of DESIGN.md).
 pub fn support_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
-    lowest_foot_heights(motion, roles).into_iter().zip(seat_heights(motion, roles)).map(|(foot, seat)| foot.min(seat)).collect()
+    lower_of(&lowest_foot_heights(motion, roles), &seat_heights(motion, roles))
+}
+
+/// Per frame, the lower of two heights.
+fn lower_of(a: &[f32], b: &[f32]) -> Vec<f32> {
+    a.iter().zip(b).map(|(a, b)| a.min(*b)).collect()
 }
 
 /// Per frame, the height of the seat: [`SEAT_DEPTH`] under the lower hip joint.
@@ -93,17 +98,22 @@ pub fn lowest_foot_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
 /// The floor under each frame: the lowest foot height within `half_window` frames either
 /// side, so a take that rises or sinks (or real data on a tilted floor) keeps its contacts.
 pub fn local_floor(lowest: &[f32], half_window: usize) -> Vec<f32> {
-    (0..lowest.len())
-        .map(|t| lowest[t.saturating_sub(half_window)..(t + half_window + 1).min(lowest.len())].iter().copied().fold(f32::INFINITY, f32::min))
-        .collect()
+    sliding(lowest, half_window, f32::min, f32::INFINITY)
+}
+
+/// Per frame, `values` within `half_window` frames either side folded by `pick` from `start`
+/// (a sliding minimum or maximum).
+pub fn sliding(values: &[f32], half_window: usize, pick: fn(f32, f32) -> f32, start: f32) -> Vec<f32> {
+    (0..values.len()).map(|t| values[t.saturating_sub(half_window)..(t + half_window + 1).min(values.len())].iter().copied().fold(start, pick)).collect()
 }
 
 /// Contacts of both feet over the local floor (of the feet, or the seat on a floor sit).
 pub fn foot_contacts(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> FootContacts {
     let half = (cfg.floor_window * motion.fps).round() as usize;
-    let floor = local_floor(&support_heights(motion, roles), half);
+    let seat = seat_heights(motion, roles);
+    let floor = local_floor(&lower_of(&lowest_foot_heights(motion, roles), &seat), half);
     let unit = motion.skeleton.meters_per_unit();
-    let seated: Vec<bool> = seat_heights(motion, roles).iter().zip(&floor).map(|(seat, floor)| (seat - floor) * unit <= cfg.height_on).collect();
+    let seated: Vec<bool> = seat.iter().zip(&floor).map(|(seat, floor)| (seat - floor) * unit <= cfg.height_on).collect();
     let ground = Ground { floor: &floor, seated: &seated };
     let body = body_speeds(motion, roles.body_root);
     let contacts = |leg: &Leg| leg_contacts(motion, leg, &ground, &body, cfg);

@@ -13,7 +13,7 @@
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use crate::motion::contacts::{box_average, foot_contacts, local_floor, runs, support_heights, ContactConfig, FootContacts};
+use crate::motion::contacts::{box_average, foot_contacts, local_floor, runs, sliding, support_heights, ContactConfig, FootContacts};
 use crate::motion::ik::{hip_offset, two_bone, MAX_STRETCH};
 use super::smoothstep;
 use crate::motion::{solve_local_poses, JointRoles, Motion, Side, Skeleton};
@@ -252,9 +252,7 @@ fn levelled(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -> (Motion
 /// standing up lift both feet off the ground for up to 1.9 s instead of pushing through them.
 fn set_down(above: &[f32], fps: f32) -> Vec<f32> {
     let half = (LONGEST_FLIGHT_SECONDS * fps / 2.0).round() as usize;
-    let within = |values: &[f32], t: usize, pick: fn(f32, f32) -> f32, start: f32| values[t.saturating_sub(half)..(t + half + 1).min(values.len())].iter().copied().fold(start, pick);
-    let eroded: Vec<f32> = (0..above.len()).map(|t| within(above, t, f32::min, f32::INFINITY)).collect();
-    let opened: Vec<f32> = (0..above.len()).map(|t| within(&eroded, t, f32::max, 0.0)).collect();
+    let opened = sliding(&local_floor(above, half), half, f32::max, 0.0);
     smoothed(&opened, SHIFT_SMOOTH_FRAMES).iter().zip(above).map(|(d, a)| d.min(*a)).collect()
 }
 

@@ -18,7 +18,7 @@ use crate::model::loss::joint_flow_loss;
 use crate::model::rollout::{rollout, OneClass};
 use crate::model::seam::join_seams_tensor;
 use crate::model::spec::{LossKind, ModelSpec};
-use crate::model::target::{target_condition, target_len, Target, Way};
+use crate::model::target::{target_condition, target_flag, target_len, Target, Way};
 
 /// Held-out windows a validation scores.
 const VALIDATION_WINDOWS: usize = 256;
@@ -199,7 +199,7 @@ impl GloGenTraining<'_> {
     /// on their way to one.
     fn free_rows(&self, cond: &Tensor) -> Result<Tensor> {
         let spec = self.0.spec;
-        let flag = spec.glogen.class_len(spec.classes.len()) + self.0.layout().dim() + 1;
+        let flag = spec.glogen.class_len(spec.classes.len()) + target_flag(self.0.layout().dim());
         Ok(cond.narrow(1, flag, 1)?.affine(-1.0, 1.0)?.unsqueeze(2)?)
     }
 
