@@ -6,6 +6,7 @@ use clap::{Args, Subcommand};
 use serde::Serialize;
 
 use crate::data::archive::DataRoot;
+use crate::data::combined;
 use crate::data::registry::{self, Dataset, DatasetClips, Skipped};
 
 /// Which dataset, where, and how to print.
@@ -24,6 +25,15 @@ pub struct DatasetArgs {
 pub enum DataCommand {
     /// Per-class clip and frame counts, fps, joints, and every skipped file.
     Stats(DatasetArgs),
+    /// Every clip of the four datasets retargeted onto the standard humanoid, checked per
+    /// dataset like an export: bone directions against the source, feet on the floor, bone
+    /// lengths kept.
+    CheckRetarget {
+        #[arg(long)]
+        data: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Serialize)]
@@ -79,7 +89,26 @@ pub fn run(command: DataCommand) -> Result<()> {
             }
             Ok(())
         }
+        DataCommand::CheckRetarget { data, json } => check_retarget(&DataRoot::resolve(data.as_deref()), json),
     }
+}
+
+fn check_retarget(root: &DataRoot, json: bool) -> Result<()> {
+    let (loaded, checks) = combined::load(root)?;
+    if json {
+        say!("{}", serde_json::to_string_pretty(&checks)?);
+        return Ok(());
+    }
+    say!("{} clips on the standard humanoid: {} classes, {} styles", loaded.clips.len(), loaded.classes.len(), loaded.styles.len());
+    say!("| dataset | clips | bone direction, mean (degrees) | worst clip | lowest foot, median over frames (cm): mean / worst clip | bone length change (mm) |");
+    say!("|---|---|---|---|---|---|");
+    for c in &checks {
+        say!(
+            "| {} | {} | {:.2} | {:.2} ({}) | {:.1} / {:.1} ({}) | {:.3} |",
+            c.dataset, c.clips, c.mean_bone_degrees, c.worst_clip_degrees, c.worst_clip, c.mean_foot_height * 100.0, c.worst_foot_height * 100.0, c.worst_foot_clip, c.bone_length_change * 1000.0
+        );
+    }
+    Ok(())
 }
 
 fn print_stats(s: &Stats) {

@@ -2,6 +2,7 @@
 
 pub mod archive;
 pub mod bvh;
+pub mod combined;
 mod error;
 pub mod expmap;
 pub mod features;

@@ -23,10 +23,14 @@ pub enum Dataset {
     Bandai,
     CmuDance,
     CmuExpmap,
+    /// The four archives' clips on the standard humanoid ([`super::combined`]): `models/all`.
+    Combined,
 }
 
 impl Dataset {
-    pub const ALL: [Dataset; 4] = [Dataset::H36m, Dataset::Bandai, Dataset::CmuDance, Dataset::CmuExpmap];
+    /// The datasets stored as archives.
+    pub const ARCHIVES: [Dataset; 4] = [Dataset::H36m, Dataset::Bandai, Dataset::CmuDance, Dataset::CmuExpmap];
+    pub const ALL: [Dataset; 5] = [Dataset::H36m, Dataset::Bandai, Dataset::CmuDance, Dataset::CmuExpmap, Dataset::Combined];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -34,6 +38,7 @@ impl Dataset {
             Dataset::Bandai => "bandai",
             Dataset::CmuDance => "cmu-dance",
             Dataset::CmuExpmap => "cmu-expmap",
+            Dataset::Combined => "all",
         }
     }
 
@@ -41,7 +46,7 @@ impl Dataset {
     pub fn source_fps(self) -> f32 {
         match self {
             Dataset::H36m => 50.0,
-            Dataset::Bandai => 30.0,
+            Dataset::Bandai | Dataset::Combined => 30.0,
             Dataset::CmuDance | Dataset::CmuExpmap => 120.0,
         }
     }
@@ -50,7 +55,7 @@ impl Dataset {
     pub fn working_fps(self) -> f32 {
         match self {
             Dataset::H36m => 25.0,
-            Dataset::Bandai | Dataset::CmuDance | Dataset::CmuExpmap => 30.0,
+            Dataset::Bandai | Dataset::CmuDance | Dataset::CmuExpmap | Dataset::Combined => 30.0,
         }
     }
 
@@ -59,7 +64,7 @@ impl Dataset {
         match self {
             Dataset::H36m => Some(RootEncoding::Incremental),
             Dataset::CmuExpmap => Some(RootEncoding::Absolute),
-            Dataset::Bandai | Dataset::CmuDance => None,
+            Dataset::Bandai | Dataset::CmuDance | Dataset::Combined => None,
         }
     }
 
@@ -70,6 +75,7 @@ impl Dataset {
             // The acLSTM BVH files measure about 62 units from hips to head: centimetres.
             Dataset::CmuDance => 0.01,
             Dataset::CmuExpmap => 0.056444,
+            Dataset::Combined => 1.0,
         }
     }
 }
@@ -104,7 +110,8 @@ pub struct Clip {
     pub file: String,
     pub class: usize,
     pub split: Split,
-    /// Bandai's style, Human3.6M's subject.
+    /// Bandai's style, Human3.6M's subject; on the combined dataset, the style (Bandai's, else
+    /// [`super::combined::NEUTRAL`]).
     pub tag: String,
     pub motion: Motion,
 }
@@ -122,6 +129,11 @@ pub struct DatasetClips {
     pub classes: Vec<String>,
     pub clips: Vec<Clip>,
     pub skipped: Vec<Skipped>,
+    /// The styles the clips' tags name (the combined dataset only; empty otherwise).
+    pub styles: Vec<String>,
+    /// Where each class's clips come from ("h36m walking + bandai walk"; the combined dataset
+    /// only).
+    pub class_sources: Vec<String>,
 }
 
 impl DatasetClips {
@@ -140,6 +152,7 @@ pub fn load(dataset: Dataset, root: &DataRoot) -> Result<DatasetClips> {
         Dataset::H36m | Dataset::CmuExpmap => load_expmap(dataset, root),
         Dataset::Bandai => load_bandai(root),
         Dataset::CmuDance => load_cmu_dance(root),
+        Dataset::Combined => Ok(super::combined::load(root)?.0),
     }
 }
 
@@ -286,5 +299,5 @@ fn collect(dataset: Dataset, classes: Vec<String>, parsed: Vec<Result<Clip, Skip
     }
     clips.sort_by(|a, b| a.file.cmp(&b.file));
     skipped.sort_by(|a, b| a.file.cmp(&b.file));
-    DatasetClips { dataset, classes, clips, skipped }
+    DatasetClips { dataset, classes, clips, skipped, styles: Vec::new(), class_sources: Vec::new() }
 }

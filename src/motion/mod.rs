@@ -15,6 +15,7 @@ mod roles;
 mod rotation;
 mod skeleton;
 mod solve;
+mod standard;
 mod take;
 
 pub use kinematics::{forward_kinematics, LocalPose};
@@ -27,4 +28,5 @@ pub use root_motion::{facing, local_poses, under_new_root, with_root_motion, Roo
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError};
 pub use solve::solve_local_poses;
+pub use standard::standard_humanoid;
 pub use take::{floor_height, mean_joint_step, Motion};

@@ -415,6 +415,7 @@ fn split_description(d: Dataset) -> &'static str {
         Dataset::Bandai => "test = styles tired and musical; train = the other styles",
         Dataset::CmuDance => "test = the highest-numbered clip of each class",
         Dataset::CmuExpmap => "the archive's train and test folders",
+        Dataset::Combined => "each dataset's own: h36m S11, bandai styles tired and musical, cmu-dance the highest-numbered clip of each class, cmu-expmap its test folder",
     }
 }
 
