@@ -168,3 +168,29 @@ fn h36m_takes_stand_on_a_level_floor_at_zero() {
         }
     }
 }
+
+/// The model of everything's data (issue 35): every clip of the four datasets on the standard
+/// humanoid, each dataset checked like an export (bones within 5 degrees of the source's on
+/// every clip, feet on the floor, no bone-length change), at least 25 activities of 3 or more
+/// training clips, classes merged across datasets and Bandai's styles on its clips.
+#[test]
+fn every_dataset_lands_on_the_standard_humanoid() {
+    let (all, checks) = glocal::data::combined::load(&DataRoot::resolve(None)).unwrap_or_else(|e| panic!("{e:#}"));
+    assert_eq!(all.clips.len(), 123 + 174 + 43 + 38);
+    for c in &checks {
+        println!("{c:?}");
+        assert!(c.worst_clip_degrees < 5.0, "{}: {} bones {:.2} degrees from the source's", c.dataset, c.worst_clip, c.worst_clip_degrees);
+        assert!(c.worst_foot_height.abs() < 0.05, "{}: {}'s lowest foot stands {:.3} m from the floor", c.dataset, c.worst_foot_clip, c.worst_foot_height);
+        assert!(c.bone_length_change < 1e-4, "{}: a bone changes length by {} m", c.dataset, c.bone_length_change);
+    }
+    assert!(all.clips.iter().all(|c| c.motion.fps == 30.0 && c.motion.skeleton.names()[0] == "Hips"));
+    let walking = all.class_sources[all.class_index("walking").unwrap()].clone();
+    assert_eq!(walking, "h36m walking + bandai walk + cmu-expmap walking");
+    assert_eq!(all.class_sources[all.class_index("running").unwrap()], "bandai run + cmu-expmap running");
+    let corpus = Corpus::load(Dataset::Combined, &DataRoot::resolve(None), 3, 3).unwrap();
+    assert!(corpus.classes.len() >= 25, "{} activities: {:?}", corpus.classes.len(), corpus.classes);
+    // Bandai's test styles (tired, musical) have no training clip, so the model is not conditioned on them.
+    assert_eq!(corpus.styles.len(), 14, "{:?}", corpus.styles);
+    assert!(corpus.train.iter().filter(|t| t.file.starts_with("bandai")).all(|t| t.style.is_some_and(|s| corpus.styles[s] != "neutral")));
+    assert!(corpus.train.iter().filter(|t| t.file.starts_with("h36m")).all(|t| t.style.is_some_and(|s| corpus.styles[s] == "neutral")));
+}

@@ -22,10 +22,14 @@ pub struct GenerateArgs {
     /// was built in).
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Segments as CLASS:SECONDS[@PACE][~TRANSITION], comma-separated, e.g.
-    /// "sitting:3,eating:5,walking:10~0.5" (TRANSITION: seconds into that segment).
+    /// Segments as CLASS[/STYLE]:SECONDS[@PACE][~TRANSITION], comma-separated, e.g.
+    /// "sitting:3,eating:5,walking:10~0.5" (TRANSITION: seconds into that segment; STYLE on
+    /// a model with styles, e.g. "walking/tired:6").
     #[arg(long, required_unless_present = "project")]
     pub timeline: Option<String>,
+    /// The style of every segment that names none (a model with styles, e.g. models/all).
+    #[arg(long, conflicts_with = "project")]
+    pub style: Option<String>,
     /// A studio project (.glocal): the take it describes, with its model, activities, keys,
     /// path and generation settings as saved (--model picks another model).
     #[arg(long, conflicts_with_all = ["timeline", "keys", "path"])]
@@ -214,6 +218,10 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
 /// The generation options the command line's flags ask for.
 fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOptions> {
     let timeline: Timeline = timeline.parse()?;
+    let timeline = match &args.style {
+        Some(style) => timeline.with_style(style),
+        None => timeline,
+    };
     // A take starts in its first activity unless told otherwise.
     let init = match &args.init {
         Some(init) => parse_init(init)?,

@@ -21,12 +21,19 @@ pub struct Track {
     pub file: String,
     /// Bandai's style, Human3.6M's subject ([`registry::Clip::tag`]).
     pub tag: String,
+    /// Its style in [`Corpus::styles`] (a model with styles only).
+    pub style: Option<usize>,
     pub motion: Motion,
 }
 
 pub struct Corpus {
     pub dataset: Dataset,
     pub classes: Vec<String>,
+    /// Where each class's clips come from (the combined dataset only).
+    pub class_sources: Vec<String>,
+    /// The styles a model of this corpus is conditioned on: those of the training clips (the
+    /// combined dataset only; empty otherwise).
+    pub styles: Vec<String>,
     /// The dataset's whole skeleton, and the joints of it the model keeps.
     pub source_skeleton: Arc<Skeleton>,
     pub source_joints: Vec<usize>,
@@ -55,18 +62,43 @@ impl Corpus {
         }
         let kept: Vec<usize> = (0..loaded.classes.len()).filter(|&k| counts[k] >= min_clips).collect();
         let classes = kept.iter().map(|&k| loaded.classes[k].clone()).collect();
+        let class_sources = kept.iter().filter_map(|&k| loaded.class_sources.get(k).cloned()).collect();
+        let styles: Vec<String> = loaded.styles.iter().filter(|s| loaded.split(Split::Train).any(|c| c.tag == **s)).cloned().collect();
         let (mut train, mut test) = (Vec::new(), Vec::new());
         for clip in loaded.clips {
             let Some(class) = kept.iter().position(|&k| k == clip.class) else { continue };
             let mut motion = clip.motion.resample(fps).subset(&source_joints);
             motion.skeleton = layout.skeleton.clone();
-            let track = Track { class, file: clip.file, tag: clip.tag, motion };
+            let style = styles.iter().position(|s| *s == clip.tag);
+            let track = Track { class, file: clip.file, tag: clip.tag, style, motion };
             match clip.split {
                 Split::Train => train.push(track),
                 Split::Test => test.push(track),
             }
         }
-        Ok(Self { dataset, classes, source_skeleton: skeleton, source_joints, layout, fps, stride, train, test })
+        Ok(Self { dataset, classes, class_sources, styles, source_skeleton: skeleton, source_joints, layout, fps, stride, train, test })
+    }
+
+    /// Each class's usual style: the one most of its training clips have (empty without styles).
+    pub fn usual_styles(&self) -> Vec<usize> {
+        if self.styles.is_empty() {
+            return Vec::new();
+        }
+        let mut overall = vec![0usize; self.styles.len()];
+        for s in self.train.iter().filter_map(|t| t.style) {
+            overall[s] += 1;
+        }
+        (0..self.classes.len())
+            .map(|k| {
+                let mut counts = vec![0usize; self.styles.len()];
+                for s in self.train.iter().filter(|t| t.class == k).filter_map(|t| t.style) {
+                    counts[s] += 1;
+                }
+                // Ties (Bandai has one clip of most contents in each style) go to the style
+                // with the most clips overall: Bandai's "normal".
+                (0..counts.len()).max_by_key(|&s| (counts[s], overall[s], std::cmp::Reverse(s))).unwrap_or(0)
+            })
+            .collect()
     }
 
     /// Mean joint speed of each class over its training clips, in units per second.

@@ -65,18 +65,19 @@ pub struct GloGenSpec {
 }
 
 impl GloGenSpec {
-    /// The class part of the conditioning vector (0 without the class prior).
-    pub fn class_len(&self, classes: usize) -> usize {
+    /// The label part of the conditioning vector, `labels` one-hot entries (the classes, then
+    /// the styles): 0 without the class prior.
+    pub fn class_len(&self, labels: usize) -> usize {
         if self.use_class {
-            classes
+            labels
         } else {
             0
         }
     }
 
-    /// The whole conditioning vector: the class, then the target when the block reads one.
-    pub fn cond_len(&self, classes: usize, pose_dim: usize) -> usize {
-        self.class_len(classes) + if self.target { super::target::target_len(pose_dim) } else { 0 }
+    /// The whole conditioning vector: the labels, then the target when the block reads one.
+    pub fn cond_len(&self, labels: usize, pose_dim: usize) -> usize {
+        self.class_len(labels) + if self.target { super::target::target_len(pose_dim) } else { 0 }
     }
 }
 
@@ -123,6 +124,18 @@ pub struct ModelSpec {
     pub dataset: String,
     pub split: String,
     pub classes: Vec<String>,
+    /// Where each class's clips come from ("h36m walking + bandai walk"; a model of the
+    /// combined dataset only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub class_sources: Vec<String>,
+    /// The styles GloGen is conditioned on beside the class (a model of the combined dataset;
+    /// none otherwise): a second one-hot after the class's, dropped with it for guidance.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub styles: Vec<String>,
+    /// Each class's usual style (the one most of its training clips have), which a segment
+    /// that names none is made in (a model with styles only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub usual_styles: Vec<usize>,
     pub fps: f32,
     /// Dense frames per sparse step (the paper's M + 1).
     pub stride: usize,
@@ -337,7 +350,16 @@ impl ModelSpec {
         if let Some(k) = self.class_speed.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             return Err(E::field(&format!("class_speed[{k}]"), format!("is {}; it must be a finite speed of 0 or more", self.class_speed[k])));
         }
-        validate_block("glogen.block", &self.glogen.block, dim, self.glogen.cond_len(self.classes.len(), dim))?;
+        if !self.class_sources.is_empty() && self.class_sources.len() != self.classes.len() {
+            return Err(E::field("class_sources", format!("has {} entries for {} classes", self.class_sources.len(), self.classes.len())));
+        }
+        if self.styles.len() > MAX_CLASSES || self.styles.iter().any(|s| s.trim().is_empty()) {
+            return Err(E::field("styles", format!("must hold at most {MAX_CLASSES} names, none empty")));
+        }
+        if !self.styles.is_empty() && (self.usual_styles.len() != self.classes.len() || self.usual_styles.iter().any(|&s| s >= self.styles.len())) {
+            return Err(E::field("usual_styles", format!("must name one of the {} styles for each of the {} classes", self.styles.len(), self.classes.len())));
+        }
+        validate_block("glogen.block", &self.glogen.block, dim, self.glogen.cond_len(self.labels(), dim))?;
         in_range("glogen.class_dropout", self.glogen.class_dropout, 0.0, 1.0)?;
         in_range("class_strength", self.class_strength, 0.0, MAX_CLASS_STRENGTH)?;
         whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;
@@ -349,6 +371,19 @@ impl ModelSpec {
             }
         }
         Ok(())
+    }
+
+    /// Sets `class` and `style` in the label part of a conditioning row.
+    pub fn set_labels(&self, row: &mut [f32], class: usize, style: Option<usize>) {
+        row[class] = 1.0;
+        if let Some(s) = style {
+            row[self.classes.len() + s] = 1.0;
+        }
+    }
+
+    /// One-hot entries of the label part of the conditioning: the classes, then the styles.
+    pub fn labels(&self) -> usize {
+        self.classes.len() + self.styles.len()
     }
 
     fn validate_classes(&self) -> Result<(), SpecError> {

@@ -36,7 +36,8 @@ impl StudioApp {
         let actions = timeline_ui(ui, &mut self.panels.timeline_state, &input);
         self.apply_timeline(actions);
         ui.add_space(2.0);
-        self.segment_row(ui, &classes);
+        let styles = self.engine.styles().to_vec();
+        self.segment_row(ui, &classes, &styles);
         ui.add_space(4.0);
     }
 
@@ -107,7 +108,7 @@ impl StudioApp {
         });
     }
 
-    fn segment_row(&mut self, ui: &mut egui::Ui, classes: &[String]) {
+    fn segment_row(&mut self, ui: &mut egui::Ui, classes: &[String], styles: &[String]) {
         ui.horizontal_wrapped(|ui| {
             // What the pointer is over on the timeline, here rather than in a tooltip that
             // would cover the transport bar.
@@ -131,6 +132,16 @@ impl StudioApp {
                     ui.selectable_value(&mut seg.class, c.clone(), c);
                 }
             });
+            if !styles.is_empty() {
+                // A model with styles: the segment's own, or its class's usual one.
+                let shown = seg.style.clone().unwrap_or_else(|| "usual style".into());
+                egui::ComboBox::from_id_salt("segment_style").selected_text(shown).width(110.0).height(400.0).show_ui(ui, |ui| {
+                    ui.selectable_value(&mut seg.style, None, "usual style").on_hover_text("The style most of this activity's training clips have");
+                    for s in styles {
+                        ui.selectable_value(&mut seg.style, Some(s.clone()), s);
+                    }
+                });
+            }
             ui.add(egui::DragValue::new(&mut seg.seconds).range(MIN_SECONDS..=600.0).speed(0.05).suffix(" s").fixed_decimals(1));
             let mut own = seg.pace.is_some();
             if ui.checkbox(&mut own, "own pace").on_hover_text("This segment's pace replaces the global pace (it does not multiply it)").changed() {

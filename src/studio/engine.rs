@@ -81,6 +81,11 @@ impl Engine {
         self.model.as_ref().map_or(&[], |m| m.spec.classes.as_slice())
     }
 
+    /// The styles the model is conditioned on (none for a model without styles).
+    pub fn styles(&self) -> &[String] {
+        self.model.as_ref().map_or(&[], |m| m.spec.styles.as_slice())
+    }
+
     /// Asks the worker for the take of `request`, cancelling any older one.
     pub fn generate(&mut self, request: TakeRequest) {
         self.requested = Some(request.options.clone());

@@ -55,6 +55,10 @@ impl StudioApp {
     /// Retags segments whose class the new model does not have (by [`ClassMap`]) and says
     /// what was mapped.
     pub(super) fn carry_classes(&mut self, info: &ModelInfo) {
+        let cleared = self.editing.doc.options.timeline.keep_styles(&info.spec.styles);
+        if cleared > 0 {
+            self.messages.set(Topic::Classes, Level::Info, format!("{cleared} segments lost a style {} does not have; they take their activity's usual style", info.spec.dataset));
+        }
         let classes = &info.spec.classes;
         let mut unknown: Vec<String> = Vec::new();
         for s in &self.editing.doc.options.timeline.segments {

@@ -89,6 +89,11 @@ impl ClassMap {
                 if let Some(same) = find(f) {
                     return ClassPair { from: f.clone(), to: same, kind: MatchKind::Same };
                 }
+                // One name the other plus a suffix ("run", "running") is the same activity in
+                // another dataset's words; the shortest such name ("walking", not "walk-back").
+                if let Some(longer) = to.iter().filter(|c| normalized(c).starts_with(&normalized(f)) && !normalized(f).is_empty()).min_by_key(|c| normalized(c).len()) {
+                    return ClassPair { from: f.clone(), to: longer.clone(), kind: MatchKind::Similar };
+                }
                 if let Some(t) = table.iter().filter(|(a, _)| normalized(a) == normalized(f)).find_map(|(_, b)| find(b)) {
                     return ClassPair { from: f.clone(), to: t, kind: MatchKind::Table };
                 }
@@ -170,6 +175,17 @@ mod tests {
         let back = ClassMap::build(&names(BANDAI), &names(H36M), &ClassMap::shipped_table());
         assert_eq!(back.get("walk-left"), Some("walking"));
         assert!(back.pairs.iter().all(|p| H36M.contains(&p.to.as_str())));
+    }
+
+    /// The model of everything merges "walk" and "walking", "run" and "running": a Bandai
+    /// timeline's run stays a run there, though the shipped table sends it to h36m's walking.
+    #[test]
+    fn a_shorter_name_goes_to_its_longer_form_before_the_table() {
+        let all = names(&["walking", "running", "walk-back", "walk-left", "bow", "sitting"]);
+        let map = ClassMap::build(&names(BANDAI), &all, &ClassMap::shipped_table());
+        assert_eq!((map.get("walk"), map.get("run"), map.get("walk-back")), (Some("walking"), Some("running"), Some("walk-back")));
+        let back = ClassMap::build(&names(BANDAI), &names(H36M), &ClassMap::shipped_table());
+        assert_eq!(back.get("run"), Some("walking"));
     }
 
     #[test]

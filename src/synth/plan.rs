@@ -51,6 +51,9 @@ pub(super) struct SparseTimeline {
     /// Per segment: sparse poses and class.
     pub(super) counts: Vec<usize>,
     pub(super) classes: Vec<usize>,
+    /// Per segment: its style (a model with styles: the segment's own, else its class's usual
+    /// one; none otherwise).
+    pub(super) styles: Vec<Option<usize>>,
     /// Per segment: the transition into it in sparse steps, before and after its boundary
     /// (for the first segment, from the initial poses' class). Each half is counted at its
     /// own side's pace: a slow segment before a fast one would otherwise have its second of
@@ -65,6 +68,7 @@ pub(super) struct SparseTimeline {
 impl SparseTimeline {
     pub(super) fn new(spec: &ModelSpec, opts: &GenerateOptions) -> Result<Self> {
         let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
+        let styles = opts.timeline.validate_styles(&spec.styles, &spec.dataset)?.into_iter().zip(&classes).map(|(s, &c)| s.or_else(|| spec.usual_styles.get(c).copied())).collect();
         crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
         let step_of = |pace: f32| spec.stride as f32 * pace / spec.fps;
         let segments = &opts.timeline.segments;
@@ -86,7 +90,7 @@ impl SparseTimeline {
         for (i, &k) in segment_of.iter().enumerate() {
             frames.push(frames[i] + spec.stride as f64 * paces[k] as f64);
         }
-        Ok(Self { segment_of, counts, classes, transition_steps, frames, step_seconds })
+        Ok(Self { segment_of, counts, classes, styles, transition_steps, frames, step_seconds })
     }
 
     /// Sparse poses of the take, the seed's last pose included.
@@ -138,13 +142,16 @@ impl SparseTimeline {
                     let mix = match self.transition_at(i) {
                         Some((k, through)) => {
                             let s = smoothstep(through);
-                            vec![(self.classes[k - 1], 1.0 - s), (self.classes[k], s)]
+                            vec![(k - 1, 1.0 - s), (k, s)]
                         }
-                        None => vec![(self.classes[self.segment_at(i)], 1.0)],
+                        None => vec![(self.segment_at(i), 1.0)],
                     };
-                    for (c, w) in mix {
-                        if let Some(v) = class.get_mut(c) {
-                            *v += w / t as f32;
+                    for (k, w) in mix {
+                        let style = self.styles[k].map(|s| model.spec.classes.len() + s);
+                        for label in std::iter::once(self.classes[k]).chain(style) {
+                            if let Some(v) = class.get_mut(label) {
+                                *v += w / t as f32;
+                            }
                         }
                     }
                 }

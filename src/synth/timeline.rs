@@ -18,6 +18,9 @@ pub const MAX_PACE: f32 = 10.0;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Segment {
     pub class: String,
+    /// The style it is made in (a model with styles only); none: the class's usual style.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub style: Option<String>,
     pub seconds: f32,
     /// Overrides the global pace for this segment.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -38,7 +41,7 @@ pub struct Segment {
 
 impl Segment {
     pub fn new(class: impl Into<String>, seconds: f32) -> Self {
-        Self { class: class.into(), seconds, pace: None, transition: None, seed: None, locked: false }
+        Self { class: class.into(), style: None, seconds, pace: None, transition: None, seed: None, locked: false }
     }
 }
 
@@ -82,6 +85,43 @@ impl Timeline {
             })
             .collect()
     }
+
+    /// Resolves each segment's style against a model's `styles`, where it names one. A model
+    /// without styles refuses any.
+    pub fn validate_styles(&self, styles: &[String], model: &str) -> Result<Vec<Option<usize>>> {
+        self.segments
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let Some(style) = &s.style else { return Ok(None) };
+                if styles.is_empty() {
+                    bail!("segment {} ('{}/{style}'): the {model} model has no styles; remove '/{style}' or choose a model with styles (models/all)", k + 1, s.class);
+                }
+                let found = styles.iter().position(|c| c.eq_ignore_ascii_case(style));
+                found.map(Some).with_context(|| format!("segment {} ('{}/{style}'): unknown style '{style}'; valid styles: {}", k + 1, s.class, styles.join(", ")))
+            })
+            .collect()
+    }
+
+    /// Clears each segment's style that `styles` (a model's) does not have; how many were.
+    pub fn keep_styles(&mut self, styles: &[String]) -> usize {
+        let mut cleared = 0;
+        for s in &mut self.segments {
+            if s.style.as_ref().is_some_and(|n| !styles.iter().any(|c| c.eq_ignore_ascii_case(n))) {
+                s.style = None;
+                cleared += 1;
+            }
+        }
+        cleared
+    }
+
+    /// Gives every segment without a style of its own `style` (a take's `--style`).
+    pub fn with_style(mut self, style: &str) -> Timeline {
+        for s in self.segments.iter_mut().filter(|s| s.style.is_none()) {
+            s.style = Some(style.to_string());
+        }
+        self
+    }
 }
 
 /// Longest transition between two segments, in seconds.
@@ -101,7 +141,8 @@ fn check_pace(p: f32, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// `"sit:3,drink:5,walk:10"`; a segment may carry its own pace as `walk:10@1.5`, its own
+/// `"sit:3,drink:5,walk:10"`; a segment may name its style after its class (`walk/tired:6`,
+/// models with styles), and carry its own pace as `walk:10@1.5`, its own
 /// transition length (seconds, into it from the previous segment) as `walk:10~0.5` and its
 /// own variation seed as `walk:10#7`, in that order (`walk:10@1.5~0.5#7`).
 impl FromStr for Timeline {
@@ -128,7 +169,12 @@ impl FromStr for Timeline {
                 None => (rest, None),
             };
             let seconds = secs.trim().parse::<f32>().with_context(|| format!("segment {} '{part}': duration '{secs}' is not a number", k + 1))?;
-            segments.push(Segment { class: class.trim().to_string(), seconds, pace, transition, seed, locked: false });
+            let (class, style) = match class.split_once('/') {
+                Some((c, s)) if s.trim().is_empty() => bail!("segment {} '{part}': the style after '{}/' is empty", k + 1, c.trim()),
+                Some((c, s)) => (c, Some(s.trim().to_string())),
+                None => (class, None),
+            };
+            segments.push(Segment { class: class.trim().to_string(), style, seconds, pace, transition, seed, locked: false });
         }
         Ok(Timeline { segments })
     }
@@ -143,7 +189,8 @@ impl fmt::Display for Timeline {
                 let pace = s.pace.map(|p| format!("@{p}")).unwrap_or_default();
                 let transition = s.transition.map(|t| format!("~{t}")).unwrap_or_default();
                 let seed = s.seed.map(|n| format!("#{n}")).unwrap_or_default();
-                format!("{}:{}{pace}{transition}{seed}", s.class, s.seconds)
+                let style = s.style.as_ref().map(|n| format!("/{n}")).unwrap_or_default();
+                format!("{}{style}:{}{pace}{transition}{seed}", s.class, s.seconds)
             })
             .collect();
         f.write_str(&parts.join(","))
@@ -175,6 +222,20 @@ mod tests {
         assert_eq!(t.to_string().parse::<Timeline>().unwrap(), t, "seeds round-trip through the text form");
         assert!(format!("{:#}", "walking:4#x".parse::<Timeline>().unwrap_err()).contains("segment 1 'walking:4#x': seed 'x' is not a whole number"));
         assert!(format!("{:#}", "walking:4#-3".parse::<Timeline>().unwrap_err()).contains("seed '-3'"));
+    }
+
+    #[test]
+    fn styles_are_parsed_printed_and_checked_against_the_model() {
+        let t: Timeline = "walking/tired:6,sitting:3@1.5".parse().unwrap();
+        assert_eq!(t.segments[0].style.as_deref(), Some("tired"));
+        assert_eq!(t.segments[0].class, "walking");
+        assert_eq!(t.to_string(), "walking/tired:6,sitting:3@1.5");
+        let styles = ["neutral", "tired"].map(String::from);
+        assert_eq!(t.validate_styles(&styles, "all").unwrap(), [Some(1), None]);
+        assert_eq!(t.clone().with_style("neutral").validate_styles(&styles, "all").unwrap(), [Some(1), Some(0)]);
+        assert!(format!("{:#}", t.validate_styles(&[], "h36m").unwrap_err()).contains("the h36m model has no styles"));
+        assert!(format!("{:#}", "walking/sad:2".parse::<Timeline>().unwrap().validate_styles(&styles, "all").unwrap_err()).contains("unknown style 'sad'; valid styles: neutral, tired"));
+        assert!(format!("{:#}", "walking/:2".parse::<Timeline>().unwrap_err()).contains("the style after 'walking/' is empty"));
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! `glocal eval --suite h36m` and `--suite bandai`: class-conditioned generation scored by
+//! `glocal eval --suite h36m`, `--suite bandai` and `--suite combined`: class-conditioned generation scored by
 //! the action classifier (FID, accuracy, diversity, multimodality), and the class-control
 //! matrix (every start, every transition length).
 
@@ -187,10 +187,11 @@ pub(super) fn run(dataset: Dataset, ctx: &SuiteContext, log: &mut dyn FnMut(&str
     }
     md.table(samples);
     md.text("\nPer class, accuracy of the requested class (class control after a 2 s transition):\n\n");
-    let mut per_class = Table::new(["class", "conditioned", "same class's seed", "other class's seed", "previous segment"]);
+    let mut per_class = Table::new(["class", "real test windows", "conditioned", "same class's seed", "other class's seed", "previous segment"]);
     let after_2s: Vec<&Scores> = conditions.iter().filter(|c| c.1 == 2.0).map(|c| &c.3).collect();
     for c in 0..k {
-        per_class.row([spec.classes[c].clone(), f(generated.per_class[c], 2)].into_iter().chain(after_2s.iter().map(|s| f(s.per_class[c], 2))));
+        let real_test = if test_labels.contains(&c) { f(real.per_class[c], 2) } else { "no test clip".into() };
+        per_class.row([spec.classes[c].clone(), real_test, f(generated.per_class[c], 2)].into_iter().chain(after_2s.iter().map(|s| f(s.per_class[c], 2))));
     }
     md.table(per_class);
     Ok((md, json!({

@@ -342,7 +342,7 @@ fn load_widened(path: &Path, varmap: &VarMap) -> Result<()> {
 /// Reads `model.json` when the folder has one for this dataset, else describes a new model.
 fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
     let dim = corpus.layout.dim();
-    let classes = corpus.classes.len();
+    let labels = corpus.classes.len() + corpus.styles.len();
     let shape = &opts.shape;
     let mut glogen = GloGenSpec {
         block: BlockConfig {
@@ -362,7 +362,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         seam_join: shape.seam_join,
         target: shape.target,
     };
-    glogen.block.cond_dim = glogen.cond_len(classes, dim);
+    glogen.block.cond_dim = glogen.cond_len(labels, dim);
     let locgen = LocGenSpec {
         block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.25 },
         window: shape.locgen_window,
@@ -387,6 +387,9 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         dataset: opts.dataset.name().to_string(),
         split: split_description(opts.dataset).to_string(),
         classes: corpus.classes.clone(),
+        class_sources: corpus.class_sources.clone(),
+        styles: corpus.styles.clone(),
+        usual_styles: corpus.usual_styles(),
         fps: corpus.fps,
         stride: shape.stride,
         block_len: shape.block_len,

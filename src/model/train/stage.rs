@@ -27,6 +27,7 @@ const VALIDATION_WINDOWS: usize = 256;
 pub(super) struct ValWindow {
     input: Vec<f32>,
     class: usize,
+    style: Option<usize>,
     target_positions: Vec<Vec3>,
     start: Placement,
     /// GloGen: the last input pose repeated (zero-velocity); LocGen: the interpolation.
@@ -81,7 +82,7 @@ impl TrainingData<'_> {
             ys.extend(y);
             let mut c = vec![0f32; cond_dim];
             if cond_dim > 0 && rng.random::<f32>() >= self.spec.glogen.class_dropout {
-                c[track.class] = 1.0;
+                self.spec.set_labels(&mut c, track.class, track.style);
             }
             conds.extend(c);
             drawn.push((track, start + self.spec.stride));
@@ -199,7 +200,7 @@ impl GloGenTraining<'_> {
     /// on their way to one.
     fn free_rows(&self, cond: &Tensor) -> Result<Tensor> {
         let spec = self.0.spec;
-        let flag = spec.glogen.class_len(spec.classes.len()) + target_flag(self.0.layout().dim());
+        let flag = spec.glogen.class_len(spec.labels()) + target_flag(self.0.layout().dim());
         Ok(cond.narrow(1, flag, 1)?.affine(-1.0, 1.0)?.unsqueeze(2)?)
     }
 
@@ -213,7 +214,7 @@ impl GloGenTraining<'_> {
         let free = if spec.glogen.residual { pred.broadcast_add(&last)? } else { pred.clone() };
         let Some(cond) = cond.filter(|_| spec.glogen.target) else { return Ok(free) };
         let (t, dim) = (spec.block_len, self.0.layout().dim());
-        let class_len = spec.glogen.class_len(spec.classes.len());
+        let class_len = spec.glogen.class_len(spec.labels());
         let rows = cond.to_vec2::<f32>()?;
         // Per window, the way's ends and shares and whether it has one at all.
         let (mut ends, mut shares, mut has) = (Vec::new(), Vec::new(), Vec::new());
@@ -293,7 +294,7 @@ impl StageTraining for GloGenTraining<'_> {
             let last_in = m.frame(first_out - s);
             let target_positions = (0..t).flat_map(|k| m.frame(first_out + k * s).to_vec()).collect();
             let baseline_positions = (0..t).flat_map(|_| last_in.to_vec()).collect();
-            ValWindow { input, class: track.class, target_positions, start: data.layout().placement(last_in), baseline_positions }
+            ValWindow { input, class: track.class, style: track.style, target_positions, start: data.layout().placement(last_in), baseline_positions }
         })
     }
 
@@ -307,8 +308,8 @@ impl StageTraining for GloGenTraining<'_> {
         for w in windows {
             let mut sparse = w.input.clone();
             let mut class = vec![0.0; block.cfg.cond_dim];
-            if w.class < data.spec.glogen.class_len(data.spec.classes.len()) {
-                class[w.class] = 1.0;
+            if data.spec.glogen.use_class {
+                data.spec.set_labels(&mut class, w.class, w.style);
             }
             rollout(&glogen, &mut ws, &mut sparse, 1, data.spec.glogen.joined, &mut OneClass(class))?;
             predictions.push(sparse.split_off(w.input.len()));
@@ -357,7 +358,7 @@ impl StageTraining for LocGenTraining<'_> {
             let (input, _) = self.window(track, frame);
             let target_positions = (0..w).flat_map(|k| m.frame(frame + k).to_vec()).collect();
             let baseline_positions = interpolated_window(m, frame, w, s, data.spec.locgen.interpolation);
-            ValWindow { input, class: track.class, target_positions, start: data.layout().placement(m.frame(frame - 1)), baseline_positions }
+            ValWindow { input, class: track.class, style: track.style, target_positions, start: data.layout().placement(m.frame(frame - 1)), baseline_positions }
         })
     }
 
