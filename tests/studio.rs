@@ -504,13 +504,13 @@ fn starts_from_a_working_folder_outside_the_repository() {
     assert_eq!(found.model_roots.first(), Some(&exe_dir.join("models")), "beside the executable first");
     assert!(found.model_roots.contains(&crate_models), "the crate's models/: {:?}", found.model_roots);
     assert!(found.model_roots.iter().any(|r| r.starts_with(&elsewhere) || r.canonicalize().ok() == elsewhere.canonicalize().ok().map(|e| e.join("models"))), "and the working folder: {:?}", found.model_roots);
-    assert_eq!(found.model_dir, crate_models.join("h36m"));
+    assert_eq!(found.model_dir, crate_models.join("all"));
     wait_take(&mut h);
     let (roots, shipped) = h.state().model_search();
     assert_eq!(roots, found.model_roots.as_slice());
     let names: Vec<_> = shipped.iter().filter_map(|p| p.file_name()).collect();
-    assert_eq!(names, ["bandai", "h36m"]);
-    assert_eq!(h.state().model_info().unwrap().dir, crate_models.join("h36m"));
+    assert_eq!(names, ["all", "bandai", "h36m"]);
+    assert_eq!(h.state().model_info().unwrap().dir, crate_models.join("all"));
 }
 
 #[test]

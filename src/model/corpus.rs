@@ -16,6 +16,9 @@ use crate::motion::{JointRoles, Motion, Skeleton};
 /// collapsed end sites, and their joints are left out of the model.
 const MIN_BONE_FRACTION: f32 = 0.02;
 
+/// The styles that mean "no particular style", which a class's usual style falls to on a tie.
+const PLAIN_STYLES: [&str; 2] = ["neutral", "normal"];
+
 pub struct Track {
     pub class: usize,
     pub file: String,
@@ -84,19 +87,16 @@ impl Corpus {
         if self.styles.is_empty() {
             return Vec::new();
         }
-        let mut overall = vec![0usize; self.styles.len()];
-        for s in self.train.iter().filter_map(|t| t.style) {
-            overall[s] += 1;
-        }
         (0..self.classes.len())
             .map(|k| {
                 let mut counts = vec![0usize; self.styles.len()];
                 for s in self.train.iter().filter(|t| t.class == k).filter_map(|t| t.style) {
                     counts[s] += 1;
                 }
-                // Ties (Bandai has one clip of most contents in each style) go to the style
-                // with the most clips overall: Bandai's "normal".
-                (0..counts.len()).max_by_key(|&s| (counts[s], overall[s], std::cmp::Reverse(s))).unwrap_or(0)
+                // Ties (Bandai has one clip of each content in each style) go to the plain
+                // style, Bandai's "normal".
+                let plain = |s: usize| PLAIN_STYLES.contains(&self.styles[s].as_str());
+                (0..counts.len()).max_by_key(|&s| (counts[s], plain(s), std::cmp::Reverse(s))).unwrap_or(0)
             })
             .collect()
     }

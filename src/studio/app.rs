@@ -34,10 +34,11 @@ pub struct StudioOptions {
 }
 
 impl Default for StudioOptions {
-    /// The shipped models wherever they are found ([`crate::model::model_roots`]), h36m first.
+    /// The shipped models wherever they are found ([`crate::model::model_roots`]), opening on
+    /// the model of everything (every activity of the four datasets, with styles).
     fn default() -> Self {
         let model_roots = crate::model::model_roots();
-        let model_dir = crate::model::shipped_model("h36m");
+        let model_dir = crate::model::shipped_model("all");
         Self { model_dir, model_roots, autosave: Some(project::default_autosave_path()), restore_autosave: true, system_dialogs: dialogs::system_dialog_available() }
     }
 }

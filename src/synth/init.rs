@@ -128,7 +128,12 @@ impl FileStart {
 }
 
 /// A BVH exported in metres or centimetres (`glocal generate --units`) read as if in the
-/// model's unit: rescaled by the power of ten that makes its bones the model's length.
+/// model's unit: rescaled by the power of ten that makes its bones the model's length. A file
+/// on another skeleton (whose bones named as the model's are not its lengths times a power of
+/// ten) is judged by its size instead: the
+/// power of ten that makes its reach at rest (the farthest joint from its root) a person's,
+/// as the model's is, within a factor of two (a Bandai file in centimetres on the standard
+/// humanoid in metres).
 fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     let s = &m.skeleton;
     let mut ratios: Vec<f32> = (0..s.len())
@@ -138,13 +143,15 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
             (j > 0 && k > 0 && a > 0.0 && b > 0.0).then_some(a / b)
         })
         .collect();
-    if ratios.is_empty() {
-        return Ok(m);
-    }
     ratios.sort_by(f32::total_cmp);
-    let ratio = ratios[ratios.len() / 2];
-    let power = ratio.log10().round();
-    if power == 0.0 || power.abs() > 3.0 || (ratio.log10() - power).abs() > 0.02 {
+    let power_of_ten = |ratio: f32, tolerance: f32| {
+        let power = ratio.log10().round();
+        ((ratio.log10() - power).abs() <= tolerance && power.abs() <= 3.0).then_some(power)
+    };
+    let reach = |k: &Skeleton| k.rest_positions().iter().map(|p| p.distance(k.rest_positions()[0])).fold(0.0f32, f32::max);
+    let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02));
+    let Some(power) = by_names.or_else(|| power_of_ten(reach(model) / reach(s).max(f32::MIN_POSITIVE), 0.3)) else { return Ok(m) };
+    if power == 0.0 {
         return Ok(m);
     }
     let skeleton = Skeleton::new(s.names().to_vec(), s.parents().to_vec(), s.offsets().to_vec(), s.meters_per_unit() * 10f32.powf(power))?;

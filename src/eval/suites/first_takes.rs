@@ -65,6 +65,18 @@ const BANDAI: [Recipe; 4] = [
     Recipe { timeline: "walk:10", start: Start::File { entry: "bandai/data/dataset-1_punch_normal_001.bvh", frame: 30 }, seed: 0 },
 ];
 
+/// The model of everything: issue 39's h36m takes started from their classes' seeds (its seed
+/// bank numbers other windows), Bandai's in the merged class names, a take across all four
+/// datasets, and a walk started from Bandai's punch file.
+const COMBINED: [Recipe; 6] = [
+    Recipe { timeline: "walking:4,sittingdown:4,sitting:5", start: Start::Seed("walking"), seed: 0 },
+    Recipe { timeline: "eating:3,walking:6,sitting:3", start: Start::Seed("eating"), seed: 0 },
+    Recipe { timeline: "walking:4,bow:3,running:3,bye:4", start: Start::Seed("walking"), seed: 0 },
+    Recipe { timeline: "sitting:3,salsa:3,bow:3,basketball:3", start: Start::Seed("sitting"), seed: 0 },
+    Recipe { timeline: "walking:60", start: Start::Seed("walking"), seed: 0 },
+    Recipe { timeline: "walking:10", start: Start::File { entry: "bandai/data/dataset-1_punch_normal_001.bvh", frame: 30 }, seed: 0 },
+];
+
 /// What one first take measures.
 #[derive(Clone, Debug, Serialize)]
 pub struct FirstTake {
@@ -86,11 +98,15 @@ pub struct FirstTake {
 pub fn first_takes(dataset: Dataset, ctx: &SuiteContext, limits: &SnapLimits, snaps: &mut SnapTally, log: &mut dyn FnMut(&str)) -> Result<Vec<FirstTake>> {
     let dir = ctx.model_dir(dataset);
     let model = GlocalModel::load(&dir)?;
-    let recipes: &[Recipe] = if dataset == Dataset::Bandai { &BANDAI } else { &H36M };
+    let recipes: &[Recipe] = match dataset {
+        Dataset::Bandai => &BANDAI,
+        Dataset::Combined => &COMBINED,
+        _ => &H36M,
+    };
     recipes
         .iter()
         .map(|recipe| {
-            let (init, init_arg) = init_pose(&recipe.start, dataset, ctx)?;
+            let (init, init_arg) = init_pose(&recipe.start, ctx)?;
             let command = format!("--timeline {} --init {init_arg} --seed {}", recipe.timeline, recipe.seed);
             log(&format!("first takes: {dataset} {command}"));
             let opts = GenerateOptions { timeline: recipe.timeline.parse()?, init, ..ctx.generation.clone() }.varied(recipe.seed);
@@ -103,7 +119,7 @@ pub fn first_takes(dataset: Dataset, ctx: &SuiteContext, limits: &SnapLimits, sn
 }
 
 /// The init pose of `start`, and how `--init` spells it.
-fn init_pose(start: &Start, dataset: Dataset, ctx: &SuiteContext) -> Result<(InitPose, String)> {
+fn init_pose(start: &Start, ctx: &SuiteContext) -> Result<(InitPose, String)> {
     Ok(match *start {
         Start::Seed(name) => {
             let init = match name.parse::<usize>() {
@@ -113,19 +129,21 @@ fn init_pose(start: &Start, dataset: Dataset, ctx: &SuiteContext) -> Result<(Ini
             (init, format!("seed:{name}"))
         }
         Start::File { entry, frame } => {
-            let path = archive_file(dataset, entry, ctx)?;
+            let path = archive_file(entry, ctx)?;
             (InitPose::file(path, frame), format!("clip:{entry}@{frame}"))
         }
     })
 }
 
 /// `entry` of the dataset's archive as a file in the evaluation cache (written once).
-fn archive_file(dataset: Dataset, entry: &str, ctx: &SuiteContext) -> Result<PathBuf> {
+/// A file of an archive, by its path in it (which begins with the archive's name).
+fn archive_file(entry: &str, ctx: &SuiteContext) -> Result<PathBuf> {
     let name = Path::new(entry).file_name().with_context(|| format!("{entry}: not a file name"))?;
+    let archive = entry.split('/').next().unwrap_or_default();
     let path = ctx.options.cache.join("first-takes").join(name);
     if !path.exists() {
-        let files = ctx.options.data.read_archive(dataset.name(), |p| p == entry)?;
-        let (_, bytes) = files.first().with_context(|| format!("the {dataset} archive has no {entry}"))?;
+        let files = ctx.options.data.read_archive(archive, |p| p == entry)?;
+        let (_, bytes) = files.first().with_context(|| format!("the {archive} archive has no {entry}"))?;
         let folder = path.parent().expect("a file in the cache has a folder");
         std::fs::create_dir_all(folder).with_context(|| format!("cannot create {}", folder.display()))?;
         write_atomic(&path, bytes)?;

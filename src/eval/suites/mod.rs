@@ -13,6 +13,7 @@ mod inbetween;
 mod locgen;
 mod long_term;
 mod motion;
+mod style_control;
 
 use std::str::FromStr;
 use std::time::Instant;
@@ -33,6 +34,8 @@ pub enum Suite {
     Bandai,
     /// Class control on the model of everything (`models/all`).
     Combined,
+    /// Style control on the model of everything.
+    Styles,
     Locgen,
     LongTerm,
     Motion,
@@ -53,6 +56,7 @@ impl Suite {
             Suite::H36m => "h36m",
             Suite::Bandai => "bandai",
             Suite::Combined => "combined",
+            Suite::Styles => "styles",
             Suite::Locgen => "locgen",
             Suite::LongTerm => "long-term",
             Suite::Motion => "motion",
@@ -75,7 +79,7 @@ impl FromStr for Suite {
     fn from_str(s: &str) -> Result<Self> {
         // `first-takes` is part of `motion`, so `all` leaves it out; `combined` is the model of
         // everything's, which the paper's tables do not need.
-        let named = Self::ALL.into_iter().chain([Suite::FirstTakes, Suite::Combined]);
+        let named = Self::ALL.into_iter().chain([Suite::FirstTakes, Suite::Combined, Suite::Styles]);
         named.clone().find(|x| x.name() == s).ok_or_else(|| anyhow!("unknown suite '{s}'; valid: {}", named.map(Suite::name).collect::<Vec<_>>().join(", ")))
     }
 }
@@ -97,6 +101,7 @@ pub fn run_suite(suite: Suite, ctx: &SuiteContext, log: &mut dyn FnMut(&str)) ->
         Suite::H36m => class_generation::run(Dataset::H36m, ctx, log)?,
         Suite::Bandai => class_generation::run(Dataset::Bandai, ctx, log)?,
         Suite::Combined => class_generation::run(Dataset::Combined, ctx, log)?,
+        Suite::Styles => style_control::run(ctx, log)?,
         Suite::Locgen => locgen::run(ctx, log)?,
         Suite::LongTerm => long_term::run(ctx, log)?,
         Suite::Motion => motion::run(ctx, log)?,

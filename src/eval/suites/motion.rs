@@ -236,9 +236,11 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
     ]);
     md.table(balanced_table);
     md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}.\n", r.snaps.describe()));
+    // Over the classes that have a profile (the model of everything has classes without a test clip).
     let profile = |p: &[Vec<f64>]| -> String {
-        let k = p.first().map_or(0, Vec::len);
-        (0..k).map(|i| cell(p.iter().map(|c| c[i]).sum::<f64>() / p.len() as f64, 2)).collect::<Vec<_>>().join(" ")
+        let k = p.iter().map(Vec::len).max().unwrap_or(0);
+        let with: Vec<&Vec<f64>> = p.iter().filter(|c| c.len() == k).collect();
+        (0..k).map(|i| cell(with.iter().map(|c| c[i]).sum::<f64>() / with.len() as f64, 2)).collect::<Vec<_>>().join(" ")
     };
     md.text(&format!("\nPose speed per sparse interval of a block, over the block's mean (class-balanced; the last interval crosses the seam): real {}; generated {}.\n", profile(&real.profile), profile(&shipped.profile)));
     md.text("\nPer class (generated = shipped defaults, foot lock on):\n\n");
@@ -282,7 +284,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
 /// Each class's joint speed by style or subject: how far the test split's own spread sits
 /// from the training split's, which bounds how near any model of the training split can come.
 fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
-    let tag = if r.dataset == Dataset::Bandai { "style" } else { "subject" };
+    let tag = if matches!(r.dataset, Dataset::Bandai | Dataset::Combined) { "style" } else { "subject" };
     md.text(&format!("\nJoint speed per {tag} (m/s, each {tag}'s clips of the class):\n\n"));
     let mut table = Table::new(["class".to_string(), format!("training split: slowest / median / fastest {tag}"), format!("test split, each {tag}")]);
     let named = |(name, speed): &(String, f64)| format!("{} {name}", cell(*speed, 3));

@@ -1,0 +1,99 @@
+//! `glocal eval --suite styles`: style control on a model with styles (`models/all`). A style
+//! classifier is trained on Bandai's training clips on the model's skeleton, by style, with
+//! one content held out to test it on; each of Bandai's classes is then generated in each
+//! style, and the classifier says which style it sees.
+
+use anyhow::{bail, Result};
+use serde_json::{json, Value};
+
+use super::context::SuiteContext;
+use crate::data::combined::NEUTRAL;
+use crate::data::registry::Dataset;
+use crate::eval::classifier::{Classifier, ClassifierConfig};
+use crate::eval::table::{fixed as f, Markdown, Table};
+use crate::model::corpus::{Corpus, Track};
+use crate::model::glocal::GlocalModel;
+use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
+
+/// The Bandai content whose clips test the style classifier (it never trains on them).
+const HELD_OUT_CONTENT: &str = "bye";
+/// Generated takes per class and style.
+const TAKES: usize = 4;
+
+/// The Bandai clips of `corpus` labelled by style (among `styles`, indices into the corpus's),
+/// the held-out content's as the test split.
+fn style_corpus(corpus: &Corpus, styles: &[usize]) -> Corpus {
+    let held_out = corpus.classes.iter().position(|c| c == HELD_OUT_CONTENT);
+    let relabel = |t: &Track| -> Option<Track> {
+        let label = styles.iter().position(|&s| Some(s) == t.style)?;
+        t.file.starts_with("bandai").then(|| Track { class: label, file: t.file.clone(), tag: t.tag.clone(), style: t.style, motion: t.motion.clone() })
+    };
+    let (test, train): (Vec<(bool, Track)>, Vec<(bool, Track)>) = corpus.train.iter().filter_map(|t| relabel(t).map(|r| (Some(t.class) == held_out, r))).partition(|(held, _)| *held);
+    Corpus {
+        dataset: corpus.dataset,
+        classes: styles.iter().map(|&s| corpus.styles[s].clone()).collect(),
+        class_sources: Vec::new(),
+        styles: Vec::new(),
+        source_skeleton: corpus.source_skeleton.clone(),
+        source_joints: corpus.source_joints.clone(),
+        layout: corpus.layout.clone(),
+        fps: corpus.fps,
+        stride: corpus.stride,
+        train: train.into_iter().map(|(_, t)| t).collect(),
+        test: test.into_iter().map(|(_, t)| t).collect(),
+    }
+}
+
+pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
+    let dir = ctx.model_dir(Dataset::Combined);
+    let model = GlocalModel::load(&dir)?;
+    let spec = model.spec.clone();
+    if spec.styles.is_empty() {
+        bail!("{}: the model has no styles", dir.display());
+    }
+    log("styles: loading data");
+    let corpus = Corpus::load(Dataset::Combined, &ctx.options.data, spec.stride, 3)?;
+    let styles: Vec<usize> = (0..spec.styles.len()).filter(|&s| spec.styles[s] != NEUTRAL).collect();
+    let by_style = style_corpus(&corpus, &styles);
+    let cfg = ClassifierConfig::default();
+    let clf = Classifier::load_or_train(&by_style, &cfg, &ctx.options.cache, "style-classifier-all", log)?;
+    let bandai_classes: Vec<usize> = (0..spec.classes.len()).filter(|&c| spec.class_sources.get(c).is_some_and(|s| s.contains("bandai"))).collect();
+    log("styles: generating");
+    let mut hits = vec![vec![0usize; styles.len()]; bandai_classes.len()];
+    let seed_frames = spec.block_len * spec.stride;
+    let seconds = (seed_frames + cfg.frames + 2 * spec.stride) as f32 / spec.fps;
+    for (row, &class) in bandai_classes.iter().enumerate() {
+        for (label, &style) in styles.iter().enumerate() {
+            for v in 0..TAKES {
+                let segment = Segment { style: Some(spec.styles[style].clone()), ..Segment::new(spec.classes[class].clone(), seconds) };
+                let opts = GenerateOptions { timeline: Timeline { segments: vec![segment] }, init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: v }, ..ctx.generation.clone() }.varied(1 + v as u64);
+                let take = generate(&model, &opts, &mut |_| true)?;
+                let predicted = clf.predict(&[clf.clip(&take.motion, seed_frames)])?[0];
+                hits[row][label] += usize::from(predicted == label);
+            }
+        }
+    }
+    let accuracy = |h: &[usize]| h.iter().sum::<usize>() as f64 / (h.len() * TAKES) as f64;
+    let overall = hits.iter().map(|h| accuracy(h)).sum::<f64>() / hits.len().max(1) as f64;
+    let mut md = Markdown::new(format!(
+        "Style control ({}): a GRU style classifier ({} frames at {} fps) trained on Bandai's training clips by style ({} styles), tested on the held-out content '{HELD_OUT_CONTENT}': accuracy {:.3} on {} real windows (chance {:.3}). Each of Bandai's {} classes generated {TAKES} times in each style from its own seed, scored on the {} frames after the seed.\n\n",
+        dir.display(), cfg.frames, spec.fps, styles.len(), clf.record.test_accuracy, clf.record.test_windows, 1.0 / styles.len() as f64, bandai_classes.len(), cfg.frames
+    ));
+    let mut table = Table::new(["class", "style recognised"]);
+    for (row, &class) in bandai_classes.iter().enumerate() {
+        table.row([spec.classes[class].clone(), f(accuracy(&hits[row]), 2)]);
+    }
+    table.row(["all Bandai classes".to_string(), f(overall, 3)]);
+    md.table(table);
+    let per_style: Vec<f64> = (0..styles.len()).map(|l| hits.iter().map(|h| h[l]).sum::<usize>() as f64 / (hits.len() * TAKES) as f64).collect();
+    md.text(&format!(
+        "\nPer style: {}\n",
+        styles.iter().zip(&per_style).map(|(&s, a)| format!("{} {a:.2}", spec.styles[s])).collect::<Vec<_>>().join(", ")
+    ));
+    Ok((md, json!({
+        "model": dir, "styles": styles.iter().map(|&s| spec.styles[s].clone()).collect::<Vec<_>>(),
+        "classifier": {"test_accuracy": clf.record.test_accuracy, "test_windows": clf.record.test_windows, "held_out_content": HELD_OUT_CONTENT},
+        "per_class": bandai_classes.iter().zip(&hits).map(|(&c, h)| json!({"class": spec.classes[c], "accuracy": accuracy(h)})).collect::<Vec<_>>(),
+        "per_style": per_style, "accuracy": overall,
+    })))
+}

@@ -1,0 +1,61 @@
+//! The model of everything (`models/all`, issue 35): one model of every activity of the four
+//! datasets on the standard humanoid, with styles.
+
+use std::path::{Path, PathBuf};
+
+use glocal::model::glocal::GlocalModel;
+use glocal::motion::standard_humanoid;
+use glocal::synth::class_map::ClassMap;
+use glocal::synth::{generate, GenerateOptions, InitPose, Timeline};
+
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)
+}
+
+fn take(model: &GlocalModel, timeline: &str, init_class: &str) -> glocal::motion::Motion {
+    let opts = GenerateOptions { timeline: timeline.parse::<Timeline>().unwrap(), init: InitPose::SeedClass { class: init_class.into(), variant: 0 }, ..Default::default() }.varied(3);
+    generate(model, &opts, &mut |_| true).unwrap_or_else(|e| panic!("{timeline}: {e:#}")).motion
+}
+
+/// Mean distance (m) between the joints of two takes of the same length.
+fn mean_distance(a: &glocal::motion::Motion, b: &glocal::motion::Motion) -> f32 {
+    let n = a.positions().len().min(b.positions().len());
+    a.positions()[..n].iter().zip(&b.positions()[..n]).map(|(p, q)| p.distance(*q)).sum::<f32>() / n as f32
+}
+
+#[test]
+fn the_model_of_everything_has_every_activity_and_the_styles_on_the_standard_humanoid() {
+    let model = GlocalModel::load(&shipped("all")).unwrap_or_else(|e| panic!("{e:#}"));
+    let spec = &model.spec;
+    assert!(spec.classes.len() >= 25, "{:?}", spec.classes);
+    assert_eq!(spec.class_sources.len(), spec.classes.len());
+    assert_eq!(spec.styles.len(), 14, "Bandai's 13 training styles and neutral: {:?}", spec.styles);
+    assert_eq!(spec.source_skeleton.names(), standard_humanoid().names());
+    let size: u64 = ["glogen.safetensors", "locgen.safetensors"].iter().map(|f| std::fs::metadata(shipped("all").join(f)).unwrap().len()).sum();
+    assert!(size < 20 << 20, "checkpoints of {size} bytes");
+    // A project made on either shipped model keeps its activities by name.
+    for other in ["h36m", "bandai"] {
+        let from = GlocalModel::load(&shipped(other)).unwrap().spec.classes;
+        let map = ClassMap::build(&from, &spec.classes, &ClassMap::shipped_table());
+        let lost: Vec<_> = map.pairs.iter().filter(|p| !p.to.starts_with(&p.from)).collect();
+        assert!(lost.is_empty(), "{other}: {lost:?}");
+    }
+}
+
+/// A style changes the take: the same walk from the same seed and noise is repeatable in one
+/// style and another in the other (happy and sad 2 cm apart on average at least); and an
+/// activity of each dataset follows another in one take.
+#[test]
+fn styles_change_the_take_and_activities_of_every_dataset_follow_each_other() {
+    let model = GlocalModel::load(&shipped("all")).unwrap();
+    let happy = take(&model, "walking/happy:4", "walking");
+    let sad = take(&model, "walking/sad:4", "walking");
+    let again = take(&model, "walking/happy:4", "walking");
+    let apart = mean_distance(&happy, &sad);
+    println!("happy against sad: {apart:.3} m apart; happy twice: {:.4} m", mean_distance(&happy, &again));
+    assert_eq!(mean_distance(&happy, &again), 0.0, "a take is repeatable");
+    assert!(apart > 0.02, "happy and sad walks are {apart} m apart");
+    let mixed = take(&model, "sitting:3,salsa:3,bow/proud:2,basketball:3", "sitting");
+    assert!(mixed.positions().iter().all(|p| p.is_finite()));
+    assert!(mixed.seconds() > 10.0);
+}
