@@ -88,6 +88,36 @@ fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &Generate
     Ok(pools)
 }
 
+/// The model of everything's changes between activities of two datasets (issue 35), and, to
+/// compare, within one: (from, to).
+const ACROSS_DATASETS: [(&str, &str); 4] = [("sitting", "salsa"), ("bow", "basketball"), ("walking", "martial"), ("soccer", "greeting")];
+const WITHIN_A_DATASET: [(&str, &str); 3] = [("sitting", "eating"), ("bow", "walk-left"), ("salsa", "indian")];
+/// Takes per pair (variants of the first class's seed, each its own noise seed).
+const PAIR_TAKES: usize = 4;
+
+/// The mean transition peak jerk (m/s^3, within 1 s of the change) of takes that change from
+/// one activity into another, per (from, to) pair.
+fn pair_transition_peaks(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, pairs: &[(&str, &str)]) -> Result<Vec<(String, f64)>> {
+    let spec = &model.spec;
+    let seed_frames = spec.block_len * spec.stride;
+    let seed_s = seed_frames as f32 / spec.fps;
+    pairs
+        .iter()
+        .map(|&(from, to)| {
+            let mut pool = Pool::default();
+            for v in 0..PAIR_TAKES {
+                let timeline = Timeline { segments: vec![Segment::new(from, seed_s + cfg.segment_seconds), Segment::new(to, cfg.segment_seconds)] };
+                let opts = GenerateOptions { timeline, init: InitPose::SeedClass { class: from.into(), variant: v }, ..base.clone() }.varied(1 + v as u64);
+                let g = generate(model, &opts, &mut |_| true)?;
+                let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
+                let boundary = ((g.segments[1].start_frame - seed_frames) as f32 * COMMON_FPS / spec.fps).round() as usize;
+                pool.add_transitions(&m, &[boundary]);
+            }
+            Ok((format!("{from} -> {to}"), pool.summary()[Measure::TransitionPeak]))
+        })
+        .collect()
+}
+
 /// The measures of one source of takes (real, or generated one way) of one model.
 struct Source {
     name: &'static str,
@@ -127,6 +157,9 @@ struct ModelResult {
     first_takes: Vec<FirstTake>,
     /// Bones over the real p99.9 turn in one frame, in the first takes.
     first_snaps: SnapTally,
+    /// The model of everything: transition peaks between activities of two datasets, then
+    /// within one (empty for the other models).
+    pairs: [Vec<(String, f64)>; 2],
 }
 
 /// Rows of the class-balanced table: (measure, label, digits).
@@ -204,6 +237,12 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
     let shipped = generated_pools(&model, cfg, &ctx.generation, true, Some((&limits, &mut snaps)))?;
     let mut first_snaps = SnapTally::default();
     let first_takes = first_takes::first_takes(dataset, ctx, &limits, &mut first_snaps, log)?;
+    let pairs = if dataset == Dataset::Combined {
+        log("motion: all, changes between datasets");
+        [pair_transition_peaks(&model, cfg, &ctx.generation, &ACROSS_DATASETS)?, pair_transition_peaks(&model, cfg, &ctx.generation, &WITHIN_A_DATASET)?]
+    } else {
+        Default::default()
+    };
     let classes = spec.classes.len();
     let train_sums = joint_speed_sums(&corpus.train, classes);
     Ok(ModelResult {
@@ -216,6 +255,7 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
         snaps,
         first_takes,
         first_snaps,
+        pairs,
     })
 }
 
@@ -235,6 +275,16 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
         cell(shipped.balanced[Measure::TransitionPeak] / real_p95, 2),
     ]);
     md.table(balanced_table);
+    if !r.pairs[0].is_empty() {
+        md.text(&format!("\nChanges of activity across datasets and within one ({PAIR_TAKES} two-segment takes each, the shipped defaults; transition peak jerk within 1 s of the change):\n\n"));
+        let mut pairs = Table::new(["change", "datasets", "transition peak jerk (m/s^3)", "/ real window peak p95"]);
+        for (kind, rows) in ["across", "within one"].into_iter().zip(&r.pairs) {
+            for (name, peak) in rows {
+                pairs.row([name.clone(), kind.to_string(), cell(*peak, 1), cell(peak / real_p95, 2)]);
+            }
+        }
+        md.table(pairs);
+    }
     md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}.\n", r.snaps.describe()));
     // Over the classes that have a profile (the model of everything has classes without a test clip).
     let profile = |p: &[Vec<f64>]| -> String {
@@ -299,5 +349,5 @@ fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
 }
 
 fn model_json(r: &ModelResult) -> Value {
-    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "first_takes": r.first_takes, "first_takes_bone_snaps": r.first_snaps, "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
+    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "first_takes": r.first_takes, "first_takes_bone_snaps": r.first_snaps, "transitions_across_datasets": r.pairs[0], "transitions_within_a_dataset": r.pairs[1], "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
 }
