@@ -26,7 +26,7 @@ fn walking(m: &GlocalModel) -> String {
 /// most 1.5x the take's elsewhere.
 #[test]
 fn takes_pass_through_their_keys() {
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let class = walking(&m);
         let base = GenerateOptions { timeline: format!("{class}:12").parse().unwrap(), ..Default::default() };
@@ -73,7 +73,7 @@ fn takes_pass_through_their_keys() {
 fn walking_follows_an_l_shaped_path() {
     let w = |x, z| Waypoint { x, z, seconds: None };
     let path = RootPath { waypoints: vec![w(0.0, 0.0), w(0.0, 6.0), w(6.0, 6.0)] };
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let class = walking(&m);
         let opts = GenerateOptions { timeline: format!("{class}:12").parse().unwrap(), path: Some(path.clone()), ..Default::default() };
@@ -145,7 +145,7 @@ fn bad_keys_are_refused() {
 #[test]
 fn a_key_from_a_file_frame_is_reached() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let other = GenerateOptions { timeline: format!("{}:8", m.spec.classes[0]).parse().unwrap(), ..Default::default() };
         let source = generate(&mut m, &other, &mut |_| true).unwrap();
@@ -175,7 +175,7 @@ fn a_key_from_a_file_frame_is_reached() {
 #[test]
 fn a_file_start_and_its_keys_share_one_world() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let m = model(name);
         let source = GenerateOptions { timeline: format!("{}:12", walking(&m)).parse().unwrap(), ..Default::default() };
         let source = generate(&m, &source, &mut |_| true).unwrap();

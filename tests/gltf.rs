@@ -112,7 +112,7 @@ fn check_against_json(glb: &Path, json: &Path, what: &str) -> f32 {
 #[test]
 fn glb_matches_the_json_export() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let (take, unit) = take(name);
         let (glb, json) = (dir.path().join(format!("{name}.glb")), dir.path().join(format!("{name}.json")));
         export(&take.motion, &take.segments, &glb).unwrap();
@@ -142,7 +142,7 @@ fn khronos_validator_reports_no_errors() {
     };
     let dir = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let (take, _) = take(name);
         let glb = dir.path().join(format!("{name}.glb"));
         export(&take.motion, &take.segments, &glb).unwrap();

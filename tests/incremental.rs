@@ -17,6 +17,7 @@ fn model(name: &str) -> GlocalModel {
 fn five_minutes(name: &str) -> GenerateOptions {
     let (timeline, start) = match name {
         "h36m" => ("walking:60,eating:60,walking:60,sitting:60,walking:60", "walking"),
+        "all" => ("walking:60,salsa:60,sitting:60,bow/happy:60,basketball:60", "walking"),
         _ => ("walk:60,bow:60,run:60,walk-left:60,byebye:60", "walk"),
     };
     GenerateOptions { timeline: timeline.parse().unwrap(), init: InitPose::SeedClass { class: start.into(), variant: 0 }, ..Default::default() }
@@ -115,7 +116,7 @@ impl TakeEvents for Stream {
 
 #[test]
 fn a_streamed_take_is_always_a_prefix_of_the_finished_one() {
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let model = model(name);
         let opts = five_minutes(name);
         let mut stream = Stream::default();

@@ -34,7 +34,7 @@ fn renamed_takes_keep_their_positions_and_name_the_key_joints() {
         (JointNames::Unreal, ["pelvis", "spine_01", "lowerarm_l", "thigh_r", "ball_l"]),
         (JointNames::Unity, ["Hips", "Spine", "LeftLowerArm", "RightUpperLeg", "LeftToes"]),
     ];
-    for model in ["h36m", "bandai"] {
+    for model in ["h36m", "bandai", "all"] {
         let native = take(model);
         let unit = native.skeleton.meters_per_unit();
         for (names, joints) in &expected {
@@ -54,7 +54,7 @@ fn renamed_takes_keep_their_positions_and_name_the_key_joints() {
 
 #[test]
 fn mixamo_and_unity_names_stand_in_a_t_pose() {
-    for model in ["h36m", "bandai"] {
+    for model in ["h36m", "bandai", "all"] {
         let mixamo = JointNames::Mixamo.apply(&take(model), None).unwrap();
         let left = rest_direction(&mixamo, "mixamorig:RightUpLeg", "mixamorig:LeftUpLeg");
         let along = |from: &str, to: &str, want: Vec3| {

@@ -151,7 +151,7 @@ fn mean_bone_angle(bones: &[(Key, Key)], a: &[Vec3], ak: &KeyJoints, b: &[Vec3],
 fn foreign_bvh_files_start_takes_on_both_models() {
     let dir = tempfile::tempdir().unwrap();
     let sources = [(cmu_dance(dir.path()), 200), (mixamo_from_bandai(dir.path(), &MIXAMO_NAMES), 100), (cmu_asf(dir.path()), 30), (blender_unreal(), 20)];
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let target = m.spec.layout.skeleton.clone();
         let tk = keys_of(&target);
@@ -193,7 +193,7 @@ fn rest_poses_of_the_conventions_are_detected() {
 fn a_take_retargeted_onto_the_cmu_skeleton_reads_back() {
     let dir = tempfile::tempdir().unwrap();
     let rig = write(dir.path(), "standard.bvh", &archive_text("cmu-dance", "cmu-dance/standard.bvh"));
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let timeline = format!("{}:3,{}:3", m.spec.classes[0], m.spec.classes[1]);
         let take = generate(&mut m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();

@@ -30,7 +30,7 @@ fn exported(m: &GlocalModel, motion: &Motion, segments: &[glocal::synth::Segment
 #[test]
 fn in_place_stays_and_the_root_bone_carries_the_travel() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let (m, motion, segments) = take(name);
         let travel = exported(&m, &motion, &segments, RootMotion::Travel);
         let roles = JointRoles::new(&travel.skeleton).unwrap();

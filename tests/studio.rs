@@ -936,3 +936,27 @@ fn right_click_selects_and_a_range_starts_at_the_press() {
     assert_eq!(start, at_press, "the range starts {} frames after the press", start as i64 - at_press as i64);
     assert!(end > start + 5, "{start}..{end}");
 }
+
+/// On the model of everything the selected segment's row has a style combo beside its class:
+/// the usual style until one is picked, and the take is made in the style picked (issue 35).
+#[test]
+fn a_segment_takes_a_style_on_the_model_of_everything() {
+    let _g = serial();
+    let options = StudioOptions { model_dir: "models/all".into(), ..options("styles") };
+    let mut h = harness_with(options, egui::vec2(1280.0, 800.0));
+    wait_ready(&mut h);
+    assert_eq!(h.state().model_info().unwrap().spec.dataset, "all");
+    let first = h.state().take().unwrap().options.timeline.segments[0].class.clone();
+    h.get_by_label(&format!("Segment 1: {first}")).click_secondary();
+    h.run_ok();
+    h.key_press(Key::Escape);
+    h.event(egui::Event::PointerMoved(egui::pos2(640.0, 300.0)));
+    h.run_ok();
+    assert_eq!(h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "style").value().as_deref(), Some("usual style"));
+    h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "style").click_accesskit();
+    h.run_ok();
+    h.get_by_role_and_label(egui::accesskit::Role::Button, "happy").click();
+    h.run_ok();
+    wait(&mut h, "the take in its style", |a| a.take().is_some_and(|t| t.options.timeline.segments[0].style.as_deref() == Some("happy")) && !a.is_busy());
+    assert_eq!(h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "style").value().as_deref(), Some("happy"), "the combo shows the style picked");
+}

@@ -30,7 +30,7 @@ fn error_of(model: &mut GlocalModel, o: &GenerateOptions) -> String {
 /// 0.3x-3x).
 #[test]
 fn two_minutes_stay_alive() {
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let classes = m.spec.classes.clone();
         let timeline: Vec<String> = (0..12).map(|k| format!("{}:10", classes[k % classes.len()])).collect();
@@ -272,6 +272,8 @@ fn ten_minute_takes_stay_at_their_class_speed() {
     // and greeting the slowest, its sittingdown the fastest), Bandai 0.60-1.65x (its guiding
     // the slowest, its bowing the fastest).
     let mut failures = Vec::new();
+    // The model of everything is measured in docs/RESULTS.md and left out: its ten-minute
+    // sittingdown runs at up to 2.29x (issue 35).
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
         let window = (10.0 * m.spec.fps) as usize;
