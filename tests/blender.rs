@@ -75,24 +75,33 @@ fn khronos_validator(glb: &Path) {
     assert!(out.status.success() && report.contains(" 0 errors, 0 warnings"), "the validator on the Mixamo-named glb:\n{report}");
 }
 
-/// `--root-motion in-place` and `root-bone` exports read by Blender's BVH and glTF importers,
-/// every joint where the same take's JSON export puts it (tests/blender/check_*_import.py),
-/// and the glTF valid.
+/// `--root-motion in-place` and `root-bone` exports, and a take of the model of everything,
+/// read by Blender's BVH and glTF importers, every joint where the same take's JSON export puts
+/// it (tests/blender/check_*_import.py), and the glTF valid.
 #[test]
 fn root_motion_exports_import_in_blender() {
     let python = blender_python();
     let dir = tempfile::tempdir().unwrap();
     let mut pairs = [Vec::new(), Vec::new()];
-    for mode in ["in-place", "root-bone"] {
+    // (name, model, its arguments): h36m's walk in both root-motion modes, and a take of the
+    // model of everything, on its standard humanoid, across datasets and in a style.
+    let cases: [(&str, &str, &[&str]); 3] = [
+        ("in-place", "models/h36m", &["--timeline", "walking:4", "--init", "seed:walking", "--root-motion", "in-place"]),
+        ("root-bone", "models/h36m", &["--timeline", "walking:4", "--init", "seed:walking", "--root-motion", "root-bone"]),
+        ("all", "models/all", &["--timeline", "walking/happy:2,salsa:2"]),
+    ];
+    for (mode, model, args) in cases {
         for ext in ["json", "bvh", "glb"] {
             let out = dir.path().join(format!("{mode}.{ext}"));
             let run = Command::new(env!("CARGO_BIN_EXE_glocal"))
                 .current_dir(env!("CARGO_MANIFEST_DIR"))
-                .args(["generate", "--model", "models/h36m", "--timeline", "walking:4", "--init", "seed:walking", "--root-motion", mode, "--out"])
+                .args(["generate", "--model", model])
+                .args(args)
+                .arg("--out")
                 .arg(&out)
                 .output()
                 .expect("glocal runs");
-            assert!(run.status.success(), "--root-motion {mode} --out {}: {}", out.display(), String::from_utf8_lossy(&run.stderr));
+            assert!(run.status.success(), "{mode} --out {}: {}", out.display(), String::from_utf8_lossy(&run.stderr));
         }
         khronos_validator(&dir.path().join(format!("{mode}.glb")));
         for (k, ext) in ["bvh", "glb"].iter().enumerate() {
