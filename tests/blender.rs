@@ -57,7 +57,7 @@ fn addon_generates_onto_rigify_and_mixamo_rigs_and_mixamo_names_import() {
         .output()
         .expect("the Blender Python runs");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let report: Vec<&str> = stdout.lines().filter(|l| l.starts_with("rigify") || l.starts_with("mixamo") || l.contains("FAIL") || l.contains(".bvh:") || l.contains(".glb:")).collect();
+    let report: Vec<&str> = stdout.lines().filter(|l| l.starts_with("rigify") || l.starts_with("mixamo") || l.starts_with("styles") || l.contains("FAIL") || l.contains(".bvh:") || l.contains(".glb:")).collect();
     println!("{}", report.join("\n"));
     assert!(out.status.success(), "tests/blender/check_addon.py failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
 }

@@ -312,6 +312,27 @@ def run_rig(rig, timeline, seed, take, out_dir, failures):
     check_fbx(arm, out_dir, label, failures)
 
 
+def check_styles(model, failures):
+    """A row's style goes into the timeline on the model of everything (`models/all` beside
+    the test's model); a model without styles offers only the usual one."""
+    from glocal_blender import properties
+    settings = bpy.context.scene.glocal
+    offered = [item[0] for item in properties.style_items(None, bpy.context)]
+    if offered != [properties.USUAL]:
+        failures.append(f"{model}: a model without styles offers {offered}")
+    settings.model = os.path.join(os.path.dirname(os.path.normpath(model)), "all")
+    settings.segments.clear()
+    row = settings.segments.add()
+    row.activity, row.style, row.seconds = "walking", "happy", 4.0
+    settings.segments.add().activity = "salsa"
+    text = properties.timeline_text(settings)
+    if text != "walking/happy:4,salsa:4":
+        failures.append(f"the rows on models/all make the timeline '{text}'")
+    else:
+        print(f"styles: the rows make {text}")
+    settings.model = model
+
+
 def check_mixamo_names(bvh, glb, json_path, failures):
     names = json.load(open(json_path))["joints"]
     if not all(n.startswith("mixamorig:") for n in names) or not {"mixamorig:Hips", "mixamorig:LeftArm", "mixamorig:RightUpLeg"} <= set(names):
@@ -334,6 +355,7 @@ def main(binary, model, timeline, seed, json_path, bvh, glb, out_dir):
     failures = []
     for rig in RIGS:
         run_rig(rig, timeline, int(seed), take, out_dir, failures)
+    check_styles(model, failures)
     # Last: these reset Blender to its factory settings.
     check_mixamo_names(bvh, glb, json_path, failures)
     ok = passed(failures)

@@ -9,6 +9,9 @@ class GLOCAL_UL_segments(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname):
         row = layout.row(align=True)
         row.prop(item, "activity", text="")
+        info = properties.model_info(context.scene.glocal.model)
+        if info and info["styles"]:
+            row.prop(item, "style", text="")
         row.prop(item, "seconds", text="s")
         row.prop(item, "pace", text="pace")
 

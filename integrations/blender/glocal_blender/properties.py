@@ -9,8 +9,8 @@ _model_cache = {}
 
 
 def model_info(folder):
-    """The `classes` and `fps` of the model.json in `folder`, or None when it has none to
-    read; read once per folder and file time."""
+    """The `classes`, `styles` and `fps` of the model.json in `folder`, or None when it has
+    none to read; read once per folder and file time."""
     path = os.path.join(bpy.path.abspath(folder), "model.json")
     try:
         stamp = os.path.getmtime(path)
@@ -22,7 +22,7 @@ def model_info(folder):
     try:
         with open(path) as f:
             spec = json.load(f)
-        info = {"classes": list(spec.get("classes", [])), "fps": spec.get("fps")}
+        info = {"classes": list(spec.get("classes", [])), "styles": list(spec.get("styles", [])), "fps": spec.get("fps")}
     except (OSError, ValueError):
         info = None
     _model_cache[path] = (stamp, info)
@@ -41,8 +41,23 @@ def class_items(self, context):
     return _items_cache[classes]
 
 
+# A row without a style of its own: its activity's usual one (the model's `usual_styles`).
+USUAL = "USUAL"
+
+
+def style_items(self, context):
+    info = model_info(context.scene.glocal.model) if context else None
+    styles = tuple(info["styles"]) if info else ()
+    key = ("styles",) + styles
+    if key not in _items_cache:
+        usual = (USUAL, "usual style", "The style most of this activity's training clips have")
+        _items_cache[key] = [usual] + [(s, s, "") for s in styles]
+    return _items_cache[key]
+
+
 class GlocalSegment(bpy.types.PropertyGroup):
     activity: bpy.props.EnumProperty(name="Class", items=class_items)
+    style: bpy.props.EnumProperty(name="Style", items=style_items, description="The style of this activity (models with styles)")
     seconds: bpy.props.FloatProperty(name="Seconds", default=4.0, min=0.5, max=600.0, precision=1)
     pace: bpy.props.FloatProperty(name="Pace", default=1.0, min=0.1, max=10.0, precision=2,
                                   description="2.0 plays the same poses over twice the time")
@@ -60,10 +75,12 @@ class GlocalSettings(bpy.types.PropertyGroup):
 
 
 def timeline_text(settings):
-    """The `--timeline` argument the rows describe: CLASS:SECONDS[@PACE], comma-separated."""
+    """The `--timeline` argument the rows describe: CLASS[/STYLE]:SECONDS[@PACE],
+    comma-separated."""
     parts = []
     for s in settings.segments:
-        part = f"{s.activity}:{s.seconds:g}"
+        style = "" if s.style == USUAL else f"/{s.style}"
+        part = f"{s.activity}{style}:{s.seconds:g}"
         if abs(s.pace - 1.0) > 1e-6:
             part += f"@{s.pace:g}"
         parts.append(part)
