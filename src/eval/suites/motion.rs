@@ -160,6 +160,8 @@ struct ModelResult {
     /// The model of everything: transition peaks between activities of two datasets, then
     /// within one (empty for the other models).
     pairs: [Vec<(String, f64)>; 2],
+    /// Where each class's clips come from (the model of everything; empty otherwise).
+    class_sources: Vec<String>,
 }
 
 /// Rows of the class-balanced table: (measure, label, digits).
@@ -256,6 +258,7 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
         first_takes,
         first_snaps,
         pairs,
+        class_sources: spec.class_sources.clone(),
     })
 }
 
@@ -275,6 +278,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
         cell(shipped.balanced[Measure::TransitionPeak] / real_p95, 2),
     ]);
     md.table(balanced_table);
+    per_source_markdown(r, md);
     if !r.pairs[0].is_empty() {
         md.text(&format!("\nChanges of activity across datasets and within one ({PAIR_TAKES} two-segment takes each, the shipped defaults; transition peak jerk within 1 s of the change):\n\n"));
         let mut pairs = Table::new(["change", "datasets", "transition peak jerk (m/s^3)", "/ real window peak p95"]);
@@ -330,6 +334,35 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
     first_takes::markdown(r.dataset, &r.first_takes, md);
     md.text(&format!("\nBones over the real p99.9 in one frame, first takes: {}.\n", r.first_snaps.describe()));
 }
+
+/// The model of everything's measures per source dataset: the mean over the classes that have
+/// clips of that dataset (walking counts for Human3.6M, Bandai and cmu-expmap), real test split
+/// against generated.
+fn per_source_markdown(r: &ModelResult, md: &mut Markdown) {
+    if r.class_sources.is_empty() {
+        return;
+    }
+    let [real, _, shipped] = &r.sources;
+    let datasets = Dataset::ARCHIVES;
+    let of = |d: Dataset| -> Vec<usize> { (0..r.classes.len()).filter(|&c| r.class_sources[c].split(" + ").any(|s| s.starts_with(&format!("{d} ")))).collect() };
+    let mean = |source: &Source, classes: &[usize], m: Measure| {
+        let v: Vec<f64> = classes.iter().map(|&c| source.per_class[c][m]).filter(|x| x.is_finite()).collect();
+        if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
+    };
+    md.text("\nPer source dataset (mean over the classes with clips of it), real test / generated:\n\n");
+    let mut table = Table::new(std::iter::once("measure".to_string()).chain(datasets.iter().map(|d| format!("{d} ({} classes)", of(*d).len()))));
+    for (m, label, digits) in ROWS.iter().filter(|(m, ..)| PER_SOURCE.contains(m)) {
+        table.row(std::iter::once(label.to_string()).chain(datasets.iter().map(|&d| {
+            let classes = of(d);
+            let (a, b) = (mean(real, &classes, *m), mean(shipped, &classes, *m));
+            format!("{} / {} ({}x)", cell(a, *digits), cell(b, *digits), cell(b / a, 2))
+        })));
+    }
+    md.table(table);
+}
+
+/// The measures the per-dataset table shows.
+const PER_SOURCE: [Measure; 8] = [Measure::SkatingRatio, Measure::ContactFraction, Measure::SupportSpeedMean, Measure::Floating, Measure::JerkMean, Measure::JerkP95, Measure::SeamRatio, Measure::JointSpeed];
 
 /// Each class's joint speed by style or subject: how far the test split's own spread sits
 /// from the training split's, which bounds how near any model of the training split can come.
