@@ -112,7 +112,6 @@ pub fn load(root: &DataRoot) -> Result<(DatasetClips, Vec<SourceCheck>)> {
         checks.push(check_of(dataset, &moved));
         for (mut clip, _) in moved {
             clip.class = merged[clip.class];
-            clip.file = format!("{dataset}:{}", clip.file);
             if dataset == Dataset::Bandai {
                 if !styles.contains(&clip.tag) {
                     styles.push(clip.tag.clone());
