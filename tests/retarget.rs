@@ -14,7 +14,7 @@ use glocal::data::bvh::{read_bvh, write_bvh};
 use glocal::data::joint_map::{key_joints, UserJointMap};
 use glocal::data::registry::{expmap_format, Dataset};
 use glocal::model::glocal::GlocalModel;
-use glocal::motion::{mapped_bones, solve_local_poses, Key, KeyJoints, Motion, RestPose, Skeleton};
+use glocal::motion::{mapped_bones, mean_bone_angle, solve_local_poses, Key, KeyJoints, Motion, RestPose, Skeleton};
 use glocal::synth::export::export;
 use glocal::synth::rig::{onto_model, onto_skeleton_file};
 use glocal::synth::{generate, GenerateOptions, InitPose};
@@ -134,12 +134,11 @@ fn keys_of(skeleton: &Skeleton) -> KeyJoints {
 
 /// Mean angle in degrees between corresponding bones of two poses, after turning `b` about the
 /// vertical to face the way `a` does (a take starts facing the model's own way).
-fn mean_bone_angle(bones: &[(Key, Key)], a: &[Vec3], ak: &KeyJoints, b: &[Vec3], bk: &KeyJoints) -> f32 {
-    let dir = |f: &[Vec3], k: &KeyJoints, (key, parent): (Key, Key)| (f[k.get(key).unwrap()] - f[k.get(parent).unwrap()]).normalize_or_zero();
+fn facing_bone_angle(bones: &[(Key, Key)], a: &[Vec3], ak: &KeyJoints, b: &[Vec3], bk: &KeyJoints) -> f32 {
     let mean_at = |yaw: f32| -> f32 {
         let turn = Quat::from_rotation_y(yaw);
-        let sum: f32 = bones.iter().map(|&bone| dir(a, ak, bone).dot(turn * dir(b, bk, bone)).clamp(-1.0, 1.0).acos()).sum();
-        sum.to_degrees() / bones.len() as f32
+        let turned: Vec<Vec3> = b.iter().map(|p| turn * *p).collect();
+        mean_bone_angle(bones, a, ak, &turned, bk)
     };
     (0..720).map(|k| mean_at((k as f32 * 0.5).to_radians())).fold(f32::INFINITY, f32::min)
 }
@@ -166,7 +165,7 @@ fn foreign_bvh_files_start_takes_on_both_models() {
             assert!(bones.len() >= 14, "{file} on {name}: only {} mapped bones", bones.len());
             // `@frame` is the file's own frame; the take's first pose is a sparse step after it.
             let at = (*frame as f32 * m.spec.fps / source.fps).round() as usize;
-            let angle = mean_bone_angle(&bones, at_start.frame(at + m.spec.stride), &sk, take.motion.frame(0), &tk);
+            let angle = facing_bone_angle(&bones, at_start.frame(at + m.spec.stride), &sk, take.motion.frame(0), &tk);
             println!("{file} ({} joints, rest {}) -> {name}: {} bones, first pose {angle:.1} degrees from the source's", source.joints(), RestPose::detect(&source.skeleton, &sk).describe(), bones.len());
             assert!(angle < 10.0, "{file} on {name}: bones {angle} degrees from the source's");
         }

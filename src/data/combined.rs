@@ -16,7 +16,8 @@ use rayon::prelude::*;
 use super::archive::DataRoot;
 use super::joint_map::{key_joints, UserJointMap};
 use super::registry::{self, Clip, Dataset, DatasetClips};
-use crate::motion::{guess_key_joints, mapped_bones, standard_humanoid, Key, KeyJoints, Motion, Retarget, Skeleton};
+use crate::motion::contacts::lowest_foot_heights;
+use crate::motion::{guess_key_joints, mapped_bones, mean_bone_angle, standard_humanoid, JointRoles, Key, KeyJoints, Motion, Retarget, Skeleton};
 
 /// The style of a clip from a dataset that has none.
 pub const NEUTRAL: &str = "neutral";
@@ -82,6 +83,7 @@ pub struct SourceCheck {
 pub fn load(root: &DataRoot) -> Result<(DatasetClips, Vec<SourceCheck>)> {
     let target = standard_humanoid();
     let target_keys = guess_key_joints(&target);
+    let roles = JointRoles::new(&target).context("the standard humanoid's legs")?;
     let mut classes: Vec<String> = Vec::new();
     let mut sources: BTreeMap<String, Vec<String>> = BTreeMap::new();
     let mut styles = vec![NEUTRAL.to_string()];
@@ -89,11 +91,11 @@ pub fn load(root: &DataRoot) -> Result<(DatasetClips, Vec<SourceCheck>)> {
     for dataset in Dataset::ARCHIVES {
         let loaded = registry::load(dataset, root)?;
         let joint_map = (dataset == Dataset::CmuExpmap).then(|| UserJointMap { entries: CMU_EXPMAP_KEYS.iter().map(|&(j, k)| (format!("joint{j}"), k)).collect() });
-        let moved: Vec<(Clip, (f32, f32, f32))> = loaded
+        let moved: Vec<(Clip, ClipCheck)> = loaded
             .clips
             .into_par_iter()
             .map(|clip| {
-                let (motion, check) = onto(&clip.motion, joint_map.as_ref(), &target, &target_keys, &clip.file)?;
+                let (motion, check) = onto(&clip.motion, joint_map.as_ref(), &target, &target_keys, &roles, &clip.file)?;
                 Ok((Clip { motion, ..clip }, check))
             })
             .collect::<Result<_>>()?;
@@ -127,62 +129,48 @@ pub fn load(root: &DataRoot) -> Result<(DatasetClips, Vec<SourceCheck>)> {
     Ok((DatasetClips { dataset: Dataset::Combined, classes, clips, skipped, styles, class_sources }, checks))
 }
 
-/// `motion` resampled to 30 fps and retargeted onto `target`, stood on the floor, with its mean
-/// bone angle to the source (degrees), its median lowest-foot height (m) and its largest bone
-/// length change (m).
-fn onto(motion: &Motion, joint_map: Option<&UserJointMap>, target: &Arc<Skeleton>, target_keys: &KeyJoints, file: &str) -> Result<(Motion, (f32, f32, f32))> {
+/// How one clip landed on the standard humanoid.
+struct ClipCheck {
+    /// Mean angle between each mapped limb bone and its source bone, degrees.
+    bone_degrees: f32,
+    /// The median over frames of the lowest foot joint's height, m.
+    foot_height: f32,
+    /// The largest change of any bone's length over the clip, m.
+    bone_length_change: f32,
+}
+
+/// `motion` resampled to 30 fps and retargeted onto `target`, stood on the floor, and how it
+/// landed there.
+fn onto(motion: &Motion, joint_map: Option<&UserJointMap>, target: &Arc<Skeleton>, target_keys: &KeyJoints, roles: &JointRoles, file: &str) -> Result<(Motion, ClipCheck)> {
     let source = motion.resample(FPS);
     let source_keys = key_joints(&source.skeleton, joint_map, file)?;
     let retarget = Retarget::new(&source.skeleton, &source_keys, target.clone(), target_keys).with_context(|| format!("{file}: cannot retarget onto the standard humanoid"))?;
     let moved = retarget.apply(&source);
-    let feet = foot_joints(target_keys, target);
-    let lowest_foot = |m: &Motion| -> Vec<f32> { (0..m.frames()).map(|t| feet.iter().map(|&j| m.frame(t)[j].y).fold(f32::INFINITY, f32::min)).collect() };
-    let moved = moved.translated(Vec3::new(0.0, -floor(&lowest_foot(&moved)), 0.0));
+    let lowest = lowest_foot_heights(&moved, roles);
+    let floor = floor(&lowest);
+    let moved = moved.translated(Vec3::new(0.0, -floor, 0.0));
     // The bones inside the pelvis and the chest (hips to thighs, chest to collars) are left out:
     // those pieces are shaped differently on every skeleton and turn as a whole.
     let in_piece = |(_, parent): &(Key, Key)| matches!(parent, Key::Hips | Key::Chest);
     let bones: Vec<(Key, Key)> = mapped_bones(&source_keys, &source.skeleton, target_keys, target).into_iter().filter(|b| !in_piece(b) || b.0 == Key::Neck || b.0 == Key::Chest).collect();
-    let angles: Vec<f32> = (0..moved.frames()).step_by(CHECK_STRIDE).map(|t| bone_angle(&bones, source.frame(t), &source_keys, moved.frame(t), target_keys)).collect();
-    let angle = angles.iter().sum::<f32>() / angles.len().max(1) as f32;
-    let feet_height = percentile(lowest_foot(&moved), 0.5);
-    let change = bone_length_change(&moved);
-    Ok((moved, (angle, feet_height, change)))
-}
-
-fn foot_joints(keys: &KeyJoints, skeleton: &Skeleton) -> Vec<usize> {
-    let mut feet = Vec::new();
-    for key in [Key::LeftFoot, Key::RightFoot, Key::LeftToeBase, Key::RightToeBase] {
-        if let Some(j) = keys.get(key) {
-            feet.push(j);
-            feet.extend(skeleton.children(j));
-        }
-    }
-    feet.sort_unstable();
-    feet.dedup();
-    feet
-}
-
-/// Mean angle in degrees between corresponding bones of two poses in the same world.
-pub fn bone_angle(bones: &[(Key, Key)], a: &[Vec3], ak: &KeyJoints, b: &[Vec3], bk: &KeyJoints) -> f32 {
-    let dir = |f: &[Vec3], k: &KeyJoints, (key, parent): (Key, Key)| match (k.get(key), k.get(parent)) {
-        (Some(j), Some(p)) => (f[j] - f[p]).normalize_or_zero(),
-        _ => Vec3::ZERO,
+    let angles: Vec<f32> = (0..moved.frames()).step_by(CHECK_STRIDE).map(|t| mean_bone_angle(&bones, source.frame(t), &source_keys, moved.frame(t), target_keys)).collect();
+    let check = ClipCheck {
+        bone_degrees: angles.iter().sum::<f32>() / angles.len().max(1) as f32,
+        foot_height: median(lowest) - floor,
+        bone_length_change: bone_length_change(&moved),
     };
-    let sum: f32 = bones.iter().map(|&bone| dir(a, ak, bone).dot(dir(b, bk, bone)).clamp(-1.0, 1.0).acos()).sum();
-    sum.to_degrees() / bones.len().max(1) as f32
+    Ok((moved, check))
 }
 
 /// The largest change of any bone's length over the take.
 fn bone_length_change(m: &Motion) -> f32 {
-    let parents = m.skeleton.parents();
-    let mut change = 0.0f32;
-    for (j, p) in parents.iter().enumerate() {
-        let Some(p) = *p else { continue };
-        let lengths = (0..m.frames()).map(|t| m.frame(t)[j].distance(m.frame(t)[p]));
-        let (lo, hi) = lengths.fold((f32::INFINITY, 0.0f32), |(lo, hi), l| (lo.min(l), hi.max(l)));
-        change = change.max(hi - lo);
-    }
-    change
+    let lengths: Vec<Vec<f32>> = (0..m.frames()).map(|t| m.bone_lengths(t)).collect();
+    (0..m.joints())
+        .map(|j| {
+            let (lo, hi) = lengths.iter().map(|l| l[j]).fold((f32::INFINITY, 0.0f32), |(lo, hi), l| (lo.min(l), hi.max(l)));
+            hi - lo
+        })
+        .fold(0.0, f32::max)
 }
 
 /// The floor under a take, from each frame's lowest foot height: the height the feet rest at
@@ -197,27 +185,27 @@ fn floor(lowest: &[f32]) -> f32 {
     bins.into_iter().max_by_key(|&(bin, count)| (count, std::cmp::Reverse(bin))).map_or(0.0, |(bin, _)| (bin as f32 + 0.5) * FLOOR_BIN)
 }
 
-fn percentile(mut values: Vec<f32>, p: f32) -> f32 {
+fn median(mut values: Vec<f32>) -> f32 {
     if values.is_empty() {
         return 0.0;
     }
     values.sort_by(f32::total_cmp);
-    values[((values.len() - 1) as f32 * p) as usize]
+    values[(values.len() - 1) / 2]
 }
 
-fn check_of(dataset: Dataset, moved: &[(Clip, (f32, f32, f32))]) -> SourceCheck {
+fn check_of(dataset: Dataset, moved: &[(Clip, ClipCheck)]) -> SourceCheck {
     let n = moved.len().max(1) as f32;
-    let worst = moved.iter().max_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
-    let worst_foot = moved.iter().max_by(|a, b| a.1 .1.abs().total_cmp(&b.1 .1.abs()));
+    let worst = moved.iter().max_by(|a, b| a.1.bone_degrees.total_cmp(&b.1.bone_degrees));
+    let worst_foot = moved.iter().max_by(|a, b| a.1.foot_height.abs().total_cmp(&b.1.foot_height.abs()));
     SourceCheck {
         dataset,
         clips: moved.len(),
-        mean_bone_degrees: moved.iter().map(|m| m.1 .0).sum::<f32>() / n,
-        worst_clip_degrees: worst.map_or(0.0, |w| w.1 .0),
+        mean_bone_degrees: moved.iter().map(|m| m.1.bone_degrees).sum::<f32>() / n,
+        worst_clip_degrees: worst.map_or(0.0, |w| w.1.bone_degrees),
         worst_clip: worst.map_or(String::new(), |w| w.0.file.clone()),
-        mean_foot_height: moved.iter().map(|m| m.1 .1).sum::<f32>() / n,
-        worst_foot_height: worst_foot.map_or(0.0, |w| w.1 .1),
+        mean_foot_height: moved.iter().map(|m| m.1.foot_height).sum::<f32>() / n,
+        worst_foot_height: worst_foot.map_or(0.0, |w| w.1.foot_height),
         worst_foot_clip: worst_foot.map_or(String::new(), |w| w.0.file.clone()),
-        bone_length_change: moved.iter().map(|m| m.1 .2).fold(0.0, f32::max),
+        bone_length_change: moved.iter().map(|m| m.1.bone_length_change).fold(0.0, f32::max),
     }
 }

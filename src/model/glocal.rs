@@ -74,11 +74,13 @@ impl GlocalModel {
         (count > 0).then(|| variant % count)
     }
 
-    /// One-hot class vector (all zeros when the model was trained without classes).
+    /// The conditioning vector of `class`, in its usual style on a model with styles (whose
+    /// GloGen never saw a class without one); all zeros when the model was trained without
+    /// classes.
     pub fn class_vector(&self, class: usize) -> Vec<f32> {
         let mut v = vec![0.0; self.spec.glogen.block.cond_dim];
-        if let Some(x) = v.get_mut(class) {
-            *x = 1.0;
+        if self.spec.glogen.use_class && class < self.spec.classes.len() {
+            self.spec.set_labels(&mut v, class, self.spec.usual_styles.get(class).copied());
         }
         v
     }

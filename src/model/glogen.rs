@@ -25,7 +25,7 @@ pub struct GloGen {
 
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
-        let class_len = spec.glogen.class_len(spec.labels());
+        let class_len = spec.label_len();
         Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone() }
     }
 

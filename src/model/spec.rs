@@ -373,17 +373,28 @@ impl ModelSpec {
         Ok(())
     }
 
+    /// Where `class` and `style` sit in the label part of a conditioning row: the class's
+    /// one-hot entry, then the style's after all the classes'.
+    pub fn label_indices(&self, class: usize, style: Option<usize>) -> impl Iterator<Item = usize> {
+        std::iter::once(class).chain(style.map(|s| self.classes.len() + s))
+    }
+
     /// Sets `class` and `style` in the label part of a conditioning row.
     pub fn set_labels(&self, row: &mut [f32], class: usize, style: Option<usize>) {
-        row[class] = 1.0;
-        if let Some(s) = style {
-            row[self.classes.len() + s] = 1.0;
+        for i in self.label_indices(class, style) {
+            row[i] = 1.0;
         }
     }
 
     /// One-hot entries of the label part of the conditioning: the classes, then the styles.
     pub fn labels(&self) -> usize {
         self.classes.len() + self.styles.len()
+    }
+
+    /// Entries of the conditioning vector GloGen reads as labels (0 without the class prior);
+    /// the target, where it reads one, follows them.
+    pub fn label_len(&self) -> usize {
+        self.glogen.class_len(self.labels())
     }
 
     fn validate_classes(&self) -> Result<(), SpecError> {

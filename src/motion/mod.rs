@@ -22,7 +22,7 @@ pub use kinematics::{forward_kinematics, LocalPose};
 pub use keys::{guess_key_joints, Key, KeyJoints};
 pub use names::Side;
 pub use posing::{Effector, PoseRig};
-pub use retarget::{mapped_bones, RestPose, Retarget, RetargetError};
+pub use retarget::{mapped_bones, mean_bone_angle, RestPose, Retarget, RetargetError};
 pub use roles::{JointRoles, Leg, RolesError};
 pub use root_motion::{facing, local_poses, under_new_root, with_root_motion, RootMotion, RootMotionError, ROOT_BONE};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};

@@ -285,7 +285,7 @@ impl TakeSteps<'_> {
         let from = spec.layout.decode(&raw, self.start).1;
         let target = Target { pose: &key.pose, steps: (key.sparse - last) as f32, fix_root: key.fix_root };
         let condition = target_condition(&spec.layout, &spec.sparse_norm, t, from, Some(target));
-        let class_len = spec.glogen.class_len(spec.labels());
+        let class_len = spec.label_len();
         self.cond[class_len..].copy_from_slice(&condition);
     }
 

@@ -148,7 +148,10 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
         let power = ratio.log10().round();
         ((ratio.log10() - power).abs() <= tolerance && power.abs() <= 3.0).then_some(power)
     };
-    let reach = |k: &Skeleton| k.rest_positions().iter().map(|p| p.distance(k.rest_positions()[0])).fold(0.0f32, f32::max);
+    let reach = |k: &Skeleton| {
+        let rest = k.rest_positions();
+        rest.iter().map(|p| p.distance(rest[0])).fold(0.0f32, f32::max)
+    };
     let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02));
     let Some(power) = by_names.or_else(|| power_of_ten(reach(model) / reach(s).max(f32::MIN_POSITIVE), 0.3)) else { return Ok(m) };
     if power == 0.0 {

@@ -147,8 +147,7 @@ impl SparseTimeline {
                         None => vec![(self.segment_at(i), 1.0)],
                     };
                     for (k, w) in mix {
-                        let style = self.styles[k].map(|s| model.spec.classes.len() + s);
-                        for label in std::iter::once(self.classes[k]).chain(style) {
+                        for label in model.spec.label_indices(self.classes[k], self.styles[k]) {
                             if let Some(v) = class.get_mut(label) {
                                 *v += w / t as f32;
                             }

@@ -78,9 +78,7 @@ impl Timeline {
                 if let Some(t) = s.transition {
                     check_transition(t, &format!("segment {} ('{}') transition", k + 1, s.class))?;
                 }
-                classes
-                    .iter()
-                    .position(|c| c.eq_ignore_ascii_case(&s.class))
+                position_of(classes, &s.class)
                     .with_context(|| format!("segment {}: unknown class '{}'; valid classes: {}", k + 1, s.class, classes.join(", ")))
             })
             .collect()
@@ -97,8 +95,7 @@ impl Timeline {
                 if styles.is_empty() {
                     bail!("segment {} ('{}/{style}'): the {model} model has no styles; remove '/{style}' or choose a model with styles (models/all)", k + 1, s.class);
                 }
-                let found = styles.iter().position(|c| c.eq_ignore_ascii_case(style));
-                found.map(Some).with_context(|| format!("segment {} ('{}/{style}'): unknown style '{style}'; valid styles: {}", k + 1, s.class, styles.join(", ")))
+                position_of(styles, style).map(Some).with_context(|| format!("segment {} ('{}/{style}'): unknown style '{style}'; valid styles: {}", k + 1, s.class, styles.join(", ")))
             })
             .collect()
     }
@@ -107,7 +104,7 @@ impl Timeline {
     pub fn keep_styles(&mut self, styles: &[String]) -> usize {
         let mut cleared = 0;
         for s in &mut self.segments {
-            if s.style.as_ref().is_some_and(|n| !styles.iter().any(|c| c.eq_ignore_ascii_case(n))) {
+            if s.style.as_ref().is_some_and(|n| position_of(styles, n).is_none()) {
                 s.style = None;
                 cleared += 1;
             }
@@ -122,6 +119,11 @@ impl Timeline {
         }
         self
     }
+}
+
+/// Where a model's class or style `name` is among `names`, whatever its case.
+fn position_of(names: &[String], name: &str) -> Option<usize> {
+    names.iter().position(|n| n.eq_ignore_ascii_case(name))
 }
 
 /// Longest transition between two segments, in seconds.

@@ -56,18 +56,14 @@ fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &Generate
     let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
     let k = spec.classes.len();
     let mut pools: Vec<Pool> = (0..k).map(|_| Pool::default()).collect();
+    let base = GenerateOptions { foot_lock, ..base.clone() };
     let mut take = |model: &GlocalModel, segments: Vec<(usize, f32)>, init: usize, variant: usize, seed: u64| -> Result<(Motion, Vec<usize>)> {
-        let label = format!("{} from {} variant {variant}, seed {seed}", segments.iter().map(|(c, s)| format!("{}:{s:.1}", spec.classes[*c])).collect::<Vec<_>>().join(","), spec.classes[init]);
-        let segments = segments.into_iter().map(|(c, s)| Segment::new(spec.classes[c].clone(), s)).collect();
-        let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, foot_lock, ..base.clone() }.varied(seed);
-        let g = generate(model, &opts, &mut |_| true)?;
-        let seed_frames = spec.block_len * spec.stride;
-        let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
+        let (m, boundaries) = scored_take(model, &base, &segments, init, variant, seed)?;
         if let Some((limits, tally)) = snaps.as_mut() {
+            let label = format!("{} from {} variant {variant}, seed {seed}", segments.iter().map(|(c, s)| format!("{}:{s:.1}", spec.classes[*c])).collect::<Vec<_>>().join(","), spec.classes[init]);
             tally.add(limits, &label, &m);
         }
-        let to_common = |f: usize| ((f.saturating_sub(seed_frames)) as f32 * COMMON_FPS / spec.fps).round() as usize;
-        Ok((m, g.segments.iter().skip(1).map(|s| to_common(s.start_frame)).collect()))
+        Ok((m, boundaries))
     };
     for class in 0..k {
         let bank = model.seeds.iter().filter(|s| s.class == class).count();
@@ -95,23 +91,33 @@ const WITHIN_A_DATASET: [(&str, &str); 3] = [("sitting", "eating"), ("bow", "wal
 /// Takes per pair (variants of the first class's seed, each its own noise seed).
 const PAIR_TAKES: usize = 4;
 
+/// A take of `segments` ((class, seconds)) from `init`'s seed window `variant` under `base`'s
+/// options and noise seed `seed`: the take after its seed block at [`COMMON_FPS`], and where each
+/// later segment begins in it.
+fn scored_take(model: &GlocalModel, base: &GenerateOptions, segments: &[(usize, f32)], init: usize, variant: usize, seed: u64) -> Result<(Motion, Vec<usize>)> {
+    let spec = &model.spec;
+    let segments = segments.iter().map(|&(c, s)| Segment::new(spec.classes[c].clone(), s)).collect();
+    let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, ..base.clone() }.varied(seed);
+    let g = generate(model, &opts, &mut |_| true)?;
+    let seed_frames = spec.block_len * spec.stride;
+    let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
+    let to_common = |f: usize| ((f.saturating_sub(seed_frames)) as f32 * COMMON_FPS / spec.fps).round() as usize;
+    Ok((m, g.segments.iter().skip(1).map(|s| to_common(s.start_frame)).collect()))
+}
+
 /// The mean transition peak jerk (m/s^3, within 1 s of the change) of takes that change from
 /// one activity into another, per (from, to) pair.
 fn pair_transition_peaks(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &GenerateOptions, pairs: &[(&str, &str)]) -> Result<Vec<(String, f64)>> {
     let spec = &model.spec;
-    let seed_frames = spec.block_len * spec.stride;
-    let seed_s = seed_frames as f32 / spec.fps;
+    let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
     pairs
         .iter()
         .map(|&(from, to)| {
+            let (a, b) = (spec.class_index(from)?, spec.class_index(to)?);
             let mut pool = Pool::default();
             for v in 0..PAIR_TAKES {
-                let timeline = Timeline { segments: vec![Segment::new(from, seed_s + cfg.segment_seconds), Segment::new(to, cfg.segment_seconds)] };
-                let opts = GenerateOptions { timeline, init: InitPose::SeedClass { class: from.into(), variant: v }, ..base.clone() }.varied(1 + v as u64);
-                let g = generate(model, &opts, &mut |_| true)?;
-                let m = g.motion.slice(seed_frames.min(g.motion.frames()), g.motion.frames()).resample(COMMON_FPS);
-                let boundary = ((g.segments[1].start_frame - seed_frames) as f32 * COMMON_FPS / spec.fps).round() as usize;
-                pool.add_transitions(&m, &[boundary]);
+                let (m, boundaries) = scored_take(model, base, &[(a, seed_s + cfg.segment_seconds), (b, cfg.segment_seconds)], a, v, 1 + v as u64)?;
+                pool.add_transitions(&m, &boundaries);
             }
             Ok((format!("{from} -> {to}"), pool.summary()[Measure::TransitionPeak]))
         })
@@ -345,10 +351,7 @@ fn per_source_markdown(r: &ModelResult, md: &mut Markdown) {
     let [real, _, shipped] = &r.sources;
     let datasets = Dataset::ARCHIVES;
     let of = |d: Dataset| -> Vec<usize> { (0..r.classes.len()).filter(|&c| r.class_sources[c].split(" + ").any(|s| s.starts_with(&format!("{d} ")))).collect() };
-    let mean = |source: &Source, classes: &[usize], m: Measure| {
-        let v: Vec<f64> = classes.iter().map(|&c| source.per_class[c][m]).filter(|x| x.is_finite()).collect();
-        if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
-    };
+    let mean = |source: &Source, classes: &[usize], m: Measure| balanced(&classes.iter().map(|&c| source.per_class[c]).collect::<Vec<_>>(), m);
     md.text("\nPer source dataset (mean over the classes with clips of it), real test / generated:\n\n");
     let mut table = Table::new(std::iter::once("measure".to_string()).chain(datasets.iter().map(|d| format!("{d} ({} classes)", of(*d).len()))));
     for (m, label, digits) in ROWS.iter().filter(|(m, ..)| PER_SOURCE.contains(m)) {

@@ -12,6 +12,7 @@ use super::context::SuiteContext;
 use crate::data::combined::NEUTRAL;
 use crate::data::registry::Dataset;
 use crate::eval::classifier::{Classifier, ClassifierConfig};
+use crate::eval::motion::joint_speed_sums;
 use crate::eval::table::{fixed as f, Markdown, Table};
 use crate::model::corpus::{mean_joint_speed, Corpus, Track};
 use crate::model::glocal::GlocalModel;
@@ -28,15 +29,12 @@ const TAKES: usize = 4;
 fn speed_markdown(corpus: &Corpus, classes: &[String], bandai_classes: &[usize], styles: &[usize], speeds: &[Vec<f32>], md: &mut Markdown) -> Vec<(String, String, f32)> {
     let mut rows = Vec::new();
     let mut ratios = Vec::new();
+    // The training clips' speed per class and tag: a Bandai clip's tag is its style.
+    let training = joint_speed_sums(&corpus.train, classes.len());
     for (row, &class) in bandai_classes.iter().enumerate() {
         for (label, &style) in styles.iter().enumerate() {
-            let clips: Vec<&Track> = corpus.train.iter().filter(|t| t.class == class && t.style == Some(style) && t.file.starts_with("bandai")).collect();
-            let frames: usize = clips.iter().map(|t| t.motion.frames()).sum();
-            if frames == 0 {
-                continue;
-            }
-            let real = clips.iter().map(|t| mean_joint_speed(&t.motion) * t.motion.frames() as f32).sum::<f32>() / frames as f32;
-            let ratio = speeds[row][label] / real;
+            let Some(&(sum, count)) = training[class].get(corpus.styles[style].as_str()) else { continue };
+            let ratio = speeds[row][label] / (sum / count.max(1) as f64) as f32;
             ratios.push(ratio);
             rows.push((classes[class].clone(), corpus.styles[style].clone(), ratio));
         }

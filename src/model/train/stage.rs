@@ -200,7 +200,7 @@ impl GloGenTraining<'_> {
     /// on their way to one.
     fn free_rows(&self, cond: &Tensor) -> Result<Tensor> {
         let spec = self.0.spec;
-        let flag = spec.glogen.class_len(spec.labels()) + target_flag(self.0.layout().dim());
+        let flag = spec.label_len() + target_flag(self.0.layout().dim());
         Ok(cond.narrow(1, flag, 1)?.affine(-1.0, 1.0)?.unsqueeze(2)?)
     }
 
@@ -214,7 +214,7 @@ impl GloGenTraining<'_> {
         let free = if spec.glogen.residual { pred.broadcast_add(&last)? } else { pred.clone() };
         let Some(cond) = cond.filter(|_| spec.glogen.target) else { return Ok(free) };
         let (t, dim) = (spec.block_len, self.0.layout().dim());
-        let class_len = spec.glogen.class_len(spec.labels());
+        let class_len = spec.label_len();
         let rows = cond.to_vec2::<f32>()?;
         // Per window, the way's ends and shares and whether it has one at all.
         let (mut ends, mut shares, mut has) = (Vec::new(), Vec::new(), Vec::new());

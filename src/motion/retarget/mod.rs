@@ -363,6 +363,17 @@ fn leg_length(rest: &[Vec3], keys: &KeyJoints) -> f32 {
     (leg(Key::LeftUpLeg, Key::LeftLeg, Key::LeftFoot) + leg(Key::RightUpLeg, Key::RightLeg, Key::RightFoot)) / 2.0
 }
 
+/// Mean angle in degrees between the `bones` (as [`mapped_bones`] gives them) of two poses in
+/// the same world: how far a retargeted pose points its limbs from its source's.
+pub fn mean_bone_angle(bones: &[(Key, Key)], a: &[Vec3], a_keys: &KeyJoints, b: &[Vec3], b_keys: &KeyJoints) -> f32 {
+    let dir = |f: &[Vec3], k: &KeyJoints, (key, parent): (Key, Key)| match (k.get(key), k.get(parent)) {
+        (Some(j), Some(p)) => (f[j] - f[p]).normalize_or_zero(),
+        _ => Vec3::ZERO,
+    };
+    let sum: f32 = bones.iter().map(|&bone| dir(a, a_keys, bone).dot(dir(b, b_keys, bone)).clamp(-1.0, 1.0).acos()).sum();
+    sum.to_degrees() / bones.len().max(1) as f32
+}
+
 /// Bones between key joints both skeletons map, as (key, parent key) with the parent the
 /// nearest mapped ancestor on skeleton `a`: the bones a retargeted take should point the same
 /// way as its source on. Bones of no rest length on either skeleton have no direction and are
