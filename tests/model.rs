@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use glam::Vec3;
 use glocal::model::block::BlockWorkspace;
 use glocal::model::glocal::GlocalModel;
 use glocal::model::spec::ModelSpec;
@@ -42,6 +43,31 @@ fn shipped_models_load_generate_and_beat_zero_velocity() {
         assert!(files.iter().all(|f| bytes(f) < 15 << 20), "{name}: {:?} bytes (all files: {size})", files.map(bytes));
         assert!(bytes(files[0]) + bytes(files[1]) < 20 << 20, "{name}: checkpoints of {} bytes", bytes(files[0]) + bytes(files[1]));
     }
+}
+
+/// A LocGen trained in issue 39's design (the model of everything's) leaves the sparse poses
+/// exactly where they were (GloGen's poses and the user's keys), refines only the frames
+/// between them, and is under its spline on the held-out validation windows.
+#[test]
+fn locgen_keeps_the_sparse_poses_and_refines_between_them() {
+    let model = GlocalModel::load(&shipped("all")).unwrap();
+    assert!(model.spec.locgen.keep_sparse_poses);
+    let (j, s) = (model.spec.layout.joints(), model.spec.stride);
+    let sparse: Vec<_> = model.seeds.iter().take(3).flat_map(|seed| model.spec.layout.decode(&seed.features, Default::default()).0).collect();
+    let (plain, refined) = (model.densify(&sparse, false), model.densify(&sparse, true));
+    let farthest = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(p, q)| p.distance(*q)).fold(0f32, f32::max);
+    let mut moved_between = 0f32;
+    for (f, (p, r)) in plain.chunks_exact(j).zip(refined.chunks_exact(j)).enumerate() {
+        if f % s == 0 {
+            let off = farthest(r, &sparse[(f / s) * j..(f / s + 1) * j]);
+            assert!(off < 1e-4, "sparse pose {} moved {off} m", f / s);
+        } else {
+            moved_between = moved_between.max(farthest(p, r));
+        }
+    }
+    assert!(sparse.len() / j == 30 && moved_between > 0.0, "LocGen changed nothing between the sparse poses");
+    let record = model.spec.training.locgen.clone().unwrap();
+    assert!(record.val_error < record.baseline_error, "LocGen {} against its spline {}", record.val_error, record.baseline_error);
 }
 
 fn train_command(out: &Path, steps: usize, resume: bool) -> Command {

@@ -204,6 +204,8 @@ fn m5_model_json_is_validated_field_by_field() {
         ("fps 0", Box::new(|v| v["fps"] = 0.into()), "`fps`"),
         ("fps -25", Box::new(|v| v["fps"] = (-25).into()), "`fps`"),
         ("window 0", Box::new(|v| v["locgen"]["window"] = 0.into()), "locgen.window"),
+        ("kept sparse poses off the window's strides", Box::new(|v| v["locgen"]["keep_sparse_poses"] = true.into()), "locgen.window"),
+        ("residual scale one short", Box::new(|v| v["locgen"]["residual_scale"] = vec![1.0; 3].into()), "locgen.residual_scale"),
         ("hip out of range", Box::new(|v| v["layout"]["left_hip"] = 999.into()), "layout.left_hip"),
         ("joint out of range", Box::new(|v| v["source_joints"][3] = 999.into()), "source_joints"),
         ("forward parent", Box::new(|v| v["layout"]["skeleton"]["parents"][1] = 5.into()), "does not come before it"),

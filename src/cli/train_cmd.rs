@@ -32,6 +32,9 @@ pub struct TrainArgs {
     data: Option<PathBuf>,
     #[arg(long, default_value_t = 64)]
     batch: usize,
+    /// AdamW's learning rate.
+    #[arg(long, default_value_t = 0.002)]
+    lr: f32,
     #[command(flatten)]
     shape: ShapeArgs,
     #[arg(long, default_value_t = 250)]
@@ -82,6 +85,10 @@ struct ShapeArgs {
     /// Dense frames between sparse poses (the paper's M + 1).
     #[arg(long, default_value_t = 5)]
     stride: usize,
+    /// Sparse intervals per LocGen window: each window starts on a sparse pose and reads
+    /// this many intervals of the interpolation.
+    #[arg(long, default_value_t = 4)]
+    locgen_keys: usize,
 }
 
 impl ShapeArgs {
@@ -97,6 +104,7 @@ impl ShapeArgs {
         shape.seam_join = if self.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
         shape.target = self.target;
         shape.stride = self.stride;
+        shape.locgen_keys = self.locgen_keys;
         if self.paper {
             if self.residual || self.joined || self.two_sided_join || self.target {
                 bail!("--paper trains the paper's GloGen, which has neither --residual, --joined, --two-sided-join nor --target");
@@ -131,6 +139,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.seed = args.seed;
     opts.resume = args.resume;
     opts.optimiser.batch = args.batch;
+    opts.optimiser.lr = args.lr;
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };

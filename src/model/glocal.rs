@@ -96,11 +96,13 @@ impl GlocalModel {
     }
 
     /// LocGen over `windows` windows of normalised interpolated dense features, in place:
-    /// LocGen predicts a residual on the interpolation. Returns false without LocGen.
+    /// LocGen predicts a residual on the interpolation, in units of its spread. Returns false
+    /// without LocGen.
     pub fn locgen(&self, frames: &mut [f32], windows: usize) -> bool {
         let Some(locgen) = self.locgen.as_ref() else { return false };
-        let w = self.spec.locgen.window;
-        let width = w * self.spec.layout.dim();
+        let (w, dim) = (self.spec.locgen.window, self.spec.layout.dim());
+        let width = w * dim;
+        let gain = self.spec.locgen_gain();
         // Chunks of windows bound the workspace (gates and states of every window in the
         // batch) whatever the take's length.
         let mut residual = vec![0.0; LOCGEN_CHUNK.min(windows) * width];
@@ -108,7 +110,9 @@ impl GlocalModel {
         for chunk in frames[..windows * width].chunks_mut(LOCGEN_CHUNK * width) {
             let n = chunk.len() / width;
             locgen.infer(&mut ws, chunk, None, n, w, &mut residual[..n * width]);
-            chunk.iter_mut().zip(&residual).for_each(|(f, r)| *f += r);
+            for (window, res) in chunk.chunks_exact_mut(width).zip(residual.chunks_exact(width)) {
+                window.iter_mut().zip(res.iter().zip(&gain)).for_each(|(f, (r, g))| *f += r * g);
+            }
         }
         true
     }

@@ -101,6 +101,29 @@ pub struct LocGenSpec {
     /// The interpolation LocGen refines (models saved before it had a choice: linear).
     #[serde(default)]
     pub interpolation: Interpolation,
+    /// Per feature, the spread of the real frames about their interpolation in the training
+    /// data (normalised units): LocGen's output is scaled by it, so the network predicts a
+    /// residual of unit size rather than one a hundred times smaller than the features; 0
+    /// leaves a feature as interpolated. Empty for models saved before it (their output is
+    /// the residual itself).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub residual_scale: Vec<f32>,
+    /// The sparse poses come out of LocGen as they went in (GloGen's poses and the user's
+    /// keys stay put; the interpolation is exact there). Windows then start on a sparse pose.
+    #[serde(default)]
+    pub keep_sparse_poses: bool,
+}
+
+impl ModelSpec {
+    /// What LocGen's output is multiplied by before it is added to its input, per frame of
+    /// a window and feature (`window * dim`): the residual's scale, 0 on the sparse poses
+    /// the model keeps.
+    pub fn locgen_gain(&self) -> Vec<f32> {
+        let (locgen, dim) = (&self.locgen, self.layout.dim());
+        let scale = |i: usize| locgen.residual_scale.get(i).copied().unwrap_or(1.0);
+        let kept = |frame: usize| locgen.keep_sparse_poses && frame % self.stride == 0;
+        (0..locgen.window).flat_map(|f| (0..dim).map(move |i| if kept(f) { 0.0 } else { scale(i) })).collect()
+    }
 }
 
 /// What training recorded, per stage.
@@ -365,6 +388,13 @@ impl ModelSpec {
         whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;
         validate_block("locgen.block", &self.locgen.block, dim, 0)?;
         whole_in_range("locgen.window", self.locgen.window, 1, MAX_LOCGEN_WINDOW)?;
+        let scale = &self.locgen.residual_scale;
+        if !scale.is_empty() && (scale.len() != dim || scale.iter().any(|v| !(v.is_finite() && *v >= 0.0))) {
+            return Err(E::field("locgen.residual_scale", format!("must hold {dim} numbers of 0 or more, one per feature")));
+        }
+        if self.locgen.keep_sparse_poses && self.locgen.window % self.stride != 0 {
+            return Err(E::field("locgen.window", format!("is {}; a LocGen that keeps the sparse poses needs a whole number of strides ({})", self.locgen.window, self.stride)));
+        }
         for file in self.training.weights_sha256.keys() {
             if ![GLOGEN_FILE, LOCGEN_FILE].contains(&file.as_str()) {
                 return Err(E::field("weights_sha256", format!("names '{}', which is not a weight file of a model", clipped(file))));

@@ -160,6 +160,9 @@ struct ModelResult {
     tag_speeds: Vec<[Vec<(String, f64)>; 2]>,
     /// Bones over the real p99.9 turn in one frame, in the shipped takes above.
     snaps: SnapTally,
+    /// The same limits on the training split's clips in pieces as long as the takes: how
+    /// often real motion itself goes past them.
+    train_snaps: SnapTally,
     first_takes: Vec<FirstTake>,
     /// Bones over the real p99.9 turn in one frame, in the first takes.
     first_snaps: SnapTally,
@@ -225,6 +228,20 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     Ok((md, json))
 }
 
+/// The training split's clips at [`COMMON_FPS`] in pieces of `seconds`, each tallied against
+/// `limits` as a generated take is.
+fn real_training_snaps(corpus: &Corpus, limits: &SnapLimits, seconds: f32) -> SnapTally {
+    let mut tally = SnapTally::default();
+    let piece = (seconds * COMMON_FPS).round() as usize;
+    for track in &corpus.train {
+        let m = track.motion.resample(COMMON_FPS);
+        for start in (0..m.frames().saturating_sub(piece)).step_by(piece.max(1)) {
+            tally.add(limits, &format!("{} at {:.1} s", track.file, start as f32 / COMMON_FPS), &m.slice(start, start + piece + 1));
+        }
+    }
+    tally
+}
+
 fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, log: &mut dyn FnMut(&str)) -> Result<ModelResult> {
     let dir = ctx.model_dir(dataset);
     let model = GlocalModel::load(&dir)?;
@@ -261,6 +278,7 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
         train_speed: joint_speed_per_class(&train_sums),
         tag_speeds: joint_speed_per_tag(&train_sums).into_iter().zip(joint_speed_per_tag(&joint_speed_sums(&corpus.test, classes))).map(|(a, b)| [a, b]).collect(),
         snaps,
+        train_snaps: real_training_snaps(&corpus, &limits, cfg.take_seconds),
         first_takes,
         first_snaps,
         pairs,
@@ -295,7 +313,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
         }
         md.table(pairs);
     }
-    md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}.\n", r.snaps.describe()));
+    md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}. The training split's clips, in pieces as long as the takes, against the same limits: {}.\n", r.snaps.describe(), r.train_snaps.describe()));
     // Over the classes that have a profile (the model of everything has classes without a test clip).
     let profile = |p: &[Vec<f64>]| -> String {
         let k = p.iter().map(Vec::len).max().unwrap_or(0);
@@ -385,5 +403,5 @@ fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
 }
 
 fn model_json(r: &ModelResult) -> Value {
-    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "first_takes": r.first_takes, "first_takes_bone_snaps": r.first_snaps, "transitions_across_datasets": r.pairs[0], "transitions_within_a_dataset": r.pairs[1], "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
+    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "training_clips_bone_snaps": r.train_snaps, "first_takes": r.first_takes, "first_takes_bone_snaps": r.first_snaps, "transitions_across_datasets": r.pairs[0], "transitions_within_a_dataset": r.pairs[1], "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
 }

@@ -19,7 +19,7 @@ use rand::{Rng, SeedableRng};
 
 use self::checkpoint::{checkpoint, publish, Checkpoint, Legacy};
 pub use self::checkpoint::save_weights;
-use self::stage::{stage_training, TrainingData};
+use self::stage::{locgen_residual_scale, stage_training, TrainingData};
 use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
@@ -126,7 +126,8 @@ pub struct ModelShape {
     pub target: bool,
     pub stride: usize,
     pub block_len: usize,
-    pub locgen_window: usize,
+    /// Sparse intervals per LocGen window (its dense frames are this many strides).
+    pub locgen_keys: usize,
     /// Classes with fewer training clips are left out.
     pub min_clips: usize,
     /// The interpolation a new LocGen refines.
@@ -160,7 +161,7 @@ impl TrainOptions {
                 target: false,
                 stride: 5,
                 block_len: 10,
-                locgen_window: 10,
+                locgen_keys: 4,
                 min_clips: 3,
                 interpolation: Interpolation::NaturalCubic,
             },
@@ -195,7 +196,7 @@ impl TrainOptions {
         whole("eval-every", self.eval_every, 1, usize::MAX)?;
         whole("checkpoint-every", self.checkpoint_every, 1, usize::MAX)?;
         whole("block-len", self.shape.block_len, 1, 1000)?;
-        whole("locgen-window", self.shape.locgen_window, 1, 1000)?;
+        whole("locgen-keys", self.shape.locgen_keys, 1, 1000 / self.shape.stride.max(1))?;
         if !(self.shape.class_dropout.is_finite() && (0.0..=1.0).contains(&self.shape.class_dropout)) {
             bail!("--class-dropout must be a probability between 0 and 1, got {}", self.shape.class_dropout);
         }
@@ -246,6 +247,14 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let _lock = FolderLock::acquire(&opts.out)?;
     let mut spec = prepare_spec(opts, &corpus)?;
     let (cfg, norm) = opts.stage.block_and_norm(&spec);
+    if opts.stage == Stage::Locgen && !opts.resume {
+        // Fine-tuned weights keep the scale they were trained with.
+        spec.locgen.residual_scale = match &opts.init_from {
+            Some(dir) => ModelSpec::read(dir)?.locgen.residual_scale,
+            None => locgen_residual_scale(TrainingData { opts, corpus: &corpus, spec: &spec, norm: &norm })?,
+        };
+        spec.write(&opts.out)?;
+    }
     let varmap = VarMap::new();
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
     seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
@@ -363,10 +372,14 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         target: shape.target,
     };
     glogen.block.cond_dim = glogen.cond_len(labels, dim);
+    // No dropout in LocGen: noise before its head, on a residual this small, taught it to
+    // keep the head near zero (its output stayed at the interpolation).
     let locgen = LocGenSpec {
-        block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.25 },
-        window: shape.locgen_window,
+        block: BlockConfig { in_dim: dim, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.0 },
+        window: shape.locgen_keys * shape.stride,
         interpolation: shape.interpolation,
+        residual_scale: Vec::new(),
+        keep_sparse_poses: true,
     };
     if opts.out.join("model.json").exists() {
         let mut spec = ModelSpec::read(&opts.out)?;

@@ -10,7 +10,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::{Stage, TrainOptions};
-use crate::data::features::{FeatureLayout, Normalizer, Placement};
+use crate::data::features::{FeatureLayout, Normalizer, Placement, ROOT_FEATURES};
 use crate::model::block::{BlockWorkspace, Seq2SeqBlock};
 use crate::model::corpus::{interpolated_window, sample_window, Corpus, Track};
 use crate::model::glogen::GloGen;
@@ -335,19 +335,53 @@ impl LocGenTraining<'_> {
         (input, target)
     }
 
-    /// The refined window: LocGen predicts a residual on its interpolated input.
-    fn predict(block: &Seq2SeqBlock, input: &Tensor, train: bool) -> Result<Tensor> {
-        Ok((block.forward(input, None, train)? + input)?)
+    /// The refined window: LocGen predicts a residual on its interpolated input, in units of
+    /// the residual's spread.
+    fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, train: bool) -> Result<Tensor> {
+        let spec = self.0.spec;
+        let gain = Tensor::from_vec(spec.locgen_gain(), (1, spec.locgen.window, block.cfg.out_dim), &Device::Cpu)?;
+        Ok((block.forward(input, None, train)?.broadcast_mul(&gain)? + input)?)
     }
+}
+
+/// Per feature, the root mean square of the real frames about their interpolation over
+/// training windows (normalised units): LocGen's [`LocGenSpec::residual_scale`].
+///
+/// [`LocGenSpec::residual_scale`]: crate::model::spec::LocGenSpec
+pub(super) fn locgen_residual_scale(data: TrainingData) -> Result<Vec<f32>> {
+    const WINDOWS: usize = 4096;
+    let training = LocGenTraining(data);
+    let data = &training.0;
+    let (dim, span) = (data.layout().dim(), data.spec.locgen.window + 1);
+    let mut rng = StdRng::seed_from_u64(0x5CA1E);
+    let mut sums = vec![0f64; dim];
+    let mut rows = 0usize;
+    for _ in 0..WINDOWS {
+        let (track, start) = sample_window(&data.corpus.train, data.corpus.classes.len(), span + data.spec.stride, &mut rng).context("no training clip is long enough")?;
+        let (input, target) = training.window(track, start + data.spec.stride);
+        for (row_in, row_out) in input.chunks_exact(dim).zip(target.chunks_exact(dim)) {
+            sums.iter_mut().zip(row_in.iter().zip(row_out)).for_each(|(s, (a, b))| *s += f64::from(b - a).powi(2));
+            rows += 1;
+        }
+    }
+    // The body's travel and turn stay the interpolation's: a residual on a step is summed
+    // over the window and turns every joint about the root, where one on a joint moves that
+    // joint alone. A floor keeps a feature the interpolation always gets right scalable.
+    Ok(sums.iter().enumerate().map(|(i, s)| if (1..ROOT_FEATURES).contains(&i) { 0.0 } else { ((s / rows.max(1) as f64).sqrt() as f32).max(1e-4) }).collect())
 }
 
 impl StageTraining for LocGenTraining<'_> {
     fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
         let span = self.0.spec.locgen.window + 1;
         let batch = self.0.batch(block, span, 1, rng, |track, frame| self.window(track, frame))?;
-        let pred = Self::predict(block, &batch.x, true)?;
-        let last = batch.x.narrow(1, batch.x.dim(1)? - 1, 1)?;
-        Ok(joint_flow_loss(&pred, &batch.y, Some(&last), LossKind::JointFlow)?)
+        let pred = self.predict(block, &batch.x, true)?;
+        // Weighed back to the skeleton's units: in normalised features a hand's residual
+        // counted a fraction of the same distance at the hips, the opposite of what shows.
+        let std = &self.0.norm.std;
+        let rms = (std.iter().map(|s| s * s).sum::<f32>() / std.len() as f32).sqrt();
+        let weight = Tensor::from_vec(std.iter().map(|s| s / rms).collect(), (1, 1, std.len()), &Device::Cpu)?;
+        let (pred, target) = (pred.broadcast_mul(&weight)?, batch.y.broadcast_mul(&weight)?);
+        Ok(joint_flow_loss(&pred, &target, None, LossKind::JointFlow)?)
     }
 
     fn validation_windows(&self) -> Vec<ValWindow> {
@@ -369,7 +403,7 @@ impl StageTraining for LocGenTraining<'_> {
         let steps = first.input.len() / dim;
         let x: Vec<f32> = windows.iter().flat_map(|w| w.input.iter().copied()).collect();
         let x = Tensor::from_vec(x, (windows.len(), steps, dim), &Device::Cpu)?;
-        let pred = Self::predict(block, &x, false)?.flatten_all()?.to_vec1::<f32>()?;
+        let pred = self.predict(block, &x, false)?.flatten_all()?.to_vec1::<f32>()?;
         Ok(position_errors(data.norm, data.layout(), windows, pred.chunks_exact(steps * dim)))
     }
 }
