@@ -493,17 +493,27 @@ pub fn real_pools(corpus: &Corpus, roles: &JointRoles, grid: Option<BlockGrid>, 
     let mut pools: Vec<Pool> = (0..corpus.classes.len()).map(|_| Pool::default()).collect();
     for track in &corpus.test {
         let m = track.motion.resample(COMMON_FPS);
-        let piece = (piece_seconds * COMMON_FPS) as usize;
         let pool = &mut pools[track.class];
-        let mut start = 0;
-        while start + (WINDOW_S * COMMON_FPS) as usize <= m.frames() {
-            let end = (start + piece).min(m.frames());
-            pool.add_take(&m.slice(start, end), roles, grid);
-            start = end;
+        for piece in real_pieces(&m, piece_seconds) {
+            pool.add_take(&m.slice(piece.start, piece.end), roles, grid);
         }
         pool.add_repeats(&m);
     }
     pools
+}
+
+/// A real clip at [`COMMON_FPS`] cut into pieces of `piece_seconds` to stand beside generated
+/// takes that long: the last piece what is left, when at least a measuring window long.
+pub fn real_pieces(m: &Motion, piece_seconds: f32) -> Vec<std::ops::Range<usize>> {
+    let (piece, window) = ((piece_seconds * COMMON_FPS) as usize, (WINDOW_S * COMMON_FPS) as usize);
+    let mut pieces = Vec::new();
+    let mut start = 0;
+    while start + window <= m.frames() {
+        let end = (start + piece).min(m.frames());
+        pieces.push(start..end);
+        start = end;
+    }
+    pieces
 }
 
 /// Per class, the sum of every joint's speed and how many speeds it sums ([`joint_speed_sum`])

@@ -114,18 +114,6 @@ pub struct LocGenSpec {
     pub keep_sparse_poses: bool,
 }
 
-impl ModelSpec {
-    /// What LocGen's output is multiplied by before it is added to its input, per frame of
-    /// a window and feature (`window * dim`): the residual's scale, 0 on the sparse poses
-    /// the model keeps.
-    pub fn locgen_gain(&self) -> Vec<f32> {
-        let (locgen, dim) = (&self.locgen, self.layout.dim());
-        let scale = |i: usize| locgen.residual_scale.get(i).copied().unwrap_or(1.0);
-        let kept = |frame: usize| locgen.keep_sparse_poses && frame % self.stride == 0;
-        (0..locgen.window).flat_map(|f| (0..dim).map(move |i| if kept(f) { 0.0 } else { scale(i) })).collect()
-    }
-}
-
 /// What training recorded, per stage.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct StageRecord {
@@ -419,6 +407,16 @@ impl ModelSpec {
     /// One-hot entries of the label part of the conditioning: the classes, then the styles.
     pub fn labels(&self) -> usize {
         self.classes.len() + self.styles.len()
+    }
+
+    /// What LocGen's output is multiplied by before it is added to its input, per frame of
+    /// a window and feature (`window * dim`): the residual's scale, 0 on the sparse poses
+    /// the model keeps.
+    pub fn locgen_gain(&self) -> Vec<f32> {
+        let (locgen, dim) = (&self.locgen, self.layout.dim());
+        let scale = |i: usize| locgen.residual_scale.get(i).copied().unwrap_or(1.0);
+        let kept = |frame: usize| locgen.keep_sparse_poses && frame % self.stride == 0;
+        (0..locgen.window).flat_map(|f| (0..dim).map(move |i| if kept(f) { 0.0 } else { scale(i) })).collect()
     }
 
     /// Entries of the conditioning vector GloGen reads as labels (0 without the class prior);

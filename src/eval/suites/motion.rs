@@ -8,7 +8,7 @@ use serde_json::{json, Value};
 use super::context::SuiteContext;
 use super::first_takes::{self, FirstTake};
 use crate::data::registry::Dataset;
-use crate::eval::motion::{joint_speed_per_class, joint_speed_per_tag, joint_speed_sums, real_pools, BlockGrid, Measure, Pool, Summary, COMMON_FPS, DEFINITIONS};
+use crate::eval::motion::{joint_speed_per_class, joint_speed_per_tag, joint_speed_sums, real_pieces, real_pools, BlockGrid, Measure, Pool, Summary, COMMON_FPS, DEFINITIONS};
 use crate::eval::snaps::{SnapLimits, SnapTally};
 use crate::eval::table::{fixed_or, Markdown, Table};
 use crate::model::corpus::Corpus;
@@ -228,16 +228,14 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     Ok((md, json))
 }
 
-/// The training split's clips at [`COMMON_FPS`] in pieces of `seconds` (a shorter clip whole),
-/// each tallied against `limits` as a generated take is.
+/// The training split's clips in pieces as the real test split is cut ([`real_pieces`]), each
+/// tallied against `limits` as a generated take is.
 fn real_training_snaps(corpus: &Corpus, limits: &SnapLimits, seconds: f32) -> SnapTally {
     let mut tally = SnapTally::default();
-    let piece = (seconds * COMMON_FPS).round() as usize;
     for track in &corpus.train {
         let m = track.motion.resample(COMMON_FPS);
-        for start in (0..m.frames().saturating_sub(piece).max(1)).step_by(piece.max(1)) {
-            let end = (start + piece + 1).min(m.frames());
-            tally.add(limits, &format!("{} at {:.1} s", track.file, start as f32 / COMMON_FPS), &m.slice(start, end));
+        for piece in real_pieces(&m, seconds) {
+            tally.add(limits, &format!("{} at {:.1} s", track.file, piece.start as f32 / COMMON_FPS), &m.slice(piece.start, piece.end));
         }
     }
     tally
@@ -314,7 +312,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
         }
         md.table(pairs);
     }
-    md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}. The training split's clips, in pieces as long as the takes (a shorter clip whole), against the same limits: {}.\n", r.snaps.describe(), r.train_snaps.describe()));
+    md.text(&format!("\nBones over the real test clips' p99.9 turn in one frame (each bone against its own), generated takes: {}. The training split's clips, in pieces as the test split's are cut, against the same limits: {}.\n", r.snaps.describe(), r.train_snaps.describe()));
     // Over the classes that have a profile (the model of everything has classes without a test clip).
     let profile = |p: &[Vec<f64>]| -> String {
         let k = p.iter().map(Vec::len).max().unwrap_or(0);
