@@ -235,7 +235,7 @@ fn foot_lock_keeps_knees_on_a_skeleton_without_toes() {
     let m = clip.slice(0, clip.frames().min(1200));
     let roles = JointRoles::new(&m.skeleton).unwrap();
     assert_eq!(roles.left.toe, None);
-    let locked = glocal::synth::foot_lock::foot_lock(m.clone(), true, glocal::synth::foot_lock::Travel::FromFeet).unwrap().motion;
+    let locked = glocal::synth::foot_lock::foot_lock(m.clone(), true, &glocal::synth::foot_lock::Travel::FromFeet { kept: Vec::new() }).unwrap().motion;
     let unit = m.skeleton.meters_per_unit();
     let rest = m.skeleton.rest_bone_lengths();
     let (mut bent, mut kept) = (0, 0);

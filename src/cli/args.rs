@@ -30,6 +30,8 @@ impl From<TransitionArg> for Transition {
 pub enum StageArg {
     Glogen,
     Locgen,
+    /// The in-betweener that fills the gap before a key.
+    Inbetween,
 }
 
 impl From<StageArg> for Stage {
@@ -37,6 +39,7 @@ impl From<StageArg> for Stage {
         match s {
             StageArg::Glogen => Stage::Glogen,
             StageArg::Locgen => Stage::Locgen,
+            StageArg::Inbetween => Stage::Inbetween,
         }
     }
 }

@@ -12,7 +12,8 @@ use super::block::{BlockConfig, BlockWorkspace, FrozenBlock, Seq2SeqBlock};
 use super::corpus::interpolated_window;
 use super::glogen::GloGen;
 use super::rollout::{rollout, OneClass};
-use super::spec::{ModelSpec, Seed, GLOGEN_FILE, LOCGEN_FILE};
+use super::inbetween::{gap_gain, gap_window, spread_arrival};
+use super::spec::{ModelSpec, Seed, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement};
 use crate::data::input::read_text;
@@ -36,6 +37,7 @@ pub struct GlocalModel {
     pub seeds: Vec<Seed>,
     glogen: GloGen,
     locgen: Option<FrozenBlock>,
+    inbetween: Option<FrozenBlock>,
 }
 
 impl GlocalModel {
@@ -46,8 +48,13 @@ impl GlocalModel {
         let glogen = GloGen::new(load_block(&dir.join(GLOGEN_FILE), &spec.glogen.block)?.freeze()?, &spec);
         let locgen_path = dir.join(LOCGEN_FILE);
         let locgen = if locgen_path.exists() { Some(load_block(&locgen_path, &spec.locgen.block)?.freeze()?) } else { None };
+        let inbetween_path = dir.join(INBETWEEN_FILE);
+        let inbetween = match &spec.inbetween {
+            Some(s) if inbetween_path.exists() => Some(load_block(&inbetween_path, &s.block)?.freeze()?),
+            _ => None,
+        };
         let seeds = read_seed_bank(&dir.join(SEEDS_FILE), &spec)?;
-        Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen })
+        Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen, inbetween })
     }
 
     pub fn has_locgen(&self) -> bool {
@@ -119,6 +126,37 @@ impl GlocalModel {
 }
 
 impl GlocalModel {
+    /// The longest gap before a key the in-betweener fills, and the known frames it reads
+    /// before one; None without an in-betweener.
+    pub fn inbetween_reach(&self) -> Option<(usize, usize)> {
+        self.inbetween.as_ref()?;
+        self.spec.inbetween.as_ref().map(|s| (s.max_gap, s.context))
+    }
+
+    /// The `gap` frames between the known frames `context` (the frame `before` them starts
+    /// their velocities) and the pose `key` after the gap, in their world: their linear
+    /// interpolation with the in-betweener's residual; the body arrives where the key stands.
+    /// None without an in-betweener, or for a gap or
+    /// context it was not trained for.
+    pub fn fill_gap(&self, before: &[Vec3], context: &[Vec3], key: &[Vec3], gap: usize) -> Option<Vec<Vec3>> {
+        let (block, spec) = (self.inbetween.as_ref()?, self.spec.inbetween.as_ref()?);
+        let (layout, norm) = (&self.spec.layout, &self.spec.dense_norm);
+        let (j, dim) = (layout.joints(), layout.dim());
+        if gap == 0 || gap > spec.max_gap || context.len() != spec.context * j {
+            return None;
+        }
+        let (input, _) = gap_window(layout, norm, before, context, key, gap);
+        let frames = spec.context + gap + 1;
+        let mut residual = vec![0.0; frames * dim];
+        block.infer(&mut BlockWorkspace::default(), &input, None, 1, frames, &mut residual);
+        let mut feats: Vec<f32> = input.chunks_exact(dim + super::inbetween::GAP_CHANNELS).flat_map(|row| row[..dim].to_vec()).collect();
+        feats.iter_mut().zip(residual.iter().zip(gap_gain(spec, gap))).for_each(|(f, (r, g))| *f += r * g);
+        norm.denormalize(&mut feats);
+        let mut positions = layout.decode(&feats, layout.placement(before)).0;
+        spread_arrival(&mut positions, j, spec.context, key[0]);
+        Some(positions[spec.context * j..(spec.context + gap) * j].to_vec())
+    }
+
     /// GloGen continuing real motion: `blocks * block_len` sparse poses after frame `t0` of
     /// `m` (on the model's skeleton and frame rate), the `k`-th at frame `t0 + (k + 1) *
     /// stride`, rolled out block by block by [`rollout`] from the `block_len`

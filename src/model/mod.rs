@@ -6,6 +6,7 @@ pub mod adamw;
 pub mod corpus;
 pub mod glocal;
 pub mod glogen;
+pub mod inbetween;
 pub mod loss;
 pub mod memory;
 pub mod rollout;

@@ -21,6 +21,7 @@ pub const FORMAT_VERSION: u32 = 1;
 /// The weight files of a model folder, beside its model.json (whose checksums name them).
 pub const GLOGEN_FILE: &str = "glogen.safetensors";
 pub const LOCGEN_FILE: &str = "locgen.safetensors";
+pub const INBETWEEN_FILE: &str = "inbetween.safetensors";
 
 /// Which terms the training loss has (the paper's ablations).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -114,6 +115,22 @@ pub struct LocGenSpec {
     pub keep_sparse_poses: bool,
 }
 
+/// The in-betweener ([`super::inbetween`]): fills the frames between a known pose and a key
+/// with a residual on their linear interpolation, reading the frames before the gap.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct InbetweenSpec {
+    /// Per step: the interpolated features, then [`super::inbetween::GAP_CHANNELS`] more.
+    pub block: BlockConfig,
+    /// Known frames read before the gap (the last one is the gap's start).
+    pub context: usize,
+    /// The longest gap (frames strictly between the known pose and the key) it was trained
+    /// on; longer gaps are left to GloGen and LocGen.
+    pub max_gap: usize,
+    /// Per feature, the spread of the real frames about the linear interpolation over the
+    /// training gaps (normalised units); 0 leaves a feature as interpolated.
+    pub residual_scale: Vec<f32>,
+}
+
 /// What training recorded, per stage.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct StageRecord {
@@ -181,6 +198,9 @@ pub struct ModelSpec {
     pub class_strength: f32,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
+    /// The in-betweener, for models trained with one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inbetween: Option<InbetweenSpec>,
     #[serde(flatten)]
     pub training: TrainingRecords,
 }
@@ -196,6 +216,8 @@ pub struct TrainingRecords {
     pub glogen: Option<StageRecord>,
     #[serde(default, rename = "locgen_training")]
     pub locgen: Option<StageRecord>,
+    #[serde(default, rename = "inbetween_training", skip_serializing_if = "Option::is_none")]
+    pub inbetween: Option<StageRecord>,
     /// SHA-256 of each weight file (by file name), written with it and checked at load.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub weights_sha256: BTreeMap<String, String>,
@@ -276,6 +298,24 @@ fn validate_block(field: &str, b: &BlockConfig, dim: usize, cond: usize) -> Resu
     let parameters = 2 * 2 * per_direction + (2 * h + 1) * b.out_dim;
     if parameters > MAX_BLOCK_PARAMETERS {
         return Err(SpecError::field(&format!("{field}.hidden"), format!("{h} makes a block of {parameters} parameters, more than {MAX_BLOCK_PARAMETERS}")));
+    }
+    Ok(())
+}
+
+fn validate_inbetween(spec: &InbetweenSpec, dim: usize) -> Result<(), SpecError> {
+    let b = &spec.block;
+    let input = dim + super::inbetween::GAP_CHANNELS;
+    if b.in_dim != input || b.out_dim != dim || b.cond_dim != 0 {
+        return Err(SpecError::field("inbetween.block", format!("reads {} and writes {} features with {} conditioning; the layout needs {input}, {dim} and 0", b.in_dim, b.out_dim, b.cond_dim)));
+    }
+    let mut reads_poses = b.clone();
+    reads_poses.in_dim = dim;
+    validate_block("inbetween.block", &reads_poses, dim, 0)?;
+    whole_in_range("inbetween.context", spec.context, 2, MAX_LOCGEN_WINDOW)?;
+    whole_in_range("inbetween.max_gap", spec.max_gap, 1, MAX_LOCGEN_WINDOW)?;
+    let scale = &spec.residual_scale;
+    if scale.len() != dim || scale.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+        return Err(SpecError::field("inbetween.residual_scale", format!("must hold {dim} numbers of 0 or more, one per feature")));
     }
     Ok(())
 }
@@ -383,8 +423,11 @@ impl ModelSpec {
         if self.locgen.keep_sparse_poses && self.locgen.window % self.stride != 0 {
             return Err(E::field("locgen.window", format!("is {}; a LocGen that keeps the sparse poses needs a whole number of strides ({})", self.locgen.window, self.stride)));
         }
+        if let Some(inbetween) = &self.inbetween {
+            validate_inbetween(inbetween, dim)?;
+        }
         for file in self.training.weights_sha256.keys() {
-            if ![GLOGEN_FILE, LOCGEN_FILE].contains(&file.as_str()) {
+            if ![GLOGEN_FILE, LOCGEN_FILE, INBETWEEN_FILE].contains(&file.as_str()) {
                 return Err(E::field("weights_sha256", format!("names '{}', which is not a weight file of a model", clipped(file))));
             }
         }

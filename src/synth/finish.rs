@@ -121,7 +121,7 @@ impl Finishing<'_> {
         } else {
             Motion::from_positions(skeleton, spec.fps, positions)
         };
-        foot_lock(motion, self.foot_lock && spec.foot_lock, self.travel)
+        foot_lock(motion, self.foot_lock && spec.foot_lock, &self.travel)
     }
 
     /// A take that holds all but its `held` constraint's free frames: only the stretches of

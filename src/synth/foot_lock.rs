@@ -10,6 +10,8 @@
 //! leg cannot. Bone lengths stay exact, and a take that came with rotations gets them
 //! solved again from the new positions.
 
+use std::ops::Range;
+
 use anyhow::{Context, Result};
 use glam::Vec3;
 
@@ -97,11 +99,12 @@ pub struct FootLocked {
 }
 
 /// Whether the lock may change how far the body travels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Travel {
     /// The body travels as far as its planted feet carry it (see [`carried_by_feet`]): for a
-    /// network whose stance feet slide with the body.
-    FromFeet,
+    /// network whose stance feet slide with the body; but for the frames `kept`, whose travel
+    /// stays as it is (gaps the in-betweener filled: real motion's travel, learnt).
+    FromFeet { kept: Vec<Range<usize>> },
     /// The body's travel stays as it is but for a standing body's drift ([`held_still`]): a
     /// root path has laid it out, or the model's feet need no carrying.
     Kept,
@@ -109,7 +112,7 @@ pub enum Travel {
 
 /// The take with its feet locked (when `enabled`) and the contacts of each foot; with
 /// `enabled` false the take is returned as it is, with its contacts.
-pub fn foot_lock(motion: Motion, enabled: bool, travel: Travel) -> Result<FootLocked> {
+pub fn foot_lock(motion: Motion, enabled: bool, travel: &Travel) -> Result<FootLocked> {
     let roles = JointRoles::new(&motion.skeleton).context("cannot lock the feet")?;
     let cfg = ContactConfig::default();
     if !enabled || motion.frames() < 2 {
@@ -119,7 +122,7 @@ pub fn foot_lock(motion: Motion, enabled: bool, travel: Travel) -> Result<FootLo
     let (levelled, floor) = levelled(&motion, &roles, &cfg);
     let contacts = foot_contacts(&levelled, &roles, &cfg);
     let carried = match travel {
-        Travel::FromFeet => carried_by_feet(&levelled, &roles, &contacts),
+        Travel::FromFeet { kept } => carried_by_feet(&levelled, &roles, &contacts, kept),
         Travel::Kept => held_still(&levelled, &roles, &contacts),
     };
     let detected = foot_contacts(&carried, &roles, &cfg);
@@ -145,7 +148,7 @@ pub fn foot_lock(motion: Motion, enabled: bool, travel: Travel) -> Result<FootLo
 /// on and the legs stretched after it; so the body travels as far as its planted feet carry
 /// it, and a standing body's slow drift goes with the same rule (Bandai's bowing feet
 /// travelled 12 cm/s). The lock then has only the feet's own jitter left to hold.
-fn carried_by_feet(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> Motion {
+fn carried_by_feet(motion: &Motion, roles: &JointRoles, contacts: &FootContacts, kept: &[Range<usize>]) -> Motion {
     let frames = motion.frames();
     let step = |t: usize, joint: usize| {
         let step = motion.frame(t)[joint] - motion.frame(t.saturating_sub(1))[joint];
@@ -168,8 +171,9 @@ fn carried_by_feet(motion: &Motion, roles: &JointRoles, contacts: &FootContacts)
     };
     let (left, right) = (carrying(Side::Left), carrying(Side::Right));
     let (left_ankle, right_ankle) = (roles.left.ankle, roles.right.ankle);
+    let kept = |t: usize| kept.iter().any(|r| r.contains(&t));
     let steps: Vec<Vec3> = (0..frames)
-        .map(|t| (step(t, left_ankle) * left[t] + step(t, right_ankle) * right[t]) / (left[t] + right[t]).max(1.0))
+        .map(|t| if kept(t) { Vec3::ZERO } else { (step(t, left_ankle) * left[t] + step(t, right_ankle) * right[t]) / (left[t] + right[t]).max(1.0) })
         .collect();
     let steps = smoothed(&steps, (CARRY_SMOOTH_SECONDS * motion.fps).round() as usize);
     moved_back(motion, steps)

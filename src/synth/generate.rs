@@ -12,7 +12,7 @@ use super::foot_lock::Travel;
 use super::given::GivenStart;
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
-use super::keys::{place_keys, KeyConstraint, PlacedKey};
+use super::keys::{learnt_travel, place_keys, KeyConstraint, PlacedKey};
 use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
 use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
@@ -95,6 +95,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let mut targets = if model.glogen().reads_target() { keys.clone() } else { Vec::new() };
     targets.sort_by_key(|k| k.sparse);
     let held = if opts.held.is_empty() { None } else { Some(HeldConstraint::new(spec, &opts.held, &timeline, keys.iter().map(|k| k.frame).collect())?) };
+    // The in-betweener's gaps travel as it learnt them from real motion, not as their feet say.
+    let learnt = learnt_travel(model, opts.key_method, &keys);
     let constraints = take_constraints(model, opts, &timeline, keys, held.as_ref())?;
     let block_segments: Vec<usize> = (0..plans.len()).map(|b| timeline.segment_at(t + b * t + t / 2)).collect();
     // Keys and held frames warp poses far behind the block being made; they and a path reach
@@ -104,7 +106,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let layout = Some(chunks(total, spec.stride as f32 / spec.fps)).filter(|l| resumable && opts.path.is_none() && l.len() > 1);
     // A root path has laid out where the body goes; without one, the feet of a model whose
     // network slides them say how far.
-    let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet } else { Travel::Kept };
+    let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet { kept: learnt } } else { Travel::Kept };
     let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints };
     let segments = timeline.planned_spans(&spec.classes);
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
@@ -170,7 +172,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
 /// pin it, a file start's given frames are put back as given, and held frames as held.
 /// `held` is the request's held frames as a constraint, kept by the caller (the rollout and
 /// the finishing read them too).
-fn take_constraints<'a>(model: &GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>, held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
+fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>, held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
     let spec = &model.spec;
     let mut constraints: Vec<Box<dyn TakeConstraint + 'a>> = Vec::new();
     if let Some(path) = &opts.path {
@@ -181,7 +183,7 @@ fn take_constraints<'a>(model: &GlocalModel, opts: &GenerateOptions, timeline: &
     let first_key = keys.iter().map(|k| k.frame).min();
     if !keys.is_empty() {
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
-        constraints.push(Box::new(KeyConstraint { keys, step_seconds, method: opts.key_method }));
+        constraints.push(Box::new(KeyConstraint { keys, model, step_seconds, method: opts.key_method }));
     }
     // The given frames of a file start keep their own timing only at pace 1.
     let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);

@@ -5,6 +5,8 @@
 //! residual LocGen and the foot lock leave, over half a second either side. The ablation in
 //! docs/RESULTS.md (`glocal eval --suite constraints`) compares the ways of doing it.
 
+use std::ops::Range;
+
 use anyhow::{bail, Context, Result};
 use glam::{Quat, Vec3};
 
@@ -266,15 +268,63 @@ pub(super) fn place_keys(timeline: &SparseTimeline, model: &GlocalModel, keys: &
 /// block comes out (and, for [`KeyMethod::RollOn`], the rest of that block rolled out again
 /// from the keyed context), the dense frames' roots and poses pulled onto them, and the
 /// residual the foot lock leaves warped away.
-pub(super) struct KeyConstraint {
+pub(super) struct KeyConstraint<'a> {
     /// Every key, placed.
     pub keys: Vec<PlacedKey>,
+    /// The model whose in-betweener fills the gaps before keys ([`KeyMethod::Inbetween`]).
+    pub model: &'a GlocalModel,
     /// Per key, seconds per sparse step at its segment's pace.
     pub step_seconds: Vec<f32>,
     pub method: KeyMethod,
 }
 
-impl TakeConstraint for KeyConstraint {
+/// The frames the in-betweener fills before keys, in time order: each key's gap from the
+/// known pose before it (the last starting pose, or the key before), where `method` fills
+/// gaps, the model has an in-betweener that reaches that far, and the take has the known
+/// frames it reads before the gap. Each range ends at its key's frame.
+pub(super) fn filled_gaps(model: &GlocalModel, method: KeyMethod, keys: &[PlacedKey]) -> Vec<Range<usize>> {
+    let Some((max_gap, context)) = model.inbetween_reach().filter(|_| method == KeyMethod::Inbetween) else { return Vec::new() };
+    let mut frames: Vec<usize> = keys.iter().map(|k| k.frame).collect();
+    frames.sort_unstable();
+    let mut known = keys.first().map_or(0, |k| k.given_frame);
+    let mut gaps = Vec::new();
+    for frame in frames {
+        let gap = frame.saturating_sub(known + 1);
+        if (1..=max_gap).contains(&gap) && known >= context {
+            gaps.push(known + 1..frame);
+        }
+        known = frame;
+    }
+    gaps
+}
+
+/// The frames whose travel is real motion's, which a foot lock that carries the body by its
+/// feet leaves as they are: the gaps the in-betweener fills ([`filled_gaps`]), and the
+/// starting poses (a seed window or a file's frames) before a gap filled right after them.
+pub(super) fn learnt_travel(model: &GlocalModel, method: KeyMethod, keys: &[PlacedKey]) -> Vec<Range<usize>> {
+    let after_start = keys.first().map(|k| k.given_frame + 1);
+    filled_gaps(model, method, keys).into_iter().map(|g| if Some(g.start) == after_start { 0..g.end } else { g }).collect()
+}
+
+impl KeyConstraint<'_> {
+    /// Each key's gap from the known pose before it (the last starting pose, or the key
+    /// before) filled by the model's in-betweener, where it has one that reaches that far and
+    /// the take has the known frames it reads before the gap; keys in time order.
+    fn fill_gaps(&self, positions: &mut [Vec3], j: usize) {
+        let Some((_, context)) = self.model.inbetween_reach() else { return };
+        let frames = positions.len() / j;
+        for gap in filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames) {
+            let known = gap.start - 1;
+            let read = |range: Range<usize>| positions[range.start * j..range.end * j].to_vec();
+            let (before, given, key) = (read(known - context..known + 1 - context), read(known + 1 - context..known + 1), read(gap.end..gap.end + 1));
+            if let Some(filled) = self.model.fill_gap(&before, &given, &key, gap.len()) {
+                positions[gap.start * j..gap.end * j].copy_from_slice(&filled);
+            }
+        }
+    }
+}
+
+impl TakeConstraint for KeyConstraint<'_> {
     fn on_block(&self, block: &PlannedBlock<'_>, (glogen, ws): (&GloGen, &mut BlockWorkspace), sparse: &mut [f32]) {
         let (t, dim) = (glogen.block_len(), glogen.dim());
         let mut out = vec![0.0; t * dim];
@@ -299,6 +349,7 @@ impl TakeConstraint for KeyConstraint {
         for key in &self.keys {
             warp_dense(positions, layout, fps, key);
         }
+        self.fill_gaps(positions, layout.joints());
         warnings
     }
 

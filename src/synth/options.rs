@@ -30,13 +30,18 @@ pub enum KeyMethod {
     /// Only the dense frames are warped onto the key, over half a second either side.
     DenseWarp,
     /// GloGen's sparse poses are warped onto the key too, over the 2 s before it (and what
-    /// its block holds after it), so later blocks are conditioned on the keyed pose. The
-    /// shipped method: of the three, the smoothest around keys on both models.
-    #[default]
+    /// its block holds after it), so later blocks are conditioned on the keyed pose: of the
+    /// three warps, the smoothest around keys on both models.
     SparseWarp,
     /// And the rest of the key's block is rolled out again from the keyed context: in the
     /// ablation it jerks more at its extra seam than the warp's fade does.
     RollOn,
+    /// The sparse warp, and a key within the model's in-betweener's reach of the known pose
+    /// before it (the last starting pose or the key before, at most 2 s) has the gap between
+    /// filled by the in-betweener (`model::inbetween`) from the frames before the gap. The
+    /// shipped method; on a model without an in-betweener it is the sparse warp.
+    #[default]
+    Inbetween,
 }
 
 /// The default length of a class change, centred on the boundary (one h36m block, two

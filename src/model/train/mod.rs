@@ -5,6 +5,7 @@
 //! the optimiser state is checkpointed, so a run killed and resumed follows the same path.
 
 mod checkpoint;
+mod inbetween;
 mod stage;
 
 use std::path::{Path, PathBuf};
@@ -19,12 +20,14 @@ use rand::{Rng, SeedableRng};
 
 use self::checkpoint::{checkpoint, publish, Checkpoint, Legacy};
 pub use self::checkpoint::save_weights;
+use self::inbetween::inbetween_residual_scale;
 use self::stage::{locgen_residual_scale, stage_training, TrainingData};
 use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
 use super::glocal::{load_weights, SEEDS_FILE};
-use super::spec::{GloGenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
+use super::inbetween::GAP_CHANNELS;
+use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{Interpolation, Normalizer};
 use crate::data::registry::Dataset;
@@ -34,6 +37,8 @@ use crate::data::write::{write_atomic, FolderLock};
 pub enum Stage {
     Glogen,
     Locgen,
+    /// The in-betweener that fills the gap before a key ([`crate::model::inbetween`]).
+    Inbetween,
 }
 
 /// The one place that knows which parts of a model belong to which stage.
@@ -43,6 +48,7 @@ impl Stage {
         match self {
             Stage::Glogen => GLOGEN_FILE,
             Stage::Locgen => LOCGEN_FILE,
+            Stage::Inbetween => INBETWEEN_FILE,
         }
     }
 
@@ -51,6 +57,7 @@ impl Stage {
         match self {
             Stage::Glogen => spec.training.glogen.as_ref(),
             Stage::Locgen => spec.training.locgen.as_ref(),
+            Stage::Inbetween => spec.training.inbetween.as_ref(),
         }
     }
 
@@ -58,6 +65,7 @@ impl Stage {
         match self {
             Stage::Glogen => &mut spec.training.glogen,
             Stage::Locgen => &mut spec.training.locgen,
+            Stage::Inbetween => &mut spec.training.inbetween,
         }
     }
 
@@ -66,17 +74,30 @@ impl Stage {
         match self {
             Stage::Glogen => (spec.glogen.block.clone(), spec.sparse_norm.clone()),
             Stage::Locgen => (spec.locgen.block.clone(), spec.dense_norm.clone()),
+            Stage::Inbetween => (spec.inbetween.as_ref().expect("set by prepare_spec").block.clone(), spec.dense_norm.clone()),
         }
     }
 
     /// Gives `spec` this run's shape of the stage.
-    fn set_shape(self, spec: &mut ModelSpec, glogen: GloGenSpec, locgen: LocGenSpec) {
+    fn set_shape(self, spec: &mut ModelSpec, shapes: StageShapes) {
         match self {
-            Stage::Glogen => spec.glogen = glogen,
-            Stage::Locgen => spec.locgen = locgen,
+            Stage::Glogen => spec.glogen = shapes.glogen,
+            Stage::Locgen => spec.locgen = shapes.locgen,
+            Stage::Inbetween => spec.inbetween = Some(shapes.inbetween),
         }
     }
 }
+
+/// Every stage's shape as a run describes it.
+struct StageShapes {
+    glogen: GloGenSpec,
+    locgen: LocGenSpec,
+    inbetween: InbetweenSpec,
+}
+
+/// Known frames the in-betweener reads before a gap, and the longest gap it learns (seconds).
+const INBETWEEN_CONTEXT: usize = 10;
+const INBETWEEN_MAX_GAP_SECONDS: f32 = 2.0;
 
 /// One training run of one stage: what it trains on, where it writes, how long and how
 /// often it checks itself.
@@ -247,12 +268,26 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let _lock = FolderLock::acquire(&opts.out)?;
     let mut spec = prepare_spec(opts, &corpus)?;
     let (cfg, norm) = opts.stage.block_and_norm(&spec);
-    if opts.stage == Stage::Locgen && !opts.resume {
+    if !opts.resume {
         // Fine-tuned weights keep the scale they were trained with.
-        spec.locgen.residual_scale = match &opts.init_from {
-            Some(dir) => ModelSpec::read(dir)?.locgen.residual_scale,
-            None => locgen_residual_scale(TrainingData { opts, corpus: &corpus, spec: &spec, norm: &norm })?,
-        };
+        let from = opts.init_from.as_deref().map(ModelSpec::read).transpose()?;
+        let data = TrainingData { opts, corpus: &corpus, spec: &spec, norm: &norm };
+        match opts.stage {
+            Stage::Glogen => {}
+            Stage::Locgen => {
+                spec.locgen.residual_scale = match from {
+                    Some(from) => from.locgen.residual_scale,
+                    None => locgen_residual_scale(data)?,
+                };
+            }
+            Stage::Inbetween => {
+                let scale = match from.and_then(|f| f.inbetween) {
+                    Some(from) => from.residual_scale,
+                    None => inbetween_residual_scale(data)?,
+                };
+                spec.inbetween.as_mut().expect("set by prepare_spec").residual_scale = scale;
+            }
+        }
         spec.write(&opts.out)?;
     }
     let varmap = VarMap::new();
@@ -381,6 +416,14 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         residual_scale: Vec::new(),
         keep_sparse_poses: true,
     };
+    let inbetween = InbetweenSpec {
+        block: BlockConfig { in_dim: dim + GAP_CHANNELS, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.0 },
+        context: INBETWEEN_CONTEXT,
+        max_gap: (INBETWEEN_MAX_GAP_SECONDS * corpus.fps).round() as usize,
+        // Measured on the training data before the stage trains.
+        residual_scale: vec![0.0; dim],
+    };
+    let shapes = StageShapes { glogen, locgen, inbetween };
     if opts.out.join("model.json").exists() {
         let mut spec = ModelSpec::read(&opts.out)?;
         if spec.dataset != opts.dataset.name() || spec.layout.dim() != dim || spec.classes != corpus.classes {
@@ -388,7 +431,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         }
         // The stage being trained takes this run's settings; the other keeps its own.
         if !opts.resume {
-            opts.stage.set_shape(&mut spec, glogen, locgen);
+            opts.stage.set_shape(&mut spec, shapes);
         }
         spec.write(&opts.out)?;
         return Ok(spec);
@@ -415,8 +458,9 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         foot_lock: true,
         carry_by_feet: false,
         class_strength: DEFAULT_CLASS_STRENGTH,
-        glogen,
-        locgen,
+        glogen: shapes.glogen,
+        locgen: shapes.locgen,
+        inbetween: (opts.stage == Stage::Inbetween).then_some(shapes.inbetween),
         training: TrainingRecords::default(),
     };
     spec.write(&opts.out)?;

@@ -25,13 +25,14 @@ const VALIDATION_WINDOWS: usize = 256;
 
 /// A held-out window: inputs, targets and where it starts, all fixed for the whole run.
 pub(super) struct ValWindow {
-    input: Vec<f32>,
-    class: usize,
-    style: Option<usize>,
-    target_positions: Vec<Vec3>,
-    start: Placement,
-    /// GloGen: the last input pose repeated (zero-velocity); LocGen: the interpolation.
-    baseline_positions: Vec<Vec3>,
+    pub input: Vec<f32>,
+    pub class: usize,
+    pub style: Option<usize>,
+    pub target_positions: Vec<Vec3>,
+    pub start: Placement,
+    /// GloGen: the last input pose repeated (zero-velocity); LocGen: the interpolation; the
+    /// in-betweener: linear interpolation over the gap.
+    pub baseline_positions: Vec<Vec3>,
 }
 
 /// One stage's training.
@@ -47,7 +48,7 @@ pub(super) trait StageTraining {
     fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)>;
 }
 
-/// What both stages train from.
+/// What every stage trains from.
 pub(super) struct TrainingData<'a> {
     pub opts: &'a TrainOptions,
     pub corpus: &'a Corpus,
@@ -60,11 +61,12 @@ pub(super) fn stage_training<'a>(data: TrainingData<'a>) -> Box<dyn StageTrainin
     match data.opts.stage {
         Stage::Glogen => Box::new(GloGenTraining(data)),
         Stage::Locgen => Box::new(LocGenTraining(data)),
+        Stage::Inbetween => Box::new(super::inbetween::InbetweenTraining(data)),
     }
 }
 
 impl TrainingData<'_> {
-    fn layout(&self) -> &FeatureLayout {
+    pub(super) fn layout(&self) -> &FeatureLayout {
         &self.spec.layout
     }
 
@@ -96,7 +98,7 @@ impl TrainingData<'_> {
     /// Held-out windows of `span` frames (after a frame before each) from the test split (the
     /// training split when there is none), as `window` makes them from a track and its
     /// first frame; the same at every call.
-    fn held_out(&self, span: usize, window: impl Fn(&Track, usize) -> ValWindow) -> Vec<ValWindow> {
+    pub(super) fn held_out(&self, span: usize, mut window: impl FnMut(&Track, usize) -> ValWindow) -> Vec<ValWindow> {
         let mut rng = StdRng::seed_from_u64(1234);
         let tracks = if self.corpus.test.is_empty() { &self.corpus.train } else { &self.corpus.test };
         let mut out = Vec::new();

@@ -1,0 +1,155 @@
+//! Training the in-betweener: windows of real motion whose middle frames are hidden, a gap of
+//! random length between the known frames before it and the key after it, and the residual
+//! on their linear interpolation learnt against the real frames.
+
+use anyhow::{Context, Result};
+use candle_core::{Device, Tensor};
+use glam::Vec3;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use super::stage::{StageTraining, TrainingData, ValWindow};
+use crate::model::block::Seq2SeqBlock;
+use crate::model::corpus::{sample_window, Track};
+use crate::model::inbetween::{gap_gain, gap_window, spread_arrival, GAP_CHANNELS};
+use crate::model::loss::joint_flow_loss;
+use crate::model::spec::{InbetweenSpec, LossKind};
+
+/// The root feature of the heading's change since the frame before.
+const TURN_FEATURE: usize = 3;
+
+/// The gaps validation scores, in seconds (LaFAN1's shortest, about 6 frames, and two longer).
+const VALIDATION_GAPS_SECONDS: [f32; 3] = [0.2, 1.0, 2.0];
+
+pub(super) struct InbetweenTraining<'a>(pub TrainingData<'a>);
+
+impl InbetweenTraining<'_> {
+    fn spec(&self) -> &InbetweenSpec {
+        self.0.spec.inbetween.as_ref().expect("the in-betweener's shape is set before it trains")
+    }
+
+    /// The window from `frame` with a gap of `gap` frames: its input, the real frames'
+    /// normalised features, and the real and the interpolated frames.
+    fn window(&self, track: &Track, frame: usize, gap: usize) -> (Vec<f32>, Vec<f32>, Vec<Vec3>, Vec<Vec3>) {
+        let (data, c) = (&self.0, self.spec().context);
+        let m = &track.motion;
+        let j = m.joints();
+        let frames = c + gap + 1;
+        let context: Vec<Vec3> = (frame..frame + c).flat_map(|f| m.frame(f).to_vec()).collect();
+        let key = m.frame(frame + c + gap);
+        let (input, interpolated) = gap_window(data.layout(), data.norm, m.frame(frame - 1), &context, key, gap);
+        let mut target = data.layout().encode_motion(m, frame, 1, frames);
+        data.norm.normalize(&mut target);
+        let real = m.positions()[frame * j..(frame + frames) * j].to_vec();
+        (input, target, real, interpolated)
+    }
+
+    /// The refined window: the interpolation plus the network's residual, scaled per feature.
+    fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, gap: usize, train: bool) -> Result<Tensor> {
+        let (b, frames, _) = input.dims3()?;
+        let dim = block.cfg.out_dim;
+        let gain = Tensor::from_vec(gap_gain(self.spec(), gap), (1, frames, dim), &Device::Cpu)?;
+        let interpolated = input.narrow(2, 0, dim)?;
+        let residual = block.forward(input, None, train)?.broadcast_mul(&gain)?;
+        debug_assert_eq!(residual.dims3()?, (b, frames, dim));
+        Ok((residual + interpolated)?)
+    }
+
+    fn gap_of_seconds(&self, seconds: f32) -> usize {
+        ((seconds * self.0.spec.fps).round() as usize).clamp(1, self.spec().max_gap)
+    }
+}
+
+/// A gap of 1 to `max_gap` frames, drawn uniformly on a log scale: a short gap's error is a
+/// fraction of a long one's, and drawn evenly the short ones taught the network little (on
+/// Bandai its 6-frame fill was 1.5x linear interpolation's error).
+fn training_gap(max_gap: usize, rng: &mut StdRng) -> usize {
+    let log = rng.random_range(0.0..((max_gap + 1) as f32).ln());
+    (log.exp() as usize).clamp(1, max_gap)
+}
+
+/// Per feature, the root mean square of the real frames about their linear interpolation over
+/// training gaps (normalised units): the in-betweener's [`InbetweenSpec::residual_scale`]. The
+/// body's turn stays the straight way's (scale 0): a residual on it would turn every joint
+/// after it. Its steps are learnt (a body starting to walk in the gap speeds up where the
+/// straight way moves at one speed throughout); generation takes their drift out
+/// ([`crate::model::glocal::GlocalModel::fill_gap`]).
+pub(super) fn inbetween_residual_scale(data: TrainingData) -> Result<Vec<f32>> {
+    const WINDOWS: usize = 2048;
+    let training = InbetweenTraining(data);
+    let (dim, max_gap, c) = (training.0.layout().dim(), training.spec().max_gap, training.spec().context);
+    let mut rng = StdRng::seed_from_u64(0x6A9);
+    let (mut sums, mut rows) = (vec![0f64; dim], 0usize);
+    for _ in 0..WINDOWS {
+        let gap = training_gap(max_gap, &mut rng);
+        let (track, start) = sample_window(&training.0.corpus.train, training.0.corpus.classes.len(), c + gap + 2, &mut rng).context("no training clip is long enough")?;
+        let (input, target, _, _) = training.window(track, start + 1, gap);
+        for (row_in, row_out) in input.chunks_exact(dim + GAP_CHANNELS).zip(target.chunks_exact(dim)).skip(c).take(gap) {
+            sums.iter_mut().zip(row_in.iter().zip(row_out)).for_each(|(s, (a, b))| *s += f64::from(b - a).powi(2));
+            rows += 1;
+        }
+    }
+    Ok(sums.iter().enumerate().map(|(i, s)| if i == TURN_FEATURE { 0.0 } else { ((s / rows.max(1) as f64).sqrt() as f32).max(1e-4) }).collect())
+}
+
+impl StageTraining for InbetweenTraining<'_> {
+    fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
+        let data = &self.0;
+        let (c, dim, b) = (self.spec().context, data.layout().dim(), data.opts.optimiser.batch);
+        // One gap length per batch keeps its windows one tensor.
+        let gap = training_gap(self.spec().max_gap, rng);
+        let frames = c + gap + 1;
+        let (mut xs, mut ys) = (Vec::new(), Vec::new());
+        for _ in 0..b {
+            let (track, start) = sample_window(&data.corpus.train, data.corpus.classes.len(), frames + 1, rng).context("no training clip is long enough")?;
+            let (x, y, _, _) = self.window(track, start + 1, gap);
+            xs.extend(x);
+            ys.extend(y);
+        }
+        let x = Tensor::from_vec(xs, (b, frames, dim + GAP_CHANNELS), &Device::Cpu)?;
+        let y = Tensor::from_vec(ys, (b, frames, dim), &Device::Cpu)?;
+        let pred = self.predict(block, &x, gap, true)?;
+        // Weighed back to the skeleton's units, as LocGen's loss is.
+        let std = &data.norm.std;
+        let rms = (std.iter().map(|s| s * s).sum::<f32>() / std.len() as f32).sqrt();
+        let weight = Tensor::from_vec(std.iter().map(|s| s / rms).collect(), (1, 1, dim), &Device::Cpu)?;
+        Ok(joint_flow_loss(&pred.broadcast_mul(&weight)?, &y.broadcast_mul(&weight)?, None, LossKind::JointFlow)?)
+    }
+
+    /// Held-out windows, their gaps taking [`VALIDATION_GAPS_SECONDS`] in turn; the baseline
+    /// is linear interpolation.
+    fn validation_windows(&self) -> Vec<ValWindow> {
+        let gaps: Vec<usize> = VALIDATION_GAPS_SECONDS.iter().map(|&s| self.gap_of_seconds(s)).collect();
+        let longest = self.spec().context + gaps.iter().max().copied().unwrap_or(1) + 1;
+        let mut k = 0;
+        self.0.held_out(longest + 1, |track, frame| {
+            let gap = gaps[k % gaps.len()];
+            k += 1;
+            let (input, _, real, interpolated) = self.window(track, frame, gap);
+            let start = self.0.layout().placement(track.motion.frame(frame - 1));
+            ValWindow { input, class: track.class, style: track.style, target_positions: real, start, baseline_positions: interpolated }
+        })
+    }
+
+    /// Each window filled as generation fills it: decoded, and its arrival at the key spread
+    /// over the gap.
+    fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)> {
+        let (c, layout) = (self.spec().context, self.0.layout());
+        let (channels, j) = (layout.dim() + GAP_CHANNELS, layout.joints());
+        let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
+        for w in windows {
+            let frames = w.input.len() / channels;
+            let x = Tensor::from_vec(w.input.clone(), (1, frames, channels), &Device::Cpu)?;
+            let mut feats = self.predict(block, &x, frames - c - 1, false)?.flatten_all()?.to_vec1::<f32>()?;
+            self.0.norm.denormalize(&mut feats);
+            let mut filled = layout.decode(&feats, w.start).0;
+            spread_arrival(&mut filled, j, c, w.baseline_positions[(frames - 1) * j]);
+            for ((a, b), l) in filled.iter().zip(&w.target_positions).zip(&w.baseline_positions) {
+                err += f64::from(a.distance(*b));
+                base += f64::from(l.distance(*b));
+                count += 1;
+            }
+        }
+        Ok(((err / count.max(1) as f64) as f32, (base / count.max(1) as f64) as f32))
+    }
+}
