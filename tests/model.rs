@@ -154,3 +154,49 @@ fn residual_glogen_starts_where_its_context_leaves_off() {
     let (a, r) = (first_step(&absolute), first_step(&residual));
     assert!(r < a, "first forecast pose {r:.3} units from the last observed one (residual) against {a:.3} (absolute)");
 }
+
+/// Each shipped model's in-betweener beats linear interpolation on its held-out split (the
+/// validation recorded at the end of training: gaps of 0.2, 1 and 2 s filled as generation
+/// fills them), fills a gap within its reach from a real clip's frames, and declines a gap
+/// beyond it (the sparse warp reaches those keys).
+#[test]
+fn shipped_in_betweeners_beat_linear_interpolation_and_keep_to_their_reach() {
+    for name in ["h36m", "bandai", "all"] {
+        let model = GlocalModel::load(&shipped(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        let record = model.spec.training.inbetween.clone().unwrap_or_else(|| panic!("{name} ships an in-betweener"));
+        assert!(record.val_error < record.baseline_error, "{name}: in-betweener {} against linear {}", record.val_error, record.baseline_error);
+        let (max_gap, context) = model.inbetween().map(|s| (s.max_gap, s.context)).unwrap();
+        let j = model.spec.layout.joints();
+        let seed = &model.seeds[0];
+        let frames = model.spec.layout.decode(&seed.features, Default::default()).0;
+        let pose = |k: usize| frames[k * j..(k + 1) * j].to_vec();
+        let poses = frames.len() / j;
+        let (before, key) = (pose(0), pose(poses - 1));
+        // The seed's sparse poses as stand-ins for known frames: the shape is what is checked.
+        let known: Vec<Vec3> = (1..=context).flat_map(|k| pose(k.min(poses - 1))).collect();
+        let filled = model.fill_gap(&before, &known, &key, max_gap).unwrap_or_else(|| panic!("{name}: no fill within reach"));
+        assert_eq!(filled.len(), max_gap * j);
+        assert!(filled.iter().all(|p| p.is_finite()), "{name}: a filled frame is not finite");
+        assert!(model.fill_gap(&before, &known, &key, max_gap + 1).is_none(), "{name}: filled a gap beyond its reach");
+    }
+}
+
+/// `glocal train --stage inbetween` writes a model folder whose in-betweener generation loads.
+#[test]
+fn an_in_betweener_trains_into_a_model_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("m");
+    let status = Command::new(env!("CARGO_BIN_EXE_glocal"))
+        .args(["train", "--dataset", "bandai", "--stage", "inbetween", "--hidden", "8", "--batch", "4", "--steps", "4", "--eval-every", "2", "--stride", "3"])
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let spec = ModelSpec::read(&out).unwrap();
+    let record = spec.training.inbetween.clone().expect("the in-betweener's record");
+    assert_eq!(record.steps, 4);
+    let scale = &spec.inbetween.as_ref().unwrap().residual_scale;
+    assert!(scale[3] == 0.0 && scale.iter().filter(|s| **s > 0.0).count() == scale.len() - 1, "the turn alone stays the interpolation's: {scale:?}");
+    assert!(out.join("inbetween.safetensors").is_file());
+}

@@ -13,7 +13,7 @@ use super::corpus::interpolated_window;
 use super::glogen::GloGen;
 use super::rollout::{rollout, OneClass};
 use super::inbetween::{gap_gain, gap_window, spread_arrival};
-use super::spec::{ModelSpec, Seed, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE};
+use super::spec::{InbetweenSpec, ModelSpec, Seed, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement};
 use crate::data::input::read_text;
@@ -126,34 +126,35 @@ impl GlocalModel {
 }
 
 impl GlocalModel {
-    /// The longest gap before a key the in-betweener fills, and the known frames it reads
-    /// before one; None without an in-betweener.
-    pub fn inbetween_reach(&self) -> Option<(usize, usize)> {
+    /// The in-betweener's shape (its reach and the known frames it reads either side of a
+    /// gap); None without one.
+    pub fn inbetween(&self) -> Option<&InbetweenSpec> {
         self.inbetween.as_ref()?;
-        self.spec.inbetween.as_ref().map(|s| (s.max_gap, s.context))
+        self.spec.inbetween.as_ref()
     }
 
     /// The `gap` frames between the known frames `context` (the frame `before` them starts
-    /// their velocities) and the pose `key` after the gap, in their world: their linear
+    /// their velocities) and `ahead`, the key after the gap and up to
+    /// [`InbetweenSpec::after`] known frames after it, in their world: their linear
     /// interpolation with the in-betweener's residual; the body arrives where the key stands.
-    /// None without an in-betweener, or for a gap or
-    /// context it was not trained for.
-    pub fn fill_gap(&self, before: &[Vec3], context: &[Vec3], key: &[Vec3], gap: usize) -> Option<Vec<Vec3>> {
+    /// None without an in-betweener, or for a gap or context it was not trained for.
+    pub fn fill_gap(&self, before: &[Vec3], context: &[Vec3], ahead: &[Vec3], gap: usize) -> Option<Vec<Vec3>> {
         let (block, spec) = (self.inbetween.as_ref()?, self.spec.inbetween.as_ref()?);
         let (layout, norm) = (&self.spec.layout, &self.spec.dense_norm);
         let (j, dim) = (layout.joints(), layout.dim());
-        if gap == 0 || gap > spec.max_gap || context.len() != spec.context * j {
+        let known_after = ahead.len() / j;
+        if gap == 0 || gap > spec.max_gap || context.len() != spec.context * j || !(1..=spec.after + 1).contains(&known_after) {
             return None;
         }
-        let (input, _) = gap_window(layout, norm, before, context, key, gap);
-        let frames = spec.context + gap + 1;
+        let (input, _) = gap_window(layout, norm, before, context, ahead, gap);
+        let frames = spec.context + gap + known_after;
         let mut residual = vec![0.0; frames * dim];
         block.infer(&mut BlockWorkspace::default(), &input, None, 1, frames, &mut residual);
         let mut feats: Vec<f32> = input.chunks_exact(dim + super::inbetween::GAP_CHANNELS).flat_map(|row| row[..dim].to_vec()).collect();
-        feats.iter_mut().zip(residual.iter().zip(gap_gain(spec, gap))).for_each(|(f, (r, g))| *f += r * g);
+        feats.iter_mut().zip(residual.iter().zip(gap_gain(spec, gap, frames))).for_each(|(f, (r, g))| *f += r * g);
         norm.denormalize(&mut feats);
         let mut positions = layout.decode(&feats, layout.placement(before)).0;
-        spread_arrival(&mut positions, j, spec.context, key[0]);
+        spread_arrival(&mut positions, j, spec.context, gap, ahead[0]);
         Some(positions[spec.context * j..(spec.context + gap) * j].to_vec())
     }
 

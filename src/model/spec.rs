@@ -123,6 +123,10 @@ pub struct InbetweenSpec {
     pub block: BlockConfig,
     /// Known frames read before the gap (the last one is the gap's start).
     pub context: usize,
+    /// Known frames read after the key, at most (fewer where the take ends sooner): how the
+    /// body leaves the key, so the gap arrives at it moving as the take goes on.
+    #[serde(default)]
+    pub after: usize,
     /// The longest gap (frames strictly between the known pose and the key) it was trained
     /// on; longer gaps are left to GloGen and LocGen.
     pub max_gap: usize,
@@ -313,6 +317,7 @@ fn validate_inbetween(spec: &InbetweenSpec, dim: usize) -> Result<(), SpecError>
     validate_block("inbetween.block", &reads_poses, dim, 0)?;
     whole_in_range("inbetween.context", spec.context, 2, MAX_LOCGEN_WINDOW)?;
     whole_in_range("inbetween.max_gap", spec.max_gap, 1, MAX_LOCGEN_WINDOW)?;
+    whole_in_range("inbetween.after", spec.after, 0, MAX_LOCGEN_WINDOW)?;
     let scale = &spec.residual_scale;
     if scale.len() != dim || scale.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
         return Err(SpecError::field("inbetween.residual_scale", format!("must hold {dim} numbers of 0 or more, one per feature")));

@@ -2,8 +2,10 @@
 //! warped onto the key where the block that holds it comes out, with a raised-cosine share
 //! over the 2 s before (and what the block still holds after), so every later block is
 //! conditioned on the keyed pose and continues from it; then the dense frames get the small
-//! residual LocGen and the foot lock leave, over half a second either side. The ablation in
-//! docs/RESULTS.md (`glocal eval --suite constraints`) compares the ways of doing it.
+//! residual LocGen and the foot lock leave, over half a second either side. A key within the
+//! model's in-betweener's reach of the known pose before it has the gap between filled by the
+//! in-betweener ([`crate::model::inbetween`]). The ablation in docs/RESULTS.md (`glocal eval
+//! --suite constraints`) compares the ways of doing it.
 
 use std::ops::Range;
 
@@ -18,6 +20,7 @@ use super::{raised_cosine, smoothstep};
 use crate::data::features::{wrap, FeatureLayout, Placement, ROOT_FEATURES};
 use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
+use crate::model::inbetween::{bend_ends, BEND_SECONDS};
 use crate::model::glogen::GloGen;
 use crate::motion::{solve_local_poses, Motion};
 
@@ -283,7 +286,8 @@ pub(super) struct KeyConstraint<'a> {
 /// gaps, the model has an in-betweener that reaches that far, and the take has the known
 /// frames it reads before the gap. Each range ends at its key's frame.
 pub(super) fn filled_gaps(model: &GlocalModel, method: KeyMethod, keys: &[PlacedKey]) -> Vec<Range<usize>> {
-    let Some((max_gap, context)) = model.inbetween_reach().filter(|_| method == KeyMethod::Inbetween) else { return Vec::new() };
+    let Some(spec) = model.inbetween().filter(|_| method == KeyMethod::Inbetween) else { return Vec::new() };
+    let (max_gap, context) = (spec.max_gap, spec.context);
     let mut frames: Vec<usize> = keys.iter().map(|k| k.frame).collect();
     frames.sort_unstable();
     let mut known = keys.first().map_or(0, |k| k.given_frame);
@@ -311,15 +315,23 @@ impl KeyConstraint<'_> {
     /// before) filled by the model's in-betweener, where it has one that reaches that far and
     /// the take has the known frames it reads before the gap; keys in time order.
     fn fill_gaps(&self, positions: &mut [Vec3], j: usize) {
-        let Some((_, context)) = self.model.inbetween_reach() else { return };
+        let Some(spec) = self.model.inbetween() else { return };
+        let (context, after) = (spec.context, spec.after);
         let frames = positions.len() / j;
         for gap in filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames) {
             let known = gap.start - 1;
             let read = |range: Range<usize>| positions[range.start * j..range.end * j].to_vec();
-            let (before, given, key) = (read(known - context..known + 1 - context), read(known + 1 - context..known + 1), read(gap.end..gap.end + 1));
-            if let Some(filled) = self.model.fill_gap(&before, &given, &key, gap.len()) {
+            let ahead = gap.end..frames.min(gap.end + 1 + after);
+            let (before, given, ahead) = (read(known - context..known + 1 - context), read(known + 1 - context..known + 1), read(ahead));
+            if let Some(filled) = self.model.fill_gap(&before, &given, &ahead, gap.len()) {
                 positions[gap.start * j..gap.end * j].copy_from_slice(&filled);
             }
+        }
+        // Each fill meets the take at both ends once every gap is filled (the frames after a
+        // key may be the next gap's).
+        let reach = (BEND_SECONDS * self.model.spec.fps).round() as usize;
+        for gap in filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames) {
+            bend_ends(positions, j, gap, reach);
         }
     }
 }

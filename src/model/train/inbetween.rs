@@ -11,7 +11,7 @@ use rand::{Rng, SeedableRng};
 use super::stage::{StageTraining, TrainingData, ValWindow};
 use crate::model::block::Seq2SeqBlock;
 use crate::model::corpus::{sample_window, Track};
-use crate::model::inbetween::{gap_gain, gap_window, spread_arrival, GAP_CHANNELS};
+use crate::model::inbetween::{bend_ends, gap_gain, gap_window, spread_arrival, BEND_SECONDS, GAP_CHANNELS};
 use crate::model::loss::joint_flow_loss;
 use crate::model::spec::{InbetweenSpec, LossKind};
 
@@ -28,16 +28,17 @@ impl InbetweenTraining<'_> {
         self.0.spec.inbetween.as_ref().expect("the in-betweener's shape is set before it trains")
     }
 
-    /// The window from `frame` with a gap of `gap` frames: its input, the real frames'
-    /// normalised features, and the real and the interpolated frames.
-    fn window(&self, track: &Track, frame: usize, gap: usize) -> (Vec<f32>, Vec<f32>, Vec<Vec3>, Vec<Vec3>) {
+    /// The window from `frame` with a gap of `gap` frames and `after` known frames after the
+    /// key: its input, the real frames' normalised features, and the real and the
+    /// interpolated frames.
+    fn window(&self, track: &Track, frame: usize, gap: usize, after: usize) -> (Vec<f32>, Vec<f32>, Vec<Vec3>, Vec<Vec3>) {
         let (data, c) = (&self.0, self.spec().context);
         let m = &track.motion;
         let j = m.joints();
-        let frames = c + gap + 1;
-        let context: Vec<Vec3> = (frame..frame + c).flat_map(|f| m.frame(f).to_vec()).collect();
-        let key = m.frame(frame + c + gap);
-        let (input, interpolated) = gap_window(data.layout(), data.norm, m.frame(frame - 1), &context, key, gap);
+        let frames = c + gap + 1 + after;
+        let known = |from: usize, count: usize| -> Vec<Vec3> { (from..from + count).flat_map(|f| m.frame(f).to_vec()).collect() };
+        let (context, ahead) = (known(frame, c), known(frame + c + gap, 1 + after));
+        let (input, interpolated) = gap_window(data.layout(), data.norm, m.frame(frame - 1), &context, &ahead, gap);
         let mut target = data.layout().encode_motion(m, frame, 1, frames);
         data.norm.normalize(&mut target);
         let real = m.positions()[frame * j..(frame + frames) * j].to_vec();
@@ -48,7 +49,7 @@ impl InbetweenTraining<'_> {
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, gap: usize, train: bool) -> Result<Tensor> {
         let (b, frames, _) = input.dims3()?;
         let dim = block.cfg.out_dim;
-        let gain = Tensor::from_vec(gap_gain(self.spec(), gap), (1, frames, dim), &Device::Cpu)?;
+        let gain = Tensor::from_vec(gap_gain(self.spec(), gap, frames), (1, frames, dim), &Device::Cpu)?;
         let interpolated = input.narrow(2, 0, dim)?;
         let residual = block.forward(input, None, train)?.broadcast_mul(&gain)?;
         debug_assert_eq!(residual.dims3()?, (b, frames, dim));
@@ -77,13 +78,13 @@ fn training_gap(max_gap: usize, rng: &mut StdRng) -> usize {
 pub(super) fn inbetween_residual_scale(data: TrainingData) -> Result<Vec<f32>> {
     const WINDOWS: usize = 2048;
     let training = InbetweenTraining(data);
-    let (dim, max_gap, c) = (training.0.layout().dim(), training.spec().max_gap, training.spec().context);
+    let (dim, max_gap, c, after) = (training.0.layout().dim(), training.spec().max_gap, training.spec().context, training.spec().after);
     let mut rng = StdRng::seed_from_u64(0x6A9);
     let (mut sums, mut rows) = (vec![0f64; dim], 0usize);
     for _ in 0..WINDOWS {
         let gap = training_gap(max_gap, &mut rng);
-        let (track, start) = sample_window(&training.0.corpus.train, training.0.corpus.classes.len(), c + gap + 2, &mut rng).context("no training clip is long enough")?;
-        let (input, target, _, _) = training.window(track, start + 1, gap);
+        let (track, start) = sample_window(&training.0.corpus.train, training.0.corpus.classes.len(), c + gap + after + 2, &mut rng).context("no training clip is long enough")?;
+        let (input, target, _, _) = training.window(track, start + 1, gap, after);
         for (row_in, row_out) in input.chunks_exact(dim + GAP_CHANNELS).zip(target.chunks_exact(dim)).skip(c).take(gap) {
             sums.iter_mut().zip(row_in.iter().zip(row_out)).for_each(|(s, (a, b))| *s += f64::from(b - a).powi(2));
             rows += 1;
@@ -96,13 +97,15 @@ impl StageTraining for InbetweenTraining<'_> {
     fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
         let data = &self.0;
         let (c, dim, b) = (self.spec().context, data.layout().dim(), data.opts.optimiser.batch);
-        // One gap length per batch keeps its windows one tensor.
+        // One gap length per batch keeps its windows one tensor; so does one count of frames
+        // after the key (a key near the take's end has fewer).
         let gap = training_gap(self.spec().max_gap, rng);
-        let frames = c + gap + 1;
+        let after = rng.random_range(0..=self.spec().after);
+        let frames = c + gap + 1 + after;
         let (mut xs, mut ys) = (Vec::new(), Vec::new());
         for _ in 0..b {
             let (track, start) = sample_window(&data.corpus.train, data.corpus.classes.len(), frames + 1, rng).context("no training clip is long enough")?;
-            let (x, y, _, _) = self.window(track, start + 1, gap);
+            let (x, y, _, _) = self.window(track, start + 1, gap, after);
             xs.extend(x);
             ys.extend(y);
         }
@@ -120,30 +123,33 @@ impl StageTraining for InbetweenTraining<'_> {
     /// is linear interpolation.
     fn validation_windows(&self) -> Vec<ValWindow> {
         let gaps: Vec<usize> = VALIDATION_GAPS_SECONDS.iter().map(|&s| self.gap_of_seconds(s)).collect();
-        let longest = self.spec().context + gaps.iter().max().copied().unwrap_or(1) + 1;
+        let after = self.spec().after;
+        let longest = self.spec().context + gaps.iter().max().copied().unwrap_or(1) + 1 + after;
         let mut k = 0;
         self.0.held_out(longest + 1, |track, frame| {
             let gap = gaps[k % gaps.len()];
             k += 1;
-            let (input, _, real, interpolated) = self.window(track, frame, gap);
+            let (input, _, real, interpolated) = self.window(track, frame, gap, after);
             let start = self.0.layout().placement(track.motion.frame(frame - 1));
             ValWindow { input, class: track.class, style: track.style, target_positions: real, start, baseline_positions: interpolated }
         })
     }
 
-    /// Each window filled as generation fills it: decoded, and its arrival at the key spread
-    /// over the gap.
+    /// Each window filled as generation fills it: decoded, its arrival at the key spread over
+    /// the gap, and its ends bent to the real frames either side.
     fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)> {
-        let (c, layout) = (self.spec().context, self.0.layout());
+        let (c, after, layout) = (self.spec().context, self.spec().after, self.0.layout());
         let (channels, j) = (layout.dim() + GAP_CHANNELS, layout.joints());
         let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
         for w in windows {
             let frames = w.input.len() / channels;
+            let gap = frames - c - 1 - after;
             let x = Tensor::from_vec(w.input.clone(), (1, frames, channels), &Device::Cpu)?;
-            let mut feats = self.predict(block, &x, frames - c - 1, false)?.flatten_all()?.to_vec1::<f32>()?;
+            let mut feats = self.predict(block, &x, gap, false)?.flatten_all()?.to_vec1::<f32>()?;
             self.0.norm.denormalize(&mut feats);
             let mut filled = layout.decode(&feats, w.start).0;
-            spread_arrival(&mut filled, j, c, w.baseline_positions[(frames - 1) * j]);
+            spread_arrival(&mut filled, j, c, gap, w.baseline_positions[(c + gap) * j]);
+            bend_ends(&mut filled, j, c..c + gap, (BEND_SECONDS * self.0.spec.fps).round() as usize);
             for ((a, b), l) in filled.iter().zip(&w.target_positions).zip(&w.baseline_positions) {
                 err += f64::from(a.distance(*b));
                 base += f64::from(l.distance(*b));

@@ -95,8 +95,10 @@ struct StageShapes {
     inbetween: InbetweenSpec,
 }
 
-/// Known frames the in-betweener reads before a gap, and the longest gap it learns (seconds).
+/// Known frames the in-betweener reads before a gap and after its key, and the longest gap it
+/// learns (seconds).
 const INBETWEEN_CONTEXT: usize = 10;
+const INBETWEEN_AFTER: usize = 5;
 const INBETWEEN_MAX_GAP_SECONDS: f32 = 2.0;
 
 /// One training run of one stage: what it trains on, where it writes, how long and how
@@ -419,6 +421,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
     let inbetween = InbetweenSpec {
         block: BlockConfig { in_dim: dim + GAP_CHANNELS, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.0 },
         context: INBETWEEN_CONTEXT,
+        after: INBETWEEN_AFTER,
         max_gap: (INBETWEEN_MAX_GAP_SECONDS * corpus.fps).round() as usize,
         // Measured on the training data before the stage trains.
         residual_scale: vec![0.0; dim],
