@@ -318,7 +318,8 @@ impl KeyConstraint<'_> {
         let Some(spec) = self.model.inbetween() else { return };
         let (context, after) = (spec.context, spec.after);
         let frames = positions.len() / j;
-        for gap in filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames) {
+        let gaps: Vec<Range<usize>> = filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames).collect();
+        for gap in gaps.iter().cloned() {
             let known = gap.start - 1;
             let read = |range: Range<usize>| positions[range.start * j..range.end * j].to_vec();
             let ahead = gap.end..frames.min(gap.end + 1 + after);
@@ -330,7 +331,7 @@ impl KeyConstraint<'_> {
         // Each fill meets the take at both ends once every gap is filled (the frames after a
         // key may be the next gap's).
         let reach = (BEND_SECONDS * self.model.spec.fps).round() as usize;
-        for gap in filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames) {
+        for gap in gaps {
             bend_ends(positions, j, gap, reach);
         }
     }
