@@ -12,7 +12,7 @@ use super::block::{BlockConfig, BlockWorkspace, FrozenBlock, Seq2SeqBlock};
 use super::corpus::interpolated_window;
 use super::glogen::GloGen;
 use super::rollout::{rollout, OneClass};
-use super::inbetween::{gap_gain, gap_window, spread_arrival};
+use super::inbetween::{fill_frames, gap_gain, gap_window, GAP_CHANNELS};
 use super::spec::{InbetweenSpec, ModelSpec, Seed, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement};
@@ -150,11 +150,9 @@ impl GlocalModel {
         let frames = spec.context + gap + known_after;
         let mut residual = vec![0.0; frames * dim];
         block.infer(&mut BlockWorkspace::default(), &input, None, 1, frames, &mut residual);
-        let mut feats: Vec<f32> = input.chunks_exact(dim + super::inbetween::GAP_CHANNELS).flat_map(|row| row[..dim].to_vec()).collect();
+        let mut feats: Vec<f32> = input.chunks_exact(dim + GAP_CHANNELS).flat_map(|row| row[..dim].to_vec()).collect();
         feats.iter_mut().zip(residual.iter().zip(gap_gain(spec, gap, frames))).for_each(|(f, (r, g))| *f += r * g);
-        norm.denormalize(&mut feats);
-        let mut positions = layout.decode(&feats, layout.placement(before)).0;
-        spread_arrival(&mut positions, j, spec.context, gap, ahead[0]);
+        let positions = fill_frames(layout, norm, feats, layout.placement(before), spec.context, gap, ahead[0]);
         Some(positions[spec.context * j..(spec.context + gap) * j].to_vec())
     }
 

@@ -9,7 +9,7 @@
 use glam::Vec3;
 
 use super::spec::InbetweenSpec;
-use crate::data::features::{FeatureLayout, Normalizer};
+use crate::data::features::{FeatureLayout, Normalizer, Placement};
 
 /// Channels after the features: 1 on given frames (context and key), and the frame's share
 /// of the way through the gap.
@@ -64,11 +64,21 @@ pub fn gap_gain(spec: &InbetweenSpec, gap: usize, frames: usize) -> Vec<f32> {
     (0..frames).flat_map(|f| spec.residual_scale.iter().map(move |s| if in_gap(f, spec.context, gap) { *s } else { 0.0 })).collect()
 }
 
+/// A window's refined features (normalised; the context, the gap, the key and the frames
+/// after it) as frames in the world `start` places them (the placement of the frame before
+/// the window), the body arriving where the key stands ([`spread_arrival`]).
+pub fn fill_frames(layout: &FeatureLayout, norm: &Normalizer, mut feats: Vec<f32>, start: Placement, context: usize, gap: usize, key_root: Vec3) -> Vec<Vec3> {
+    norm.denormalize(&mut feats);
+    let mut frames = layout.decode(&feats, start).0;
+    spread_arrival(&mut frames, layout.joints(), context, gap, key_root);
+    frames
+}
+
 /// Decoded window frames (`joints` each: the context, the gap, the key and the frames after
 /// it) with what the learnt steps miss the key by spread evenly over the gap: the key and
 /// the frames after it move by all of it (the key onto `key_root` on the ground) and each gap
 /// frame by its share, so the body arrives where the key stands.
-pub fn spread_arrival(frames: &mut [Vec3], joints: usize, context: usize, gap: usize, key_root: Vec3) {
+fn spread_arrival(frames: &mut [Vec3], joints: usize, context: usize, gap: usize, key_root: Vec3) {
     let arrival = frames[(context + gap) * joints] - key_root;
     let drift = Vec3::new(arrival.x, 0.0, arrival.z);
     for (f, frame) in frames.chunks_exact_mut(joints).enumerate().skip(context) {

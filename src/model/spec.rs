@@ -286,8 +286,9 @@ fn validate_norm(field: &str, norm: &Normalizer, dim: usize) -> Result<(), SpecE
     Ok(())
 }
 
-fn validate_block(field: &str, b: &BlockConfig, dim: usize, cond: usize) -> Result<(), SpecError> {
-    for (name, v, want) in [("in_dim", b.in_dim, dim), ("out_dim", b.out_dim, dim), ("cond_dim", b.cond_dim, cond)] {
+/// A block that reads `in_dim` features a step (with `cond` of conditioning) and writes `dim`.
+fn validate_block(field: &str, b: &BlockConfig, in_dim: usize, dim: usize, cond: usize) -> Result<(), SpecError> {
+    for (name, v, want) in [("in_dim", b.in_dim, in_dim), ("out_dim", b.out_dim, dim), ("cond_dim", b.cond_dim, cond)] {
         if v != want {
             return Err(SpecError::field(&format!("{field}.{name}"), format!("is {v}; the layout and classes need {want}")));
         }
@@ -307,20 +308,17 @@ fn validate_block(field: &str, b: &BlockConfig, dim: usize, cond: usize) -> Resu
 }
 
 fn validate_inbetween(spec: &InbetweenSpec, dim: usize) -> Result<(), SpecError> {
-    let b = &spec.block;
-    let input = dim + super::inbetween::GAP_CHANNELS;
-    if b.in_dim != input || b.out_dim != dim || b.cond_dim != 0 {
-        return Err(SpecError::field("inbetween.block", format!("reads {} and writes {} features with {} conditioning; the layout needs {input}, {dim} and 0", b.in_dim, b.out_dim, b.cond_dim)));
-    }
-    let mut reads_poses = b.clone();
-    reads_poses.in_dim = dim;
-    validate_block("inbetween.block", &reads_poses, dim, 0)?;
+    validate_block("inbetween.block", &spec.block, dim + super::inbetween::GAP_CHANNELS, dim, 0)?;
     whole_in_range("inbetween.context", spec.context, 2, MAX_LOCGEN_WINDOW)?;
     whole_in_range("inbetween.max_gap", spec.max_gap, 1, MAX_LOCGEN_WINDOW)?;
     whole_in_range("inbetween.after", spec.after, 0, MAX_LOCGEN_WINDOW)?;
-    let scale = &spec.residual_scale;
+    validate_scale("inbetween.residual_scale", &spec.residual_scale, dim)
+}
+
+/// A residual scale: one number of 0 or more per feature (`dim`).
+fn validate_scale(field: &str, scale: &[f32], dim: usize) -> Result<(), SpecError> {
     if scale.len() != dim || scale.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-        return Err(SpecError::field("inbetween.residual_scale", format!("must hold {dim} numbers of 0 or more, one per feature")));
+        return Err(SpecError::field(field, format!("must hold {dim} numbers of 0 or more, one per feature")));
     }
     Ok(())
 }
@@ -415,15 +413,15 @@ impl ModelSpec {
         if !self.styles.is_empty() && (self.usual_styles.len() != self.classes.len() || self.usual_styles.iter().any(|&s| s >= self.styles.len())) {
             return Err(E::field("usual_styles", format!("must name one of the {} styles for each of the {} classes", self.styles.len(), self.classes.len())));
         }
-        validate_block("glogen.block", &self.glogen.block, dim, self.glogen.cond_len(self.labels(), dim))?;
+        validate_block("glogen.block", &self.glogen.block, dim, dim, self.glogen.cond_len(self.labels(), dim))?;
         in_range("glogen.class_dropout", self.glogen.class_dropout, 0.0, 1.0)?;
         in_range("class_strength", self.class_strength, 0.0, MAX_CLASS_STRENGTH)?;
         whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;
-        validate_block("locgen.block", &self.locgen.block, dim, 0)?;
+        validate_block("locgen.block", &self.locgen.block, dim, dim, 0)?;
         whole_in_range("locgen.window", self.locgen.window, 1, MAX_LOCGEN_WINDOW)?;
-        let scale = &self.locgen.residual_scale;
-        if !scale.is_empty() && (scale.len() != dim || scale.iter().any(|v| !(v.is_finite() && *v >= 0.0))) {
-            return Err(E::field("locgen.residual_scale", format!("must hold {dim} numbers of 0 or more, one per feature")));
+        // Empty in models saved before LocGen had a scale.
+        if !self.locgen.residual_scale.is_empty() {
+            validate_scale("locgen.residual_scale", &self.locgen.residual_scale, dim)?;
         }
         if self.locgen.keep_sparse_poses && self.locgen.window % self.stride != 0 {
             return Err(E::field("locgen.window", format!("is {}; a LocGen that keeps the sparse poses needs a whole number of strides ({})", self.locgen.window, self.stride)));

@@ -3,6 +3,8 @@
 //! interpolated frames between them, pace stretches time, the constraints pull the take onto
 //! its keys and path, and a final projection restores the skeleton's bone lengths.
 
+use std::ops::Range;
+
 use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -12,7 +14,7 @@ use super::foot_lock::Travel;
 use super::given::GivenStart;
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
-use super::keys::{learnt_travel, place_keys, KeyConstraint, PlacedKey};
+use super::keys::{filled_gaps, learnt_travel, place_keys, KeyConstraint, PlacedKey};
 use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
 use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
@@ -95,9 +97,10 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let mut targets = if model.glogen().reads_target() { keys.clone() } else { Vec::new() };
     targets.sort_by_key(|k| k.sparse);
     let held = if opts.held.is_empty() { None } else { Some(HeldConstraint::new(spec, &opts.held, &timeline, keys.iter().map(|k| k.frame).collect())?) };
+    let gaps = filled_gaps(model, opts.key_method, &keys);
     // The in-betweener's gaps travel as it learnt them from real motion, not as their feet say.
-    let learnt = learnt_travel(model, opts.key_method, &keys);
-    let constraints = take_constraints(model, opts, &timeline, keys, held.as_ref())?;
+    let learnt = learnt_travel(&gaps, &keys);
+    let constraints = take_constraints(model, opts, &timeline, (keys, gaps), held.as_ref())?;
     let block_segments: Vec<usize> = (0..plans.len()).map(|b| timeline.segment_at(t + b * t + t / 2)).collect();
     // Keys and held frames warp poses far behind the block being made; they and a path reach
     // across the take's frames too.
@@ -171,8 +174,9 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
 /// The take's constraints in the order they apply: the root path lays the take out, the keys
 /// pin it, a file start's given frames are put back as given, and held frames as held.
 /// `held` is the request's held frames as a constraint, kept by the caller (the rollout and
-/// the finishing read them too).
-fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, keys: Vec<PlacedKey>, held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
+/// the finishing read them too); the keys come with the gaps before them the in-betweener
+/// fills.
+fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, (keys, gaps): (Vec<PlacedKey>, Vec<Range<usize>>), held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
     let spec = &model.spec;
     let mut constraints: Vec<Box<dyn TakeConstraint + 'a>> = Vec::new();
     if let Some(path) = &opts.path {
@@ -183,7 +187,7 @@ fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline
     let first_key = keys.iter().map(|k| k.frame).min();
     if !keys.is_empty() {
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
-        constraints.push(Box::new(KeyConstraint { keys, model, step_seconds, method: opts.key_method }));
+        constraints.push(Box::new(KeyConstraint { keys, model, gaps, step_seconds, method: opts.key_method }));
     }
     // The given frames of a file start keep their own timing only at pace 1.
     let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);

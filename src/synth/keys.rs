@@ -276,6 +276,8 @@ pub(super) struct KeyConstraint<'a> {
     pub keys: Vec<PlacedKey>,
     /// The model whose in-betweener fills the gaps before keys ([`KeyMethod::Inbetween`]).
     pub model: &'a GlocalModel,
+    /// The frames it fills ([`filled_gaps`]).
+    pub gaps: Vec<Range<usize>>,
     /// Per key, seconds per sparse step at its segment's pace.
     pub step_seconds: Vec<f32>,
     pub method: KeyMethod,
@@ -303,23 +305,22 @@ pub(super) fn filled_gaps(model: &GlocalModel, method: KeyMethod, keys: &[Placed
 }
 
 /// The frames whose travel is real motion's, which a foot lock that carries the body by its
-/// feet leaves as they are: the gaps the in-betweener fills ([`filled_gaps`]), and the
+/// feet leaves as they are: the `gaps` the in-betweener fills ([`filled_gaps`]), and the
 /// starting poses (a seed window or a file's frames) before a gap filled right after them.
-pub(super) fn learnt_travel(model: &GlocalModel, method: KeyMethod, keys: &[PlacedKey]) -> Vec<Range<usize>> {
+pub(super) fn learnt_travel(gaps: &[Range<usize>], keys: &[PlacedKey]) -> Vec<Range<usize>> {
     let after_start = keys.first().map(|k| k.given_frame + 1);
-    filled_gaps(model, method, keys).into_iter().map(|g| if Some(g.start) == after_start { 0..g.end } else { g }).collect()
+    gaps.iter().map(|g| if Some(g.start) == after_start { 0..g.end } else { g.clone() }).collect()
 }
 
 impl KeyConstraint<'_> {
-    /// Each key's gap from the known pose before it (the last starting pose, or the key
-    /// before) filled by the model's in-betweener, where it has one that reaches that far and
-    /// the take has the known frames it reads before the gap; keys in time order.
+    /// The gaps before keys ([`Self::gaps`]) filled by the model's in-betweener, in time
+    /// order, from the take's own frames either side.
     fn fill_gaps(&self, positions: &mut [Vec3], j: usize) {
         let Some(spec) = self.model.inbetween() else { return };
         let (context, after) = (spec.context, spec.after);
         let frames = positions.len() / j;
-        let gaps: Vec<Range<usize>> = filled_gaps(self.model, self.method, &self.keys).into_iter().filter(|g| g.end < frames).collect();
-        for gap in gaps.iter().cloned() {
+        let gaps = self.gaps.iter().filter(|g| g.end < frames);
+        for gap in gaps.clone() {
             let known = gap.start - 1;
             let read = |range: Range<usize>| positions[range.start * j..range.end * j].to_vec();
             let ahead = gap.end..frames.min(gap.end + 1 + after);
@@ -332,7 +333,7 @@ impl KeyConstraint<'_> {
         // key may be the next gap's).
         let reach = (BEND_SECONDS * self.model.spec.fps).round() as usize;
         for gap in gaps {
-            bend_ends(positions, j, gap, reach);
+            bend_ends(positions, j, gap.clone(), reach);
         }
     }
 }

@@ -225,7 +225,9 @@ fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, 
     row.key.add(mean_distance(take.frame(key_frame), &to) * cm);
     let context = (0..=last_given).map(|f| max_distance(take.frame(f), &real(f))).fold(0.0, f32::max);
     row.context.add(context * cm);
-    let near = key_frame.saturating_sub((NEAR_KEY_SECONDS * spec.fps).round() as usize)..(key_frame + (NEAR_KEY_SECONDS * spec.fps).round() as usize + 3).min(take.frames());
+    // The jerk of a frame spans it and the three after it.
+    let half = (NEAR_KEY_SECONDS * spec.fps).round() as usize;
+    let near = key_frame.saturating_sub(half)..(key_frame + half + 3).min(take.frames());
     let real_near = Motion::from_positions(take.skeleton.clone(), take.fps, frames(&real, near.clone()));
     row.arrival_jerk.add((peak_jerk(&take.slice(near.start, near.end)) / peak_jerk(&real_near).max(f32::EPSILON)) as f32);
     Ok(())

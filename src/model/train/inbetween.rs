@@ -8,12 +8,11 @@ use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::stage::{StageTraining, TrainingData, ValWindow};
+use super::stage::{frame_errors, skeleton_weighted_loss, ResidualSpread, StageTraining, TrainingData, ValWindow};
 use crate::model::block::Seq2SeqBlock;
 use crate::model::corpus::{sample_window, Track};
-use crate::model::inbetween::{bend_ends, gap_gain, gap_window, spread_arrival, BEND_SECONDS, GAP_CHANNELS};
-use crate::model::loss::joint_flow_loss;
-use crate::model::spec::{InbetweenSpec, LossKind};
+use crate::model::inbetween::{bend_ends, fill_frames, gap_gain, gap_window, BEND_SECONDS, GAP_CHANNELS};
+use crate::model::spec::InbetweenSpec;
 
 /// The root feature of the heading's change since the frame before.
 const TURN_FEATURE: usize = 3;
@@ -47,13 +46,10 @@ impl InbetweenTraining<'_> {
 
     /// The refined window: the interpolation plus the network's residual, scaled per feature.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, gap: usize, train: bool) -> Result<Tensor> {
-        let (b, frames, _) = input.dims3()?;
-        let dim = block.cfg.out_dim;
+        let (frames, dim) = (input.dim(1)?, block.cfg.out_dim);
         let gain = Tensor::from_vec(gap_gain(self.spec(), gap, frames), (1, frames, dim), &Device::Cpu)?;
         let interpolated = input.narrow(2, 0, dim)?;
-        let residual = block.forward(input, None, train)?.broadcast_mul(&gain)?;
-        debug_assert_eq!(residual.dims3()?, (b, frames, dim));
-        Ok((residual + interpolated)?)
+        Ok((block.forward(input, None, train)?.broadcast_mul(&gain)? + interpolated)?)
     }
 
     fn gap_of_seconds(&self, seconds: f32) -> usize {
@@ -80,17 +76,15 @@ pub(super) fn inbetween_residual_scale(data: TrainingData) -> Result<Vec<f32>> {
     let training = InbetweenTraining(data);
     let (dim, max_gap, c, after) = (training.0.layout().dim(), training.spec().max_gap, training.spec().context, training.spec().after);
     let mut rng = StdRng::seed_from_u64(0x6A9);
-    let (mut sums, mut rows) = (vec![0f64; dim], 0usize);
+    let mut spread = ResidualSpread::new(dim);
     for _ in 0..WINDOWS {
         let gap = training_gap(max_gap, &mut rng);
         let (track, start) = sample_window(&training.0.corpus.train, training.0.corpus.classes.len(), c + gap + after + 2, &mut rng).context("no training clip is long enough")?;
         let (input, target, _, _) = training.window(track, start + 1, gap, after);
-        for (row_in, row_out) in input.chunks_exact(dim + GAP_CHANNELS).zip(target.chunks_exact(dim)).skip(c).take(gap) {
-            sums.iter_mut().zip(row_in.iter().zip(row_out)).for_each(|(s, (a, b))| *s += f64::from(b - a).powi(2));
-            rows += 1;
-        }
+        let gap_rows = input.chunks_exact(dim + GAP_CHANNELS).zip(target.chunks_exact(dim)).skip(c).take(gap);
+        gap_rows.for_each(|(i, t)| spread.add(i, t));
     }
-    Ok(sums.iter().enumerate().map(|(i, s)| if i == TURN_FEATURE { 0.0 } else { ((s / rows.max(1) as f64).sqrt() as f32).max(1e-4) }).collect())
+    Ok(spread.scale(|i| i == TURN_FEATURE))
 }
 
 impl StageTraining for InbetweenTraining<'_> {
@@ -112,11 +106,7 @@ impl StageTraining for InbetweenTraining<'_> {
         let x = Tensor::from_vec(xs, (b, frames, dim + GAP_CHANNELS), &Device::Cpu)?;
         let y = Tensor::from_vec(ys, (b, frames, dim), &Device::Cpu)?;
         let pred = self.predict(block, &x, gap, true)?;
-        // Weighed back to the skeleton's units, as LocGen's loss is.
-        let std = &data.norm.std;
-        let rms = (std.iter().map(|s| s * s).sum::<f32>() / std.len() as f32).sqrt();
-        let weight = Tensor::from_vec(std.iter().map(|s| s / rms).collect(), (1, 1, dim), &Device::Cpu)?;
-        Ok(joint_flow_loss(&pred.broadcast_mul(&weight)?, &y.broadcast_mul(&weight)?, None, LossKind::JointFlow)?)
+        skeleton_weighted_loss(data.norm, &pred, &y)
     }
 
     /// Held-out windows, their gaps taking [`VALIDATION_GAPS_SECONDS`] in turn; the baseline
@@ -140,22 +130,16 @@ impl StageTraining for InbetweenTraining<'_> {
     fn validate(&self, block: &Seq2SeqBlock, windows: &[ValWindow]) -> Result<(f32, f32)> {
         let (c, after, layout) = (self.spec().context, self.spec().after, self.0.layout());
         let (channels, j) = (layout.dim() + GAP_CHANNELS, layout.joints());
-        let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
+        let mut filled = Vec::with_capacity(windows.len());
         for w in windows {
             let frames = w.input.len() / channels;
             let gap = frames - c - 1 - after;
             let x = Tensor::from_vec(w.input.clone(), (1, frames, channels), &Device::Cpu)?;
-            let mut feats = self.predict(block, &x, gap, false)?.flatten_all()?.to_vec1::<f32>()?;
-            self.0.norm.denormalize(&mut feats);
-            let mut filled = layout.decode(&feats, w.start).0;
-            spread_arrival(&mut filled, j, c, gap, w.baseline_positions[(c + gap) * j]);
-            bend_ends(&mut filled, j, c..c + gap, (BEND_SECONDS * self.0.spec.fps).round() as usize);
-            for ((a, b), l) in filled.iter().zip(&w.target_positions).zip(&w.baseline_positions) {
-                err += f64::from(a.distance(*b));
-                base += f64::from(l.distance(*b));
-                count += 1;
-            }
+            let feats = self.predict(block, &x, gap, false)?.flatten_all()?.to_vec1::<f32>()?;
+            let mut window = fill_frames(layout, self.0.norm, feats, w.start, c, gap, w.baseline_positions[(c + gap) * j]);
+            bend_ends(&mut window, j, c..c + gap, (BEND_SECONDS * self.0.spec.fps).round() as usize);
+            filled.push(window);
         }
-        Ok(((err / count.max(1) as f64) as f32, (base / count.max(1) as f64) as f32))
+        Ok(frame_errors(windows, filled.into_iter()))
     }
 }

@@ -135,11 +135,19 @@ const ROOT_TARGET_SHARE: f32 = 0.5;
 /// Mean distances of predicted poses (`predictions`, one normalised window each) and of the
 /// baselines to the real poses.
 fn position_errors<'a>(norm: &Normalizer, layout: &FeatureLayout, windows: &[ValWindow], predictions: impl Iterator<Item = &'a [f32]>) -> (f32, f32) {
-    let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
-    for (w, p) in windows.iter().zip(predictions) {
+    let decoded = windows.iter().zip(predictions).map(|(w, p)| {
         let mut p = p.to_vec();
         norm.denormalize(&mut p);
-        let (positions, _) = layout.decode(&p, w.start);
+        layout.decode(&p, w.start).0
+    });
+    frame_errors(windows, decoded)
+}
+
+/// Mean distances of each window's predicted frames (`predicted`, one list each) and of its
+/// baseline to the real frames.
+pub(super) fn frame_errors(windows: &[ValWindow], predicted: impl Iterator<Item = Vec<Vec3>>) -> (f32, f32) {
+    let (mut err, mut base, mut count) = (0.0f64, 0.0f64, 0usize);
+    for (w, positions) in windows.iter().zip(predicted) {
         for ((a, b), c) in positions.iter().zip(&w.target_positions).zip(&w.baseline_positions) {
             err += a.distance(*b) as f64;
             base += c.distance(*b) as f64;
@@ -356,20 +364,54 @@ pub(super) fn locgen_residual_scale(data: TrainingData) -> Result<Vec<f32>> {
     let data = &training.0;
     let (dim, span) = (data.layout().dim(), data.spec.locgen.window + 1);
     let mut rng = StdRng::seed_from_u64(0x5CA1E);
-    let mut sums = vec![0f64; dim];
-    let mut rows = 0usize;
+    let mut spread = ResidualSpread::new(dim);
     for _ in 0..WINDOWS {
         let (track, start) = sample_window(&data.corpus.train, data.corpus.classes.len(), span + data.spec.stride, &mut rng).context("no training clip is long enough")?;
         let (input, target) = training.window(track, start + data.spec.stride);
-        for (row_in, row_out) in input.chunks_exact(dim).zip(target.chunks_exact(dim)) {
-            sums.iter_mut().zip(row_in.iter().zip(row_out)).for_each(|(s, (a, b))| *s += f64::from(b - a).powi(2));
-            rows += 1;
-        }
+        input.chunks_exact(dim).zip(target.chunks_exact(dim)).for_each(|(i, t)| spread.add(i, t));
     }
     // The body's travel and turn stay the interpolation's: a residual on a step is summed
     // over the window and turns every joint about the root, where one on a joint moves that
-    // joint alone. A floor keeps a feature the interpolation always gets right scalable.
-    Ok(sums.iter().enumerate().map(|(i, s)| if (1..ROOT_FEATURES).contains(&i) { 0.0 } else { ((s / rows.max(1) as f64).sqrt() as f32).max(1e-4) }).collect())
+    // joint alone.
+    Ok(spread.scale(|i| (1..ROOT_FEATURES).contains(&i)))
+}
+
+/// Per feature, the spread of real frames about the frames a stage refines: the root mean
+/// square of their difference over the rows added.
+pub(super) struct ResidualSpread {
+    sums: Vec<f64>,
+    rows: usize,
+}
+
+impl ResidualSpread {
+    pub fn new(dim: usize) -> Self {
+        Self { sums: vec![0.0; dim], rows: 0 }
+    }
+
+    /// One frame: the stage's input (its first `dim` values are the features) and the real
+    /// frame's features.
+    pub fn add(&mut self, input: &[f32], real: &[f32]) {
+        self.sums.iter_mut().zip(input.iter().zip(real)).for_each(|(s, (a, b))| *s += f64::from(b - a).powi(2));
+        self.rows += 1;
+    }
+
+    /// The spread per feature, 0 where `fixed` (a feature the stage leaves as it is), and no
+    /// less than 1e-4 elsewhere (a feature the interpolation always gets right stays
+    /// scalable).
+    pub fn scale(&self, fixed: impl Fn(usize) -> bool) -> Vec<f32> {
+        let rms = |s: f64| ((s / self.rows.max(1) as f64).sqrt() as f32).max(1e-4);
+        self.sums.iter().enumerate().map(|(i, &s)| if fixed(i) { 0.0 } else { rms(s) }).collect()
+    }
+}
+
+/// The joint and flow loss of `pred` against `target` (normalised features), each feature
+/// weighed back to the skeleton's units: in normalised features a hand's residual counted a
+/// fraction of the same distance at the hips, the opposite of what shows.
+pub(super) fn skeleton_weighted_loss(norm: &Normalizer, pred: &Tensor, target: &Tensor) -> Result<Tensor> {
+    let std = &norm.std;
+    let rms = (std.iter().map(|s| s * s).sum::<f32>() / std.len() as f32).sqrt();
+    let weight = Tensor::from_vec(std.iter().map(|s| s / rms).collect(), (1, 1, std.len()), &Device::Cpu)?;
+    Ok(joint_flow_loss(&pred.broadcast_mul(&weight)?, &target.broadcast_mul(&weight)?, None, LossKind::JointFlow)?)
 }
 
 impl StageTraining for LocGenTraining<'_> {
@@ -377,13 +419,7 @@ impl StageTraining for LocGenTraining<'_> {
         let span = self.0.spec.locgen.window + 1;
         let batch = self.0.batch(block, span, 1, rng, |track, frame| self.window(track, frame))?;
         let pred = self.predict(block, &batch.x, true)?;
-        // Weighed back to the skeleton's units: in normalised features a hand's residual
-        // counted a fraction of the same distance at the hips, the opposite of what shows.
-        let std = &self.0.norm.std;
-        let rms = (std.iter().map(|s| s * s).sum::<f32>() / std.len() as f32).sqrt();
-        let weight = Tensor::from_vec(std.iter().map(|s| s / rms).collect(), (1, 1, std.len()), &Device::Cpu)?;
-        let (pred, target) = (pred.broadcast_mul(&weight)?, batch.y.broadcast_mul(&weight)?);
-        Ok(joint_flow_loss(&pred, &target, None, LossKind::JointFlow)?)
+        skeleton_weighted_loss(self.0.norm, &pred, &batch.y)
     }
 
     fn validation_windows(&self) -> Vec<ValWindow> {
