@@ -234,12 +234,14 @@ fn held_frames_that_do_not_fit_are_refused() {
     use std::sync::Arc;
     let model = model("h36m");
     let mut opts = GenerateOptions { timeline: "walking:4".parse().unwrap(), ..Default::default() };
+    let joints = model.spec.layout.skeleton.len();
     let error = |opts: &GenerateOptions| format!("{:#}", generate(&model, opts, &mut |_| true).err().expect("bad held frames were taken"));
     opts.held = vec![HeldStretch { first_frame: 10, frames: Arc::new(HeldFrames::Poses(vec![vec![0.0; 5]])) }];
     let short = error(&opts);
-    opts.held = vec![HeldStretch { first_frame: 99, frames: Arc::new(HeldFrames::Positions(vec![vec![0.0; 81]; 5])) }];
+    opts.held = vec![HeldStretch { first_frame: 99, frames: Arc::new(HeldFrames::Positions(vec![vec![0.0; 3 * joints]; 5])) }];
     let beyond = error(&opts);
     println!("{short}\n{beyond}");
-    assert!(short.contains("held stretch 1 (frames 10..11), frame 0: 111 numbers expected"), "{short}");
+    let numbers = 3 + 4 * joints;
+    assert!(short.contains(&format!("held stretch 1 (frames 10..11), frame 0: {numbers} numbers expected")), "{short}");
     assert!(beyond.contains("lies beyond the take's 101 frames"), "{beyond}");
 }

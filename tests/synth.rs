@@ -268,9 +268,9 @@ fn transitions_act_on_a_boundary_at_a_block_seam() {
 #[test]
 fn ten_minute_takes_stay_at_their_class_speed() {
     // The issue's bounds: no class repeats itself, and every 10 s window runs at 0.5-2x its
-    // class's training speed. Measured on the shipped models: 0.57-1.91x (h36m's directions
-    // and greeting the slowest, its sittingdown the fastest), Bandai 0.60-1.65x (its guiding
-    // the slowest, its bowing the fastest).
+    // class's training speed. Measured on the shipped models: h36m 0.50-1.67x (its greeting
+    // the slowest, its eating the fastest), Bandai 0.59-1.52x (its guiding the slowest, its
+    // bowing the fastest).
     let mut failures = Vec::new();
     // The model of everything is measured in docs/RESULTS.md and left out: its ten-minute
     // sittingdown runs at up to 2.63x, its soccer at 0.43x, its walk repeats (issue 35).

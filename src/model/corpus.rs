@@ -10,11 +10,7 @@ use rand::Rng;
 use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
-use crate::motion::{JointRoles, Motion, Skeleton};
-
-/// Bones shorter than this fraction of the skeleton's longest bone are duplicates or
-/// collapsed end sites, and their joints are left out of the model.
-const MIN_BONE_FRACTION: f32 = 0.02;
+use crate::motion::{JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
 
 /// The styles that mean "no particular style", which a class's usual style falls to on a tie.
 const PLAIN_STYLES: [&str; 2] = ["neutral", "normal"];
@@ -140,7 +136,7 @@ fn model_joints(skeleton: &Skeleton, body_root: usize) -> Vec<usize> {
         .filter(|&j| skeleton.parents()[j].is_some_and(|p| p != 0))
         .map(|j| skeleton.offsets()[j].length())
         .fold(0.0, f32::max);
-    let mut keep = skeleton.informative_joints(longest_limb * MIN_BONE_FRACTION);
+    let mut keep = skeleton.informative_joints(longest_limb * SHORT_BONE_FRACTION);
     let mut above = skeleton.parents()[body_root];
     while let Some(p) = above {
         keep.retain(|&j| j != p);

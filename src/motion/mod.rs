@@ -26,7 +26,7 @@ pub use retarget::{mapped_bones, mean_bone_angle, RestPose, Retarget, RetargetEr
 pub use roles::{JointRoles, Leg, RolesError};
 pub use root_motion::{facing, local_poses, under_new_root, with_root_motion, RootMotion, RootMotionError, ROOT_BONE};
 pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
-pub use skeleton::{clipped, Skeleton, SkeletonError};
+pub use skeleton::{clipped, Skeleton, SkeletonError, SHORT_BONE_FRACTION};
 pub use solve::solve_local_poses;
 pub use standard::standard_humanoid;
 pub use take::{floor_height, mean_joint_step, Motion};

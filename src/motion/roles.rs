@@ -27,7 +27,9 @@ pub struct Leg {
 }
 
 impl Leg {
-    /// The joints that can touch the floor: ankle, toe and toe tip.
+    /// The joints that can touch the floor: ankle, toe and toe tip. A rig's foot may hold
+    /// more (a heel beside the toes); the floor and contacts read all of them
+    /// ([`super::contacts::sole_joints`]).
     pub fn foot_joints(&self) -> Vec<usize> {
         [Some(self.ankle), self.toe, self.toe_end].into_iter().flatten().collect()
     }

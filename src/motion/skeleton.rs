@@ -3,6 +3,10 @@ use std::collections::HashMap;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+/// Bones shorter than this fraction of a skeleton's longest are duplicates, collapsed end
+/// sites, or joints that only turn a chain ([`Skeleton::turning_chain`]).
+pub const SHORT_BONE_FRACTION: f32 = 0.02;
+
 /// A joint hierarchy with rest offsets: joint `j` sits at `offsets[j]` in its parent's frame.
 ///
 /// Invariants, checked by [`Skeleton::new`] and by deserialisation (which goes through it):
@@ -185,12 +189,33 @@ impl Skeleton {
         std::iter::once(joint).chain(self.ancestors(joint)).find(|&j| self.parents[j] == Some(ancestor))
     }
 
-    /// Joints worth modelling: the root plus every joint whose rest bone is at least `min_bone`
-    /// long. Zero-length bones (duplicate joints, collapsed end sites) only repeat their parent.
+    /// Joints worth modelling: the root, every joint whose rest bone is at least `min_bone`
+    /// long, and the short ones that turn a chain of their own ([`Self::turning_chain`]).
+    /// Other zero-length bones (duplicate joints, collapsed end sites) only repeat their parent.
     pub fn informative_joints(&self, min_bone: f32) -> Vec<usize> {
         (0..self.len())
-            .filter(|&j| self.parents[j].is_none() || self.offsets[j].length() >= min_bone)
+            .filter(|&j| self.parents[j].is_none() || self.offsets[j].length() >= min_bone || self.turning_chain(j, min_bone).is_some())
             .collect()
+    }
+
+    /// The longest bone (the root's offset, a placement, is not one).
+    pub fn longest_bone(&self) -> f32 {
+        (0..self.len()).filter(|&j| self.parents[j].is_some()).map(|j| self.offsets[j].length()).fold(0.0, f32::max)
+    }
+
+    /// The chain joint `j` turns when its bone is shorter than `short` but it is the one way
+    /// to a chain of its own (its only child has children) beside its parent's other children:
+    /// Human3.6M's `Spine`, 0.1 mm above the hips, whose turn bends the back against the
+    /// pelvis. Left out, that bend would be tied to the pelvis's turn. Returns the chain's
+    /// first joint.
+    pub fn turning_chain(&self, j: usize, short: f32) -> Option<usize> {
+        let parent = self.parents[j]?;
+        if self.offsets[j].length() >= short || self.children(parent).count() < 2 {
+            return None;
+        }
+        let mut children = self.children(j);
+        let (Some(chain), None) = (children.next(), children.next()) else { return None };
+        (self.offsets[chain].length() >= short && self.children(chain).next().is_some()).then_some(chain)
     }
 
     /// The sub-skeleton of `keep`: ascending indices, each but the first descending from

@@ -14,6 +14,13 @@
 //! - several children along one line (rest or actual): treated as one child along their mean
 //!   direction.
 //!
+//! A child on a near-zero bone that turns a chain of its own (Human3.6M's `Spine`, at the hips,
+//! whose turn bends the back against the pelvis) does not pull on its parent's fit: the
+//! parent fits its other children, and only the turn they leave open (the pelvis's tilt about
+//! the line of the hips) is taken from where that chain leads ([`fit_leaning`]); the short
+//! joint then turns its chain exactly. So a bent back and the hip sockets are both where the
+//! input has them.
+//!
 //! A joint whose only rotation places end sites (two or more leaf children: a Human3.6M hand,
 //! its end and its thumb) that the input does not keep at their rest angles (a network's
 //! output; motion capture keeps them, [`keeps_shape`]) turns at most
@@ -31,7 +38,7 @@
 use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
-use super::{LocalPose, Skeleton};
+use super::{LocalPose, Skeleton, SHORT_BONE_FRACTION};
 
 /// Local poses whose forward kinematics reproduce `positions` (frame-major, `frames * joints`
 /// world positions; a trailing partial frame is ignored) as closely as rest bone lengths allow.
@@ -45,17 +52,21 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
     // Each joint's children with a usable rest bone, and that bone's rest direction: the same
     // for every frame.
     let mut children: Vec<Vec<(usize, Vec3)>> = vec![Vec::new(); n];
+    let mut leans: Vec<Option<(usize, Vec3)>> = vec![None; n];
+    let short = skeleton.longest_bone() * SHORT_BONE_FRACTION;
     for (j, p) in skeleton.parents().iter().enumerate() {
         let rest = skeleton.offsets()[j];
-        if let Some(p) = p.filter(|&p| p < j) {
-            if rest.length() > eps {
-                children[p].push((j, rest.normalize()));
-            }
+        let Some(p) = p.filter(|&p| p < j) else { continue };
+        match skeleton.turning_chain(j, short) {
+            // Seen through to the chain it turns: the rest direction from the parent to it.
+            Some(chain) => leans[p] = leans[p].or(Some((chain, (rest + skeleton.offsets()[chain]).normalize()))),
+            None if rest.length() > eps => children[p].push((j, rest.normalize())),
+            None => {}
         }
     }
     let is_leaf = |j: usize| children[j].is_empty();
     let end_site_joints: Vec<usize> = (0..n).filter(|&j| children[j].len() >= 2 && children[j].iter().all(|&(c, _)| is_leaf(c)) && !keeps_shape(positions, n, j, &children[j])).collect();
-    let solver = FrameSolver { skeleton, children, eps };
+    let solver = FrameSolver { skeleton, children, leans, eps };
     // Frames are independent: spread them over the cores, each thread with its own scratch.
     let mut poses: Vec<LocalPose> = positions.par_chunks_exact(n).map_init(|| Scratch::new(n), |scratch, frame| solver.solve(frame, scratch)).collect();
     end_site_joints.into_iter().for_each(|j| limit_turns(&mut poses, j));
@@ -111,6 +122,9 @@ fn followed(rotations: impl Iterator<Item = Quat>) -> Vec<Quat> {
 struct FrameSolver<'a> {
     skeleton: &'a Skeleton,
     children: Vec<Vec<(usize, Vec3)>>,
+    /// Per joint, the chain a short child of it turns (the chain's first joint and its rest
+    /// direction from this joint), which only sets the turn its other children leave open.
+    leans: Vec<Option<(usize, Vec3)>>,
     eps: f32,
 }
 
@@ -145,7 +159,8 @@ impl FrameSolver<'_> {
                     pairs.push((rest, actual.normalize()));
                 }
             }
-            let w = fit(base, pairs);
+            let lean = self.leans[j].map(|(c, rest)| (rest, frame[c] - frame[j])).filter(|(_, actual)| actual.length() > self.eps && actual.is_finite());
+            let w = lean.map_or_else(|| fit(base, pairs), |(rest, actual)| fit_leaning(base, pairs, rest, actual.normalize()));
             world[j] = w;
             rotations[j] = (base.inverse() * w).normalize();
         }
@@ -173,6 +188,26 @@ fn fit(base: Quat, pairs: &[(Vec3, Vec3)]) -> Quat {
             }
         }
     }
+}
+
+/// [`fit`] where the children's fit leaves a turn open (one child, or all along one line: the
+/// hips' two sockets), that turn taken so the leaning chain's rest direction `rest` comes
+/// as near `actual` as it can; with children spanning a plane, their fit alone.
+fn fit_leaning(base: Quat, pairs: &[(Vec3, Vec3)], rest: Vec3, actual: Vec3) -> Quat {
+    let (axis_rest, axis) = match pairs {
+        [] => return swing(base, rest, actual),
+        _ if spans_plane(pairs.iter().map(|p| p.0)) && spans_plane(pairs.iter().map(|p| p.1)) => return horn(pairs),
+        [first, ..] => *first,
+    };
+    let swung = swing(base, axis_rest, axis);
+    // About the now exact axis, the turn taking the chain's direction nearest its actual one.
+    let flat = |v: Vec3| (v - axis * v.dot(axis)).normalize_or_zero();
+    let (from, to) = (flat(swung * rest), flat(actual));
+    if from == Vec3::ZERO || to == Vec3::ZERO {
+        return swung;
+    }
+    let angle = from.cross(to).dot(axis).atan2(from.dot(to));
+    (Quat::from_axis_angle(axis, angle) * swung).normalize()
 }
 
 /// `base` followed by the shortest rotation taking `base * rest` onto `actual`.

@@ -39,8 +39,10 @@ const FROZEN_BELOW: f32 = 0.5;
 /// greeting and discussion at 0.59 and 0.57 of the real class's joint speed (the network
 /// regresses to slow motion from a lively context), guidance urges the class's own motion
 /// on (0.74 and 0.66 with 2, 0.76 and 0.68 with 3, where Bandai's bowing rushed to 3.1x its
-/// training speed over ten minutes).
-const STALLED_GUIDANCE_GAIN: f32 = 2.0;
+/// training speed over ten minutes). 2.5 since h36m's model keeps `Spine` (28 joints): with 2
+/// its ten-minute greeting's slowest 10 s window ran at 0.497x the training speed, with 2.5 at
+/// 0.50x, Bandai's bowing at most 1.52x (`cargo test --release --test synth ten_minute`).
+const STALLED_GUIDANCE_GAIN: f32 = 2.5;
 
 /// A block whose poses move more than this multiple of its class's typical motion is
 /// rushing (a gesture repeated ever faster): keep-alive re-anchors it too.

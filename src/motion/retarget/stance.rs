@@ -16,7 +16,7 @@
 
 use glam::{Quat, Vec3};
 
-use super::super::contacts::{box_average, foot_contacts, ContactConfig};
+use super::super::contacts::{box_average, foot_contacts, sole_joints, ContactConfig};
 use super::super::keys::{Key, KeyJoints};
 use super::super::ik::two_bone;
 use super::super::{JointRoles, LocalPose, Leg, Motion, Skeleton};
@@ -37,8 +37,7 @@ struct LegJoints {
 
 impl LegJoints {
     fn new(skeleton: &Skeleton, [socket, knee, ankle]: [usize; 3]) -> LegJoints {
-        let foot = (0..skeleton.len()).filter(|&j| j == ankle || skeleton.is_ancestor(ankle, j)).collect();
-        LegJoints { socket, knee, ankle, foot }
+        LegJoints { socket, knee, ankle, foot: sole_joints(skeleton, ankle) }
     }
 
     /// Socket to ankle in `frame`.
