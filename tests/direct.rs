@@ -245,3 +245,55 @@ fn held_frames_that_do_not_fit_are_refused() {
     assert!(short.contains(&format!("held stretch 1 (frames 10..11), frame 0: {numbers} numbers expected")), "{short}");
     assert!(beyond.contains("lies beyond the take's 101 frames"), "{beyond}");
 }
+
+/// A project of the 27-joint h36m model (saved before its skeleton kept `Spine`) still makes
+/// its take: held frames saved on 27 joints come out where that skeleton put them (`Spine` back
+/// at the hips, with no turn of its own), and a key pose saved on 27 joints is reached.
+#[test]
+fn poses_saved_before_the_h36m_skeleton_kept_spine_still_hold() {
+    use glocal::motion::LocalPose;
+    use glocal::synth::held_frames::{HeldFrames, HeldStretch};
+    use glocal::synth::{Key, KeySource};
+    use std::sync::Arc;
+    let model = model("h36m");
+    let skeleton = &model.spec.layout.skeleton;
+    let spine = skeleton.names().iter().position(|n| n == "Spine").expect("h36m's model keeps Spine");
+    let kept: Vec<usize> = (0..skeleton.len()).filter(|&j| j != spine).collect();
+    let old = Arc::new(skeleton.subset(&kept));
+    let base = GenerateOptions { timeline: "walking:4,sitting:4".parse().unwrap(), ..Default::default() };
+    let free = take(&model, &base).motion;
+    // Frames as the 27-joint model saved them: a root position and a turn per joint of its own.
+    let poses = &free.local_poses.as_ref().expect("a take has bone rotations")[20..60];
+    let saved: Vec<Vec<f32>> = poses.iter().map(|p| p.translations[0].to_array().into_iter().chain(kept.iter().flat_map(|&j| p.rotations[j].to_array())).collect()).collect();
+    let shown = Motion::from_local_poses(
+        old.clone(),
+        free.fps,
+        poses
+            .iter()
+            .map(|p| {
+                let mut translations = old.offsets().to_vec();
+                translations[0] = p.translations[0];
+                LocalPose { rotations: kept.iter().map(|&j| p.rotations[j]).collect(), translations }
+            })
+            .collect(),
+    );
+    let key: Vec<[f32; 3]> = kept.iter().map(|&j| free.frame(150)[j].to_array()).collect();
+    let opts = GenerateOptions {
+        keys: vec![Key { seconds: 6.0, source: KeySource::Pose(key.clone()), fix_root: true }],
+        held: vec![HeldStretch { first_frame: 20, frames: Arc::new(HeldFrames::Poses(saved)) }],
+        ..base.clone()
+    };
+    let made = take(&model, &opts).motion;
+    let mm = 1000.0 * skeleton.meters_per_unit();
+    let mut held_miss = 0.0f32;
+    for f in 0..poses.len() {
+        for (k, &j) in kept.iter().enumerate() {
+            held_miss = held_miss.max(made.frame(20 + f)[j].distance(shown.frame(f)[k]) * mm);
+        }
+        held_miss = held_miss.max(made.frame(20 + f)[spine].distance(made.frame(20 + f)[skeleton.parents()[spine].unwrap()]) * mm);
+    }
+    let key_miss = kept.iter().enumerate().map(|(k, &j)| made.frame(150)[j].distance(glam::Vec3::from(key[k]))).fold(0.0f32, f32::max) * mm;
+    println!("frames saved on 27 joints: held within {held_miss:.3} mm of where the 27-joint skeleton put them; the key within {key_miss:.3} mm");
+    assert!(held_miss < 1.0, "held frames saved on 27 joints come out {held_miss} mm from where they were");
+    assert!(key_miss < 1.0, "a key saved on 27 joints is missed by {key_miss} mm");
+}

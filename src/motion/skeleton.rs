@@ -218,6 +218,38 @@ impl Skeleton {
         (self.offsets[chain].length() >= short && self.children(chain).next().is_some()).then_some(chain)
     }
 
+    /// The joints that only turn a chain ([`Self::turning_chain`], at [`SHORT_BONE_FRACTION`]
+    /// of the longest bone).
+    pub fn turning_joints(&self) -> Vec<usize> {
+        let short = self.longest_bone() * SHORT_BONE_FRACTION;
+        (0..self.len()).filter(|&j| self.turning_chain(j, short).is_some()).collect()
+    }
+
+    /// A frame of `width` numbers per joint saved on this skeleton before it kept the joints
+    /// that only turn a chain ([`Self::turning_joints`]: Human3.6M's `Spine`, a model joint
+    /// since 2026-12-03), with each such joint put back as `missing` makes it from its
+    /// parent's numbers. None when the frame is not one of those (it has another length, or
+    /// the skeleton has no such joint).
+    pub fn with_turning_joints(&self, frame: &[f32], width: usize, missing: impl Fn(&[f32]) -> Vec<f32>) -> Option<Vec<f32>> {
+        let turning = self.turning_joints();
+        if turning.is_empty() || frame.len() != width * (self.len() - turning.len()) {
+            return None;
+        }
+        let mut saved = frame.chunks_exact(width);
+        let mut out = Vec::with_capacity(width * self.len());
+        for j in 0..self.len() {
+            match self.parents[j].filter(|_| turning.contains(&j)) {
+                // Parents come before children, so the parent's numbers are already out.
+                Some(p) => {
+                    let parent = out[p * width..(p + 1) * width].to_vec();
+                    out.extend(missing(&parent));
+                }
+                None => out.extend_from_slice(saved.next()?),
+            }
+        }
+        Some(out)
+    }
+
     /// The sub-skeleton of `keep`: ascending indices, each but the first descending from
     /// another kept joint (as a validated model.json's `source_joints` are), so it has one
     /// root. A dropped joint's offset is folded into its kept descendants so rest positions

@@ -127,14 +127,15 @@ impl HeldConstraint {
         let mut poses = vec![None; frames];
         for (k, stretch) in held.iter().enumerate() {
             let what = format!("held stretch {} (frames {}..{})", k + 1, stretch.first_frame, stretch.first_frame + stretch.frames.len());
-            stretch.frames.check(skeleton, &what)?;
-            if stretch.first_frame + stretch.frames.len() > frames {
+            let held = stretch.frames.fitted(skeleton);
+            held.check(skeleton, &what)?;
+            if stretch.first_frame + held.len() > frames {
                 bail!("{what}: lies beyond the take's {frames} frames");
             }
             let j = skeleton.len();
-            let world = stretch.frames.positions(skeleton, spec.fps);
-            let locals = stretch.frames.local_poses(skeleton);
-            for f in 0..stretch.frames.len() {
+            let world = held.positions(skeleton, spec.fps);
+            let locals = held.local_poses(skeleton);
+            for f in 0..held.len() {
                 let at = stretch.first_frame + f;
                 if positions[at].is_some() {
                     bail!("{what}: overlaps another held stretch at frame {at}");

@@ -1,6 +1,7 @@
 //! The frames a request holds from an earlier take (see [`super::held`]): plain data the
 //! generation options carry and projects save.
 
+use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::Arc;
 
@@ -19,9 +20,10 @@ pub struct HeldStretch {
 }
 
 impl HeldStretch {
-    /// Whether its frames are frames of `skeleton` (a model switch leaves the other model's).
+    /// Whether its frames are frames of `skeleton`, or were before it kept the joints that only
+    /// turn a chain ([`HeldFrames::fitted`]); a model switch leaves the other model's.
     pub fn fits(&self, skeleton: &Skeleton) -> bool {
-        self.frames.check(skeleton, "held stretch").is_ok()
+        self.frames.fitted(skeleton).check(skeleton, "held stretch").is_ok()
     }
 }
 
@@ -53,6 +55,23 @@ impl HeldFrames {
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// The frames on `skeleton`: as they are, or, saved before the skeleton kept the joints that
+    /// only turn a chain ([`Skeleton::with_turning_joints`]: a project of Human3.6M's 27-joint
+    /// model), with each such joint put back at its parent (positions) and with no turn of its
+    /// own (poses: the chain it turns keeps its saved turn from the parent, which it now takes
+    /// from that joint).
+    pub fn fitted(&self, skeleton: &Skeleton) -> Cow<'_, HeldFrames> {
+        let identity = |_: &[f32]| Quat::IDENTITY.to_array().to_vec();
+        let frames = match self {
+            HeldFrames::Poses(f) => f.iter().map(|f| f.get(3..).and_then(|turns| skeleton.with_turning_joints(turns, 4, identity)).map(|turns| [&f[..3], &turns[..]].concat())).collect::<Option<Vec<_>>>().map(HeldFrames::Poses),
+            HeldFrames::Positions(f) => f.iter().map(|f| skeleton.with_turning_joints(f, 3, <[f32]>::to_vec)).collect::<Option<Vec<_>>>().map(HeldFrames::Positions),
+        };
+        match frames {
+            Some(frames) if !self.is_empty() => Cow::Owned(frames),
+            _ => Cow::Borrowed(self),
+        }
     }
 
     /// Checks each frame's numbers against `skeleton`: their count, and that all are finite.

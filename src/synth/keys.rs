@@ -61,10 +61,14 @@ pub fn key_pose(model: &GlocalModel, key: &Key, init: &InitPose) -> Result<Vec<V
     let joints = spec.layout.joints();
     let pose = match &key.source {
         KeySource::Pose(p) => {
-            if p.len() != joints || p.iter().flatten().any(|v| !v.is_finite()) {
+            let flat: Vec<f32> = p.iter().flatten().copied().collect();
+            // A pose saved before the skeleton kept the joints that only turn a chain (a project
+            // of Human3.6M's 27-joint model) has each put back at its parent.
+            let flat = spec.layout.skeleton.with_turning_joints(&flat, 3, <[f32]>::to_vec).unwrap_or(flat);
+            if flat.len() != 3 * joints || flat.iter().any(|v| !v.is_finite()) {
                 bail!("key at {} s: the pose has {} joints; the model's skeleton has {joints} (all finite)", key.seconds, p.len());
             }
-            p.iter().map(|&v| Vec3::from(v)).collect()
+            flat.chunks_exact(3).map(Vec3::from_slice).collect()
         }
         KeySource::Init(InitPose::SeedIndex(i)) => {
             let seed = model.seeds.get(*i).with_context(|| format!("key at {} s: seed {i} does not exist; the seed bank has {} seeds", key.seconds, model.seeds.len()))?;
