@@ -103,7 +103,7 @@ fn contacts_on_real_walking() {
         // 10 s of walking at about one stride a second.
         assert!((7..=13).contains(&phases.len()), "{side:?}: {} stance phases", phases.len());
         // Speeds (m/s, horizontal) of the foot's slowest joint in stance and of the toe in swing.
-        let foot = roles.leg(side).foot_joints();
+        let foot = roles.leg(side).foot_joints(&m.skeleton);
         let unit = m.skeleton.meters_per_unit();
         let flat_speed = |t: usize, j: usize| {
             let d = m.frame(t + 1)[j] - m.frame(t)[j];
@@ -146,7 +146,7 @@ fn foot_lock_plants_generated_walking() {
         }
         let floor = motion.floor_height();
         for side in Side::BOTH {
-            let foot = roles.leg(side).foot_joints();
+            let foot = roles.leg(side).foot_joints(&motion.skeleton);
             let phases = runs(g.contacts.side(side));
             // At least a few steps to judge (a take can have stretches with both feet in the air).
             assert!(phases.len() >= 3, "{name} {side:?}: {} stance phases in 8 s of walking", phases.len());

@@ -78,8 +78,8 @@ fn each_handle_poses_real_frames_of_both_models() {
             // What each drag leaves where it was.
             let kept: Vec<usize> = match effector {
                 Effector::Hand(side) => vec![other_hand(&roles, side), roles.left.ankle, roles.right.ankle],
-                Effector::Foot(side) => roles.leg(other(side)).foot_joints(),
-                Effector::Head | Effector::Hips => roles.left.foot_joints().into_iter().chain(roles.right.foot_joints()).collect(),
+                Effector::Foot(side) => roles.leg(other(side)).foot_joints(skeleton),
+                Effector::Head | Effector::Hips => roles.left.foot_joints(skeleton).into_iter().chain(roles.right.foot_joints(skeleton)).collect(),
             };
             let moved = kept.iter().map(|&j| posed[j].distance(frame[j])).fold(0.0, f32::max) / mm;
             let hips = posed[roles.body_root].distance(frame[roles.body_root]) / mm;
@@ -297,7 +297,7 @@ fn off_the_handles_the_view_orbits_and_the_hips_make_a_root_key() {
     assert!(keys[0].fix_root, "dragging the hips fixes where the body stands");
     let KeySource::Pose(pose) = &keys[0].source else { panic!("a posed key holds its pose") };
     let pose: Vec<Vec3> = pose.iter().map(|p| Vec3::from(*p)).collect();
-    let feet: Vec<usize> = roles.left.foot_joints().into_iter().chain(roles.right.foot_joints()).collect();
+    let feet: Vec<usize> = roles.left.foot_joints(&take.skeleton).into_iter().chain(roles.right.foot_joints(&take.skeleton)).collect();
     let feet_moved = feet.iter().map(|&j| pose[j].distance(take.frame(frame)[j])).fold(0.0, f32::max) * unit;
     let lowered = hips.y - pose[roles.body_root].y * unit;
     println!("the hips dragged {:.1} cm down, the feet within {:.4} mm of where they were", lowered * 100.0, feet_moved * 1000.0);

@@ -100,7 +100,7 @@ impl Pool {
         if frames < 4 {
             return;
         }
-        let feet: Vec<usize> = Side::BOTH.iter().flat_map(|&s| roles.leg(s).foot_joints()).collect();
+        let feet: Vec<usize> = Side::BOTH.iter().flat_map(|&s| roles.leg(s).foot_joints(&m.skeleton)).collect();
         let lowest: Vec<f32> = (0..frames).map(|t| feet.iter().map(|&j| p[t * n + j].y).fold(f32::INFINITY, f32::min)).collect();
         let floor = quantile(&lowest, FLOOR_QUANTILE);
         self.add_feet(&p, n, &feet, &lowest, floor);

@@ -150,7 +150,7 @@ impl GlocalModel {
         let frames = spec.context + gap + known_after;
         let mut residual = vec![0.0; frames * dim];
         block.infer(&mut BlockWorkspace::default(), &input, None, 1, frames, &mut residual);
-        let mut feats: Vec<f32> = input.chunks_exact(dim + GAP_CHANNELS).flat_map(|row| row[..dim].to_vec()).collect();
+        let mut feats: Vec<f32> = input.chunks_exact(dim + GAP_CHANNELS).flat_map(|row| row[..dim].iter().copied()).collect();
         feats.iter_mut().zip(residual.iter().zip(gap_gain(spec, gap, frames))).for_each(|(f, (r, g))| *f += r * g);
         let positions = fill_frames(layout, norm, feats, layout.placement(before), spec.context, gap, ahead[0]);
         Some(positions[spec.context * j..(spec.context + gap) * j].to_vec())

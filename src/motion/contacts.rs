@@ -1,5 +1,5 @@
 //! Foot contacts: per foot and frame, whether the foot stands on the floor. A foot is its
-//! ankle, toe and toe tip ([`Leg::foot_joints`]); its height is its lowest joint's above the
+//! ankle and every joint under it ([`Leg::foot_joints`]); its height is its lowest joint's above the
 //! floor and its speed its slowest joint's (so a heel rising at toe-off still counts as
 //! standing on the toe). Contact begins when the foot is low and slow, and ends only when it
 //! is clearly high or fast (hysteresis); runs and gaps shorter than a few frames are removed,
@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 
-use super::{JointRoles, Leg, Motion, Side, Skeleton};
+use super::{JointRoles, Leg, Motion, Side};
 
 /// Thresholds in metres and metres per second (scaled by the skeleton's unit).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,16 +89,9 @@ fn seat_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
     (0..motion.frames()).map(|t| hips.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min) - seat_depth).collect()
 }
 
-/// The joints of a foot that can stand on the floor: the ankle and every joint under it (toes,
-/// toe tip, and a heel where a rig has one: a Rigify metarig's `heel.02` hangs under its ankle,
-/// beside the toes, and is the foot's lowest point when it stands flat).
-pub fn sole_joints(skeleton: &Skeleton, ankle: usize) -> Vec<usize> {
-    (0..skeleton.len()).filter(|&j| j == ankle || skeleton.is_ancestor(ankle, j)).collect()
-}
-
-/// The height of each frame's lowest foot joint ([`sole_joints`]), in the motion's units.
+/// The height of each frame's lowest foot joint ([`Leg::foot_joints`]), in the motion's units.
 pub fn lowest_foot_heights(motion: &Motion, roles: &JointRoles) -> Vec<f32> {
-    let joints: Vec<usize> = Side::BOTH.iter().flat_map(|&s| sole_joints(&motion.skeleton, roles.leg(s).ankle)).collect();
+    let joints: Vec<usize> = Side::BOTH.iter().flat_map(|&s| roles.leg(s).foot_joints(&motion.skeleton)).collect();
     (0..motion.frames()).map(|t| joints.iter().map(|&j| motion.frame(t)[j].y).fold(f32::INFINITY, f32::min)).collect()
 }
 
@@ -162,7 +155,7 @@ struct Ground<'a> {
 /// One foot's contacts over `ground`, with the body moving at `body` (one each per frame).
 fn leg_contacts(motion: &Motion, leg: &Leg, ground: &Ground<'_>, body: &[f32], cfg: &ContactConfig) -> Vec<bool> {
     let unit = motion.skeleton.meters_per_unit();
-    let joints = sole_joints(&motion.skeleton, leg.ankle);
+    let joints = leg.foot_joints(&motion.skeleton);
     let frames = motion.frames();
     let mut out = Vec::with_capacity(frames);
     let mut on = false;

@@ -27,11 +27,11 @@ pub struct Leg {
 }
 
 impl Leg {
-    /// The joints that can touch the floor: ankle, toe and toe tip. A rig's foot may hold
-    /// more (a heel beside the toes); the floor and contacts read all of them
-    /// ([`super::contacts::sole_joints`]).
-    pub fn foot_joints(&self) -> Vec<usize> {
-        [Some(self.ankle), self.toe, self.toe_end].into_iter().flatten().collect()
+    /// The joints that can touch the floor: the ankle and every joint under it (toes, toe tip,
+    /// and a heel where a rig has one: a Rigify metarig's `heel.02` hangs under its ankle,
+    /// beside the toes, and is the foot's lowest point when it stands flat).
+    pub fn foot_joints(&self, skeleton: &Skeleton) -> Vec<usize> {
+        skeleton.subtree(self.ankle)
     }
 }
 

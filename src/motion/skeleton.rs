@@ -161,6 +161,11 @@ impl Skeleton {
     }
 
     /// Whether `joint` is `ancestor` or hangs below it.
+    /// `joint` and every joint under it, in index order.
+    pub fn subtree(&self, joint: usize) -> Vec<usize> {
+        (0..self.len()).filter(|&j| j == joint || self.is_ancestor(joint, j)).collect()
+    }
+
     pub fn is_ancestor(&self, ancestor: usize, joint: usize) -> bool {
         self.depth_below(joint, ancestor).is_some()
     }

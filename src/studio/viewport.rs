@@ -225,7 +225,7 @@ impl LayerInfo {
         }
         let centre_height = (centre_sum / frames.max(1) as f64) as f32;
         let head = roles.as_ref().and_then(|r| Some((r.head, skeleton.parents()[r.head]?, r.head_end.filter(|&c| long(c)))));
-        let feet = Side::BOTH.map(|side| roles.as_ref().map_or_else(Vec::new, |r| r.leg(side).foot_joints()));
+        let feet = Side::BOTH.map(|side| roles.as_ref().map_or_else(Vec::new, |r| r.leg(side).foot_joints(skeleton)));
         let rig = PoseRig::new(skeleton).ok();
         Self { motion: motion.clone(), ground, centre_height, min, max, root, joints, bones, head, feet, rig }
     }

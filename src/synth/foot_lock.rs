@@ -159,7 +159,7 @@ fn carried_by_feet(motion: &Motion, roles: &JointRoles, contacts: &FootContacts,
     let carrying = |side: Side| {
         let leg = roles.leg(side);
         let contact = eased(runs(contacts.side(side)), frames, (CARRY_EASE_SECONDS * motion.fps).max(1.0));
-        let foot = leg.foot_joints();
+        let foot = leg.foot_joints(&motion.skeleton);
         (0..frames)
             .map(|t| {
                 let height = foot.iter().map(|&j| motion.frame(t)[j].y * unit).fold(f32::INFINITY, f32::min);

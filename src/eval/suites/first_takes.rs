@@ -163,7 +163,7 @@ fn feet_on_the_floor(m: &Motion, contacts: &crate::motion::contacts::FootContact
     let longest = runs(&floating).iter().map(|(s, e)| e - s).max().unwrap_or(0) as f32 / m.fps;
     let (mut planted, mut off) = (0usize, 0usize);
     for side in Side::BOTH {
-        let foot = roles.leg(side).foot_joints();
+        let foot = roles.leg(side).foot_joints(&m.skeleton);
         for (t, _) in contacts.side(side).iter().enumerate().filter(|(_, &c)| c) {
             planted += 1;
             off += usize::from(up(foot.iter().map(|&j| m.frame(t)[j].y).fold(f32::INFINITY, f32::min)));

@@ -16,7 +16,7 @@
 
 use glam::{Quat, Vec3};
 
-use super::super::contacts::{box_average, foot_contacts, sole_joints, ContactConfig};
+use super::super::contacts::{box_average, foot_contacts, ContactConfig};
 use super::super::keys::{Key, KeyJoints};
 use super::super::ik::two_bone;
 use super::super::{JointRoles, LocalPose, Leg, Motion, Skeleton};
@@ -37,7 +37,7 @@ struct LegJoints {
 
 impl LegJoints {
     fn new(skeleton: &Skeleton, [socket, knee, ankle]: [usize; 3]) -> LegJoints {
-        LegJoints { socket, knee, ankle, foot: sole_joints(skeleton, ankle) }
+        LegJoints { socket, knee, ankle, foot: skeleton.subtree(ankle) }
     }
 
     /// Socket to ankle in `frame`.
