@@ -22,6 +22,9 @@ use crate::synth::{generate, GenerateOptions, InitPose, Segment, Timeline};
 const HELD_OUT_CONTENT: &str = "bye";
 /// Generated takes per class and style.
 const TAKES: usize = 4;
+/// Where each take is scored: the window right after the seed, and after a 2 s transition
+/// from the seed's own style (as class control is scored after 2 s from another class's seed).
+const SETTLE_SECONDS: [f32; 2] = [0.0, 2.0];
 
 /// Each Bandai class's generated joint speed in each style against its training clips of that
 /// style (Bandai's byebye waves at 0.02 m/s sad and 0.71 active: judged per style, a class's
@@ -85,47 +88,58 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     let cfg = ClassifierConfig::default();
     let reference = Classifier::load_or_train(&style_corpus(&corpus, &styles, Some(HELD_OUT_CONTENT)), &cfg, &ctx.options.cache, "style-classifier-held-out-bye", log)?;
     let clf = Classifier::load_or_train(&style_corpus(&corpus, &styles, None), &cfg, &ctx.options.cache, "style-classifier-every-content", log)?;
+    // The class classifier of the class-control suite: does a style cost the take its class?
+    let class_clf = Classifier::load_or_train(&corpus, &cfg, &ctx.options.cache, &format!("classifier-{}", Dataset::Combined), log)?;
     let bandai_classes: Vec<usize> = (0..spec.classes.len()).filter(|&c| spec.class_sources.get(c).is_some_and(|s| s.contains("bandai"))).collect();
     log("styles: generating");
-    let mut hits = vec![vec![0usize; styles.len()]; bandai_classes.len()];
+    // Per settle, per class and style: takes whose style was recognised.
+    let mut hits = vec![vec![vec![0usize; styles.len()]; bandai_classes.len()]; SETTLE_SECONDS.len()];
+    // Per class and style: takes whose class was recognised after the transition.
+    let mut class_hits = vec![vec![0usize; styles.len()]; bandai_classes.len()];
     // Joint speed (m/s) of each class's generated takes in each style, summed over the takes.
     let mut speeds = vec![vec![0.0f32; styles.len()]; bandai_classes.len()];
     let seed_frames = spec.block_len * spec.stride;
-    let seconds = (seed_frames + cfg.frames + 2 * spec.stride) as f32 / spec.fps;
+    let settle_frames = SETTLE_SECONDS.map(|s| (s * spec.fps).round() as usize);
+    let seconds = (seed_frames + settle_frames[1] + cfg.frames + 2 * spec.stride) as f32 / spec.fps;
     for (row, &class) in bandai_classes.iter().enumerate() {
         for (label, &style) in styles.iter().enumerate() {
             for v in 0..TAKES {
                 let segment = Segment { style: Some(spec.styles[style].clone()), ..Segment::new(spec.classes[class].clone(), seconds) };
                 let opts = GenerateOptions { timeline: Timeline { segments: vec![segment] }, init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: v }, ..ctx.generation.clone() }.varied(1 + v as u64);
                 let take = generate(&model, &opts, &mut |_| true)?;
-                let predicted = clf.predict(&[clf.clip(&take.motion, seed_frames)])?[0];
-                hits[row][label] += usize::from(predicted == label);
+                let clips: Vec<Vec<f32>> = settle_frames.iter().map(|&s| clf.clip(&take.motion, seed_frames + s)).collect();
+                for (settle, predicted) in clf.predict(&clips)?.into_iter().enumerate() {
+                    hits[settle][row][label] += usize::from(predicted == label);
+                }
+                let settled = class_clf.clip(&take.motion, seed_frames + settle_frames[1]);
+                class_hits[row][label] += usize::from(class_clf.predict(&[settled])?[0] == class);
                 speeds[row][label] += mean_joint_speed(&take.motion.slice(seed_frames, take.motion.frames())) / TAKES as f32;
             }
         }
     }
     let accuracy = |h: &[usize]| h.iter().sum::<usize>() as f64 / (h.len() * TAKES) as f64;
-    let overall = hits.iter().map(|h| accuracy(h)).sum::<f64>() / hits.len().max(1) as f64;
+    let overall: Vec<f64> = hits.iter().map(|by_class| by_class.iter().map(|h| accuracy(h)).sum::<f64>() / by_class.len().max(1) as f64).collect();
     let mut md = Markdown::new(format!(
-        "Style control ({}, class strength {}): a GRU style classifier ({} frames at {} fps) trained on Bandai's training clips by style ({} styles; chance {:.3}). The same classifier trained without the content '{HELD_OUT_CONTENT}' recognises the style of its real clips at {:.3} ({} windows): the classifier's own reliability on unseen clips. Each of Bandai's {} classes generated {TAKES} times in each style from its own seed, scored on the {} frames after the seed.\n\n",
-        dir.display(), ctx.generation.class_strength_for(&spec), cfg.frames, spec.fps, styles.len(), 1.0 / styles.len() as f64, reference.record.test_accuracy, reference.record.test_windows, bandai_classes.len(), cfg.frames
+        "Style control ({}, class strength {}): a GRU style classifier ({} frames at {} fps) trained on Bandai's training clips by style ({} styles; chance {:.3}). The same classifier trained without the content '{HELD_OUT_CONTENT}' recognises the style of its real clips at {:.3} ({} windows): the classifier's own reliability on unseen clips. Each of Bandai's {} classes generated {TAKES} times in each style from its own seed (a clip of any style), scored on the {} frames right after the seed and on those after a {} s transition.\n\n",
+        dir.display(), ctx.generation.class_strength_for(&spec), cfg.frames, spec.fps, styles.len(), 1.0 / styles.len() as f64, reference.record.test_accuracy, reference.record.test_windows, bandai_classes.len(), cfg.frames, SETTLE_SECONDS[1]
     ));
-    let mut table = Table::new(["class", "style recognised"]);
+    let kept: Vec<f64> = class_hits.iter().map(|h| accuracy(h)).collect();
+    let kept_overall = kept.iter().sum::<f64>() / kept.len().max(1) as f64;
+    let mut table = Table::new(["class", "style recognised, right after the seed", "after a 2 s transition", "class recognised after 2 s (class-control classifier)"]);
     for (row, &class) in bandai_classes.iter().enumerate() {
-        table.row([spec.classes[class].clone(), f(accuracy(&hits[row]), 2)]);
+        table.row([spec.classes[class].clone(), f(accuracy(&hits[0][row]), 2), f(accuracy(&hits[1][row]), 2), f(kept[row], 2)]);
     }
-    table.row(["all Bandai classes".to_string(), f(overall, 3)]);
+    table.row(["all Bandai classes".to_string(), f(overall[0], 3), f(overall[1], 3), f(kept_overall, 3)]);
     md.table(table);
-    let per_style: Vec<f64> = (0..styles.len()).map(|l| hits.iter().map(|h| h[l]).sum::<usize>() as f64 / (hits.len() * TAKES) as f64).collect();
+    let per_style: Vec<Vec<f64>> = hits.iter().map(|by_class| (0..styles.len()).map(|l| by_class.iter().map(|h| h[l]).sum::<usize>() as f64 / (by_class.len() * TAKES) as f64).collect()).collect();
     let speed_rows = speed_markdown(&corpus, &spec.classes, &bandai_classes, &styles, &speeds, &mut md);
-    md.text(&format!(
-        "\nPer style: {}\n",
-        styles.iter().zip(&per_style).map(|(&s, a)| format!("{} {a:.2}", spec.styles[s])).collect::<Vec<_>>().join(", ")
-    ));
+    let listed = |accuracies: &[f64]| styles.iter().zip(accuracies).map(|(&s, a)| format!("{} {a:.2}", spec.styles[s])).collect::<Vec<_>>().join(", ");
+    md.text(&format!("\nPer style, right after the seed: {}; after 2 s: {}.\n", listed(&per_style[0]), listed(&per_style[1])));
     Ok((md, json!({
         "model": dir, "styles": styles.iter().map(|&s| spec.styles[s].clone()).collect::<Vec<_>>(),
         "reference_classifier": {"test_accuracy": reference.record.test_accuracy, "test_windows": reference.record.test_windows, "held_out_content": HELD_OUT_CONTENT},
-        "per_class": bandai_classes.iter().zip(&hits).map(|(&c, h)| json!({"class": spec.classes[c], "accuracy": accuracy(h)})).collect::<Vec<_>>(),
-        "per_style": per_style, "accuracy": overall, "speed_per_style": speed_rows,
+        "settle_seconds": SETTLE_SECONDS,
+        "per_class": bandai_classes.iter().enumerate().map(|(row, &c)| json!({"class": spec.classes[c], "accuracy": hits.iter().map(|h| accuracy(&h[row])).collect::<Vec<_>>()})).collect::<Vec<_>>(),
+        "per_style": per_style, "accuracy": overall, "class_kept": kept, "class_kept_overall": kept_overall, "speed_per_style": speed_rows,
     })))
 }
