@@ -18,7 +18,7 @@ use crate::eval::metrics::{self, HORIZONS_MS};
 use crate::eval::table::{fixed as f, Markdown, Table};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
-use crate::model::spec::{LossKind, ModelSpec};
+use crate::model::spec::{LossKind, ModelSpec, SeamJoin};
 use crate::model::train::{train, Stage, TrainOptions};
 
 /// One GloGen the CMU suite trains and forecasts with.
@@ -34,38 +34,46 @@ struct CmuGlogen {
     paper: bool,
     /// Poses predicted as offsets from the last observed one ([`crate::model::spec::GloGenSpec::residual`]).
     residual: bool,
+    /// The shipped design's GloGen fine-tuned on its blocks joined two-sided at their seams
+    /// ([`crate::model::spec::GloGenSpec::joined`]), as the shipped models are.
+    joined: bool,
 }
 
-/// The paper's GloGen and its three ablations, then the design the shipped models use.
-const GLOGEN_VARIANTS: [CmuGlogen; 6] = [
-    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false },
-    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false },
-    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false },
-    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false },
-    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false },
-    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true },
+/// The paper's GloGen and its three ablations, then the design the shipped models use (the
+/// joined one fine-tunes the one before it, so it comes after it).
+const GLOGEN_VARIANTS: [CmuGlogen; 7] = [
+    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false, joined: false },
+    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false, joined: false },
+    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false, joined: false },
+    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false, joined: false },
+    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, joined: false },
+    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, joined: true },
+    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, joined: false },
 ];
 const CMU_STRIDE: usize = 2;
 /// Validation error was still falling at 1200 steps (the budget when GloGen trained at a
 /// tenth of today's speed); by 6000 it has levelled off and a GloGen trains in 2-3 minutes.
 const CMU_GLOGEN_STEPS: usize = 6000;
+/// The joined fine-tuning's steps, as the shipped `all` model's (2000 after its GloGen).
+const CMU_JOINED_STEPS: usize = 2000;
 const CMU_CONTEXT: usize = 21;
 const CMU_HORIZON: usize = 20;
 const CMU_WINDOWS_PER_CLASS: usize = 64;
 
 fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
     let dir = opts.cache.join(format!("glogen-{}{}", dataset.name(), variant.suffix));
-    let done = ModelSpec::read(&dir).ok().and_then(|s| s.training.glogen).is_some_and(|r| r.steps >= CMU_GLOGEN_STEPS);
+    let steps = if variant.joined { CMU_JOINED_STEPS } else { CMU_GLOGEN_STEPS };
+    let done = ModelSpec::read(&dir).ok().and_then(|s| s.training.glogen).is_some_and(|r| r.steps >= steps);
     if done {
         return Ok(dir);
     }
     if !opts.train_baselines {
         bail!("{} is not trained yet; run with --train-baselines", dir.display());
     }
-    log(&format!("training {} on {dataset} into {} ({CMU_GLOGEN_STEPS} steps)", variant.label, dir.display()));
+    log(&format!("training {} on {dataset} into {} ({steps} steps)", variant.label, dir.display()));
     let mut t = TrainOptions::new(dataset, Stage::Glogen, dir.clone());
     t.data = opts.data.clone();
-    t.steps = CMU_GLOGEN_STEPS;
+    t.steps = steps;
     t.shape.stride = CMU_STRIDE;
     t.shape.block_len = 10;
     t.shape.hidden = 128;
@@ -73,6 +81,11 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     t.shape.loss = variant.loss;
     t.shape.use_class = variant.use_class;
     t.shape.residual = variant.residual;
+    if variant.joined {
+        t.init_from = Some(opts.cache.join(format!("glogen-{}-shipped", dataset.name())));
+        t.shape.joined = true;
+        t.shape.seam_join = SeamJoin::TwoSided;
+    }
     if variant.paper {
         t.shape.class_in_decoder = false;
         t.shape.class_dropout = 0.0;
