@@ -261,29 +261,37 @@ fn transitions_act_on_a_boundary_at_a_block_seam() {
     assert!(largest_difference(&long, &blend) > 0.02);
 }
 
+/// A ten-minute take of one class from its first seed: its slowest and fastest 10 s windows
+/// against the class's mean joint speed in the training data (once the seed's block is
+/// over), and its longest exact repeat with its lag (heading-invariant poses within 5 mm for
+/// over 1 s at a lag of 1 s or more).
+fn ten_minutes(m: &mut GlocalModel, class: usize) -> ((f32, f32), (f32, f32)) {
+    let class_name = m.spec.classes[class].clone();
+    let window = (10.0 * m.spec.fps) as usize;
+    let o = GenerateOptions { init: InitPose::SeedClass { class: class_name.clone(), variant: 0 }, ..opts(&format!("{class_name}:600")) };
+    let motion = generate(m, &o, &mut |_| true).unwrap().motion;
+    let start = m.spec.block_len * m.spec.stride;
+    let ratios: Vec<f32> = (start..motion.frames() - window).step_by(window).map(|f| mean_joint_speed(&motion.slice(f, f + window)) / m.spec.class_speed[class]).collect();
+    let speeds = (ratios.iter().cloned().fold(f32::MAX, f32::min), ratios.iter().cloned().fold(0.0, f32::max));
+    (speeds, glocal::eval::motion::longest_repeat(&motion))
+}
+
 /// Ten minutes of one class, for every class of both models: no stretch of poses repeats
-/// exactly (heading-invariant poses within 5 mm for over 1 s at a lag of 1 s or more), and
-/// no 10 s window freezes or explodes against the class's mean joint speed in the training
-/// data (once the seed's block is over).
+/// exactly, and no 10 s window freezes or explodes against the class's training speed.
 #[test]
 fn ten_minute_takes_stay_at_their_class_speed() {
     // The issue's bounds: no class repeats itself, and every 10 s window runs at 0.5-2x its
-    // class's training speed. Measured on the shipped models: h36m 0.50-1.67x (its greeting
-    // the slowest, its eating the fastest), Bandai 0.59-1.52x (its guiding the slowest, its
-    // bowing the fastest).
+    // class's training speed. Measured on the shipped models: h36m 0.51-1.66x (its posing
+    // and greeting the slowest, its eating the fastest), Bandai 0.57-1.66x (its guiding the
+    // slowest, its bowing the fastest).
     let mut failures = Vec::new();
-    // The model of everything is measured in docs/RESULTS.md and left out: its ten-minute
-    // sittingdown runs at up to 2.63x, its soccer at 0.43x, its walk repeats (issue 35).
+    // The model of everything is measured in docs/RESULTS.md and left out but for its walks
+    // (below): its ten-minute sittingdown runs at up to 3.56x, its soccer at 0.45x (issue 35).
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
-        let window = (10.0 * m.spec.fps) as usize;
-        for (class, class_name) in m.spec.classes.clone().iter().enumerate() {
-            let o = GenerateOptions { init: InitPose::SeedClass { class: class_name.clone(), variant: 0 }, ..opts(&format!("{class_name}:600")) };
-            let motion = generate(&mut m, &o, &mut |_| true).unwrap().motion;
-            let start = m.spec.block_len * m.spec.stride;
-            let ratios: Vec<f32> = (start..motion.frames() - window).step_by(window).map(|f| mean_joint_speed(&motion.slice(f, f + window)) / m.spec.class_speed[class]).collect();
-            let (lo, hi) = (ratios.iter().cloned().fold(f32::MAX, f32::min), ratios.iter().cloned().fold(0.0, f32::max));
-            let (repeat, lag) = glocal::eval::motion::longest_repeat(&motion);
+        for class in 0..m.spec.classes.len() {
+            let ((lo, hi), (repeat, lag)) = ten_minutes(&mut m, class);
+            let class_name = &m.spec.classes[class];
             eprintln!("{name} {class_name}: 10 s windows at {lo:.2}-{hi:.2}x the training speed; longest exact repeat {repeat:.1} s (lag {lag:.1} s)");
             if repeat > 0.0 {
                 failures.push(format!("{name} {class_name}: repeats itself for {repeat:.1} s at a lag of {lag:.1} s"));
@@ -294,4 +302,19 @@ fn ten_minute_takes_stay_at_their_class_speed() {
         }
     }
     assert!(failures.is_empty(), "outside 0.5-2x or repeating: {failures:?}");
+}
+
+/// The model of everything's ten-minute walks do not repeat themselves. Their loops were
+/// judged in normalised features, where joints that barely move against the hips weigh most:
+/// its walk repeated 12.1 s of itself at a lag of 174 s, and its walk to the right 2.7 s,
+/// each within millimetres while the loop guard read them 1.3x or more over its tolerance.
+#[test]
+fn the_model_of_everythings_ten_minute_walks_do_not_repeat() {
+    let mut m = model("all");
+    for class_name in ["walking", "walk-back", "walk-left", "walk-right", "running"] {
+        let class = m.spec.class_index(class_name).unwrap();
+        let ((lo, hi), (repeat, lag)) = ten_minutes(&mut m, class);
+        eprintln!("all {class_name}: 10 s windows at {lo:.2}-{hi:.2}x the training speed; longest exact repeat {repeat:.1} s (lag {lag:.1} s)");
+        assert_eq!(repeat, 0.0, "{class_name} repeats itself for {repeat:.1} s at a lag of {lag:.1} s");
+    }
 }

@@ -79,8 +79,8 @@ const SLOW_TAKE_STRENGTH: std::ops::Range<f32> = 0.8..0.95;
 /// The rollout is deterministic, so a take that moves at its class's pace can still settle
 /// into a loop: a steady walk became one gait cycle repeated exactly for six minutes. When
 /// the last half block of poses comes back to an earlier stretch within this fraction of
-/// the class's typical step (per pose, over the joint features), keep-alive leans the
-/// context towards a seed window as it does for a stalled take.
+/// the class's typical step (per pose, over the joints, in the skeleton's units), keep-alive
+/// leans the context towards a seed window as it does for a stalled take.
 const LOOP_TOLERANCE: f32 = 0.25;
 
 /// A context being eased towards a real window of its class, by a growing share at each of
@@ -169,7 +169,7 @@ impl Steering {
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
         let leaning = self.easing.as_ref().is_some_and(|e| !e.change);
-        let looping = may_keep_alive && (self.easing.is_none() || leaning) && repeats_earlier(sparse, dim, t / 2, t, LOOP_TOLERANCE * self.bank.typical[plan.target]);
+        let looping = may_keep_alive && (self.easing.is_none() || leaning) && repeats_earlier(sparse, &self.bank.spread, t / 2, t, LOOP_TOLERANCE * self.bank.typical_step[plan.target]);
         // A class change waits for the easing into the class before it, unless that would
         // leave its segment, longer than a block, no block of its own: a 6 s walk at pace 2
         // between two segments at pace 0.5 has one block, which the first segment's easing
@@ -260,7 +260,17 @@ fn anchor_draws(seed: u64) -> StdRng {
 struct AnchorBank {
     /// Per class: (normalised window, its motion), in seed-bank order.
     windows: Vec<Vec<(Vec<f32>, f32)>>,
+    /// Per class: the mean motion of its windows (normalised features).
     typical: Vec<f32>,
+    /// Per class: the mean step between its windows' poses in the skeleton's units, which
+    /// loops are judged against: in normalised features a joint that barely moves against
+    /// the hips (`all`'s shoulders spread 5-13 mm) counts its millimetres as much as a hand
+    /// its decimetres, and a ten-minute walk that repeated itself for 12 s within 5 mm read
+    /// as 1.3x the tolerance.
+    typical_step: Vec<f32>,
+    /// The sparse features' spread, which takes a normalised difference back to the
+    /// skeleton's units.
+    spread: Vec<f32>,
 }
 
 impl AnchorBank {
@@ -275,8 +285,11 @@ impl AnchorBank {
                 w.push((window, motion));
             }
         }
-        let typical = windows.iter().map(|w| if w.is_empty() { 0.0 } else { w.iter().map(|(_, m)| m).sum::<f32>() / w.len() as f32 }).collect();
-        Self { windows, typical }
+        let spread = model.spec.sparse_norm.std.clone();
+        let mean = |values: Vec<f32>| if values.is_empty() { 0.0 } else { values.iter().sum::<f32>() / values.len() as f32 };
+        let typical = windows.iter().map(|w| mean(w.iter().map(|(_, m)| *m).collect())).collect();
+        let typical_step = windows.iter().map(|w| mean(w.iter().map(|(window, _)| skeleton_step(window, &spread)).collect())).collect();
+        Self { windows, typical, typical_step, spread }
     }
 
     /// A random window of `class` whose motion is in `wanted` (a keep-alive wants a window
@@ -313,24 +326,41 @@ fn distance2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum()
 }
 
+/// The squared distance between the joints of two normalised poses, in the skeleton's units
+/// (`spread`: the features' standard deviations).
+fn joint_distance2(a: &[f32], b: &[f32], spread: &[f32]) -> f32 {
+    let joints = ROOT_FEATURES..a.len();
+    a[joints.clone()].iter().zip(&b[joints.clone()]).zip(&spread[joints]).map(|((a, b), s)| ((a - b) * s).powi(2)).sum()
+}
+
+/// The mean step between consecutive poses of a normalised window, over the joints in the
+/// skeleton's units.
+fn skeleton_step(window: &[f32], spread: &[f32]) -> f32 {
+    let poses: Vec<&[f32]> = window.chunks_exact(spread.len()).collect();
+    let steps = poses.windows(2).map(|p| joint_distance2(p[0], p[1], spread).sqrt());
+    steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
+}
+
 /// Whether the last `span` poses of `sparse` (normalised) repeat a stretch of the take at
-/// least `min_lag` poses earlier: the root-mean-square distance between the joint features
-/// of corresponding poses is within `tolerance`. Without the lag a still take would match
-/// the poses just before it and count as a loop. Each candidate stops at the first pose that
-/// puts it out of reach, so the search over the whole take costs about one pose comparison
-/// per earlier pose.
-fn repeats_earlier(sparse: &[f32], dim: usize, span: usize, min_lag: usize, tolerance: f32) -> bool {
+/// least `min_lag` poses earlier: the root-mean-square distance between the joints of
+/// corresponding poses, in the skeleton's units (`spread`: the features' standard
+/// deviations), is within `tolerance`. Without the lag a still take would match the poses
+/// just before it and count as a loop. Each candidate stops at the first pose that puts it
+/// out of reach, so the search over the whole take costs about one pose comparison per
+/// earlier pose.
+fn repeats_earlier(sparse: &[f32], spread: &[f32], span: usize, min_lag: usize, tolerance: f32) -> bool {
+    let dim = spread.len();
     let poses = sparse.len() / dim;
     if span == 0 || poses < span + min_lag.max(span) {
         return false;
     }
-    let joints = |k: usize| &sparse[k * dim + ROOT_FEATURES..(k + 1) * dim];
+    let pose = |k: usize| &sparse[k * dim..(k + 1) * dim];
     let recent = poses - span;
     let budget = tolerance * tolerance * span as f32;
     (0..=recent - min_lag.max(span)).any(|start| {
         let mut total = 0.0;
         (0..span).all(|i| {
-            total += distance2(joints(start + i), joints(recent + i));
+            total += joint_distance2(pose(start + i), pose(recent + i), spread);
             total <= budget
         })
     })
