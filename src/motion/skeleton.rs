@@ -160,12 +160,12 @@ impl Skeleton {
         std::iter::successors(self.parents[joint], |&j| self.parents[j])
     }
 
-    /// Whether `joint` is `ancestor` or hangs below it.
     /// `joint` and every joint under it, in index order.
     pub fn subtree(&self, joint: usize) -> Vec<usize> {
-        (0..self.len()).filter(|&j| j == joint || self.is_ancestor(joint, j)).collect()
+        (0..self.len()).filter(|&j| self.is_ancestor(joint, j)).collect()
     }
 
+    /// Whether `joint` is `ancestor` or hangs below it.
     pub fn is_ancestor(&self, ancestor: usize, joint: usize) -> bool {
         self.depth_below(joint, ancestor).is_some()
     }

@@ -316,8 +316,20 @@ fn raw_block(spec: &crate::model::spec::ModelSpec, previous: &[f32], block: &[f3
 /// Mean distance between consecutive poses of a normalised sparse window, over the joint
 /// features (the root's velocities stay constant in steady walking, so they are left out).
 fn pose_motion(window: &[f32], dim: usize) -> f32 {
+    mean_step(window, dim, |a, b| distance2(&a[ROOT_FEATURES..], &b[ROOT_FEATURES..]))
+}
+
+/// The mean step between consecutive poses of a normalised window, over the joints in the
+/// skeleton's units.
+fn skeleton_step(window: &[f32], spread: &[f32]) -> f32 {
+    mean_step(window, spread.len(), |a, b| joint_distance2(a, b, spread))
+}
+
+/// The mean distance between consecutive poses (`dim` features each) of `window`, by the
+/// squared distance `distance2`.
+fn mean_step(window: &[f32], dim: usize, distance2: impl Fn(&[f32], &[f32]) -> f32) -> f32 {
     let poses: Vec<&[f32]> = window.chunks_exact(dim).collect();
-    let steps = poses.windows(2).map(|p| distance2(&p[0][ROOT_FEATURES..], &p[1][ROOT_FEATURES..]).sqrt());
+    let steps = poses.windows(2).map(|p| distance2(p[0], p[1]).sqrt());
     steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
 }
 
@@ -333,13 +345,6 @@ fn joint_distance2(a: &[f32], b: &[f32], spread: &[f32]) -> f32 {
     a[joints.clone()].iter().zip(&b[joints.clone()]).zip(&spread[joints]).map(|((a, b), s)| ((a - b) * s).powi(2)).sum()
 }
 
-/// The mean step between consecutive poses of a normalised window, over the joints in the
-/// skeleton's units.
-fn skeleton_step(window: &[f32], spread: &[f32]) -> f32 {
-    let poses: Vec<&[f32]> = window.chunks_exact(spread.len()).collect();
-    let steps = poses.windows(2).map(|p| joint_distance2(p[0], p[1], spread).sqrt());
-    steps.sum::<f32>() / (poses.len().max(2) - 1) as f32
-}
 
 /// Whether the last `span` poses of `sparse` (normalised) repeat a stretch of the take at
 /// least `min_lag` poses earlier: the root-mean-square distance between the joints of

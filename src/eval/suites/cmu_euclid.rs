@@ -60,8 +60,13 @@ const CMU_CONTEXT: usize = 21;
 const CMU_HORIZON: usize = 20;
 const CMU_WINDOWS_PER_CLASS: usize = 64;
 
+/// Where the variant with `suffix` is cached.
+fn variant_dir(opts: &SuiteOptions, dataset: Dataset, suffix: &str) -> PathBuf {
+    opts.cache.join(format!("glogen-{}{suffix}", dataset.name()))
+}
+
 fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
-    let dir = opts.cache.join(format!("glogen-{}{}", dataset.name(), variant.suffix));
+    let dir = variant_dir(opts, dataset, variant.suffix);
     let steps = if variant.joined { CMU_JOINED_STEPS } else { CMU_GLOGEN_STEPS };
     let done = ModelSpec::read(&dir).ok().and_then(|s| s.training.glogen).is_some_and(|r| r.steps >= steps);
     if done {
@@ -82,7 +87,7 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     t.shape.use_class = variant.use_class;
     t.shape.residual = variant.residual;
     if variant.joined {
-        t.init_from = Some(opts.cache.join(format!("glogen-{}-shipped", dataset.name())));
+        t.init_from = Some(variant_dir(opts, dataset, "-shipped"));
         t.shape.joined = true;
         t.shape.seam_join = SeamJoin::TwoSided;
     }
