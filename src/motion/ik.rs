@@ -33,6 +33,26 @@ pub fn two_bone(hip: Vec3, target: Vec3, pole: Vec3, upper: f32, lower: f32) -> 
     (knee, ankle)
 }
 
+/// Below this fraction of the leg's length from hip to ankle, a leg is folded (a martial-arts
+/// kick's heel at the hip): the hip-to-ankle line, a few centimetres long, swings from frame
+/// to frame and takes the bending plane [`two_bone`] reads from it along (an `all` kick's
+/// thigh turned 101 degrees in one frame where the network's own turned 27).
+const FOLDED_BELOW: f32 = 0.25;
+
+/// [`two_bone`]'s knee and ankle, with the knee turned towards the leg's own thigh direction
+/// `own_thigh` as the leg folds (fully from half of [`FOLDED_BELOW`]): there the ankle follows
+/// the knee and may miss `target` by the little the fold leaves.
+pub fn two_bone_folding(hip: Vec3, target: Vec3, pole: Vec3, own_thigh: Vec3, upper: f32, lower: f32) -> (Vec3, Vec3) {
+    let (knee, ankle) = two_bone(hip, target, pole, upper, lower);
+    let fold = target.distance(hip) / (upper + lower);
+    let folded = ((FOLDED_BELOW - fold) / (FOLDED_BELOW / 2.0)).clamp(0.0, 1.0);
+    let Some(own) = own_thigh.try_normalize().filter(|_| folded > 0.0) else { return (knee, ankle) };
+    let thigh = ((knee - hip) / upper).lerp(own, folded).try_normalize().unwrap_or(own);
+    let knee = hip + thigh * upper;
+    let shin = (target - knee).try_normalize().unwrap_or(-thigh);
+    (knee, knee + shin * lower)
+}
+
 /// The smallest-effort shift of the hips that brings every `(hip, target, reach)` within
 /// reach: each leg pulls the hips straight towards its target by what it lacks, a few rounds
 /// so two planted legs settle together. Zero when every target is already in reach.
@@ -153,6 +173,31 @@ mod tests {
                 assert!(knee.z > 0.0);
             }
         }
+    }
+
+    /// A kick's heel circling two centimetres from the hip while the thigh points forward: the
+    /// knee stays with the thigh (plain two-bone IK swings it round with the heel), the bones
+    /// keep their lengths, and a leg far from folded is solved as [`two_bone`] solves it.
+    #[test]
+    fn a_folded_leg_keeps_its_knee() {
+        let hip = Vec3::new(0.0, 1.0, 0.0);
+        let thigh = Vec3::new(0.0, 0.0, 0.45);
+        let pole = hip + thigh + Vec3::Z * 0.45;
+        let knees: Vec<Vec3> = (0..12)
+            .map(|k| {
+                let angle = k as f32 * std::f32::consts::TAU / 12.0;
+                let heel = hip + Vec3::new(angle.cos(), angle.sin(), 0.3).normalize() * 0.02;
+                let (knee, ankle) = two_bone_folding(hip, heel, pole, thigh, 0.45, 0.45);
+                assert!((knee.distance(hip) - 0.45).abs() < 1e-4 && (ankle.distance(knee) - 0.45).abs() < 1e-4);
+                knee
+            })
+            .collect();
+        for pair in knees.windows(2) {
+            let turn = (pair[0] - hip).angle_between(pair[1] - hip).to_degrees();
+            assert!(turn < 1.0, "the thigh turned {turn:.1} degrees between two heel positions");
+        }
+        let target = Vec3::new(0.1, 0.2, 0.1);
+        assert_eq!(two_bone_folding(hip, target, pole, thigh, 0.45, 0.45), two_bone(hip, target, pole, 0.45, 0.45));
     }
 
     #[test]

@@ -35,6 +35,8 @@
 //! pose, never against another frame, so frames are independent (but for the limited turn of
 //! an end-site joint, which follows the frame before).
 
+use std::ops::Range;
+
 use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
@@ -66,11 +68,125 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
     }
     let is_leaf = |j: usize| children[j].is_empty();
     let end_site_joints: Vec<usize> = (0..n).filter(|&j| children[j].len() >= 2 && children[j].iter().all(|&(c, _)| is_leaf(c)) && !keeps_shape(positions, n, j, &children[j])).collect();
+    // A hand's end sites are left to the limit on its turn: bridged alone, one was set against
+    // the other.
+    let bridged_bones: Vec<(usize, usize)> = (0..n).filter(|p| !end_site_joints.contains(p)).flat_map(|p| children[p].iter().map(move |&(c, _)| (p, c))).collect();
+    let bridged = bridge_collapsed_bones(skeleton, positions, &bridged_bones);
+    let positions = bridged.as_ref().map_or(positions, |b| &b.positions);
     let solver = FrameSolver { skeleton, children, leans, eps };
     // Frames are independent: spread them over the cores, each thread with its own scratch.
     let mut poses: Vec<LocalPose> = positions.par_chunks_exact(n).map_init(|| Scratch::new(n), |scratch, frame| solver.solve(frame, scratch)).collect();
+    for (j, run) in bridged.iter().flat_map(|b| &b.stretches).filter(|(j, _)| end_site_joints.contains(j)) {
+        bridge_rotation(&mut poses, *j, run);
+    }
     end_site_joints.into_iter().for_each(|j| limit_turns(&mut poses, j));
     poses
+}
+
+/// A bone shorter than this fraction of its rest length has collapsed: its direction says
+/// nothing, and restored to full length it flips (a Bandai run's wrist passing 2 cm from its
+/// elbow turned the forearm 90 degrees in one frame).
+const COLLAPSED_BELOW: f32 = 0.5;
+
+/// A collapsed bone is bridged when its direction turns more than this in one frame (degrees)
+/// somewhere between the whole frames either side of its collapse.
+const COLLAPSED_SNAP: f32 = 20.0;
+
+/// Input positions whose collapsed bones were bridged, and the stretches of frames each
+/// bridged bone's child joint was moved in.
+struct Bridged {
+    positions: Vec<Vec3>,
+    stretches: Vec<(usize, Range<usize>)>,
+}
+
+/// `positions` with every stretch of frames in which a bone of `bones` (parent, child) has
+/// collapsed bridged: the bone turns along the shortest arc from its direction in the whole
+/// frame before the stretch to the one after (its length likewise), and the child moves with
+/// everything below it. None when no bone collapses (motion capture never does).
+fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usize, usize)]) -> Option<Bridged> {
+    let n = skeleton.len();
+    let frames = positions.len() / n;
+    let rest = skeleton.rest_bone_lengths();
+    let mut out: Option<Bridged> = None;
+    // Parents come before their children, so a bone is bridged after the bones above it.
+    for &(p, c) in bones {
+        let current = out.as_ref().map_or(positions, |b| &b.positions);
+        let bone = |t: usize| current[t * n + c] - current[t * n + p];
+        let collapsed: Vec<bool> = (0..frames).map(|t| bone(t).length() < COLLAPSED_BELOW * rest[c]).collect();
+        // A collapsed bone whose direction holds (an h36m forearm shortened while its elbow
+        // bent from 162 to 74 degrees and back, smoothly) is left as it is: bridged, its arc
+        // passed through the folded elbow and twisted the hand.
+        let snaps = |r: &Range<usize>| {
+            let (a, b) = whole_either_side(r, frames);
+            (a.min(r.start)..b.max(r.end - 1)).any(|t| bone(t).angle_between(bone(t + 1)) > COLLAPSED_SNAP.to_radians())
+        };
+        let runs: Vec<Range<usize>> = runs_of(&collapsed).into_iter().filter(|r| r.len() < frames && snaps(r)).collect();
+        if runs.is_empty() {
+            continue;
+        }
+        // A stretch at either end of the take keeps the one whole frame it has.
+        let ends: Vec<(Vec3, Vec3)> = runs.iter().map(|r| whole_either_side(r, frames)).map(|(a, b)| (bone(a), bone(b))).collect();
+        let bridged = out.get_or_insert_with(|| Bridged { positions: positions.to_vec(), stretches: Vec::new() });
+        let below = skeleton.subtree(c);
+        for (run, (before, after)) in runs.into_iter().zip(ends) {
+            let arc = Quat::from_rotation_arc(before.normalize(), after.normalize());
+            for (t, share) in shares(&run) {
+                let length = before.length() + share * (after.length() - before.length());
+                let direction = Quat::IDENTITY.slerp(arc, share) * before.normalize();
+                let shift = bridged.positions[t * n + p] + direction * length - bridged.positions[t * n + c];
+                below.iter().for_each(|&j| bridged.positions[t * n + j] += shift);
+            }
+            bridged.stretches.push((c, run));
+        }
+    }
+    out
+}
+
+/// The whole frames either side of the stretch `run` of a take of `frames` frames: the
+/// frame before it and the one after, or the one it has twice at an end of the take.
+fn whole_either_side(run: &Range<usize>, frames: usize) -> (usize, usize) {
+    match (run.start.checked_sub(1), (run.end < frames).then_some(run.end)) {
+        (Some(a), Some(b)) => (a, b),
+        (Some(a), None) => (a, a),
+        (None, Some(b)) => (b, b),
+        (None, None) => unreachable!("a stretch of every frame is not bridged"),
+    }
+}
+
+/// Each frame of the stretch `run` with its share of the way from the whole frame before it
+/// to the one after.
+fn shares(run: &Range<usize>) -> impl Iterator<Item = (usize, f32)> + '_ {
+    let span = (run.len() + 1) as f32;
+    run.clone().enumerate().map(move |(k, t)| (t, (k + 1) as f32 / span))
+}
+
+/// Joint `j`'s local rotation through the stretch `run` turned along the shortest way from
+/// the whole frame before it to the one after: a hand whose forearm collapsed is as
+/// unreliable as the forearm (an h36m posing take's wrist end otherwise turned 105 degrees in
+/// one frame once its forearm was bridged).
+fn bridge_rotation(poses: &mut [LocalPose], j: usize, run: &Range<usize>) {
+    let (a, b) = whole_either_side(run, poses.len());
+    let (before, after) = (poses[a].rotations[j], poses[b].rotations[j]);
+    for (t, share) in shares(run) {
+        poses[t].rotations[j] = before.slerp(after, share).normalize();
+    }
+}
+
+/// The stretches of consecutive true values in `flags`.
+fn runs_of(flags: &[bool]) -> Vec<Range<usize>> {
+    let mut runs = Vec::new();
+    let mut start = None;
+    for (t, &flag) in flags.iter().chain([&false]).enumerate() {
+        match (flag, start) {
+            (true, None) => start = Some(t),
+            (false, Some(s)) => {
+                runs.push(s..t);
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    runs
 }
 
 /// Whether every frame of `positions` keeps joint `j`'s end sites (`children`, rest
@@ -398,6 +514,31 @@ mod tests {
             let tol = 1e-12 + 1e-15 / (std::f64::consts::PI - angle).max(1e-6);
             assert!((q * from - to).length() < tol, "{angle}: {}", (q * from - to).length());
             assert!((q.w.clamp(-1.0, 1.0).acos() * 2.0 - angle).abs() < 1e-7, "not the shortest: {angle}");
+        }
+    }
+
+    /// A forearm that sweeps from level to hanging over eight frames while, for three of
+    /// them, the hand passes a centimetre from the elbow (backwards): the solve turns the bone
+    /// along the sweep through the collapse instead of flipping it, and leaves motion without
+    /// a collapse as it is.
+    #[test]
+    fn a_collapsed_bone_turns_along_its_arc() {
+        let s = body();
+        let (arm, hand, n) = (5, 6, s.len());
+        let sweep = |t: usize| Quat::from_rotation_z(-(t as f32) * std::f32::consts::FRAC_PI_2 / 8.0) * s.offsets()[hand];
+        let mut frames = Vec::new();
+        for t in 0..=8 {
+            let mut frame = s.rest_positions();
+            frame[hand] = frame[arm] + if (3..=5).contains(&t) { -sweep(t).normalize() } else { sweep(t) };
+            frames.extend(frame);
+        }
+        let bones: Vec<(usize, usize)> = (1..n).filter_map(|c| Some((s.parents()[c]?, c))).collect();
+        assert!(bridge_collapsed_bones(&s, &s.rest_positions(), &bones).is_none(), "nothing collapsed, nothing moved");
+        let solved: Vec<Vec<Vec3>> = solve_local_poses(&s, &frames).iter().map(|pose| fk(&s, pose)).collect();
+        let direction = |f: &[Vec3]| (f[hand] - f[arm]).normalize();
+        for pair in solved.windows(2) {
+            let turn = direction(&pair[0]).angle_between(direction(&pair[1])).to_degrees();
+            assert!(turn < 11.3, "the forearm turned {turn:.1} degrees in one frame");
         }
     }
 

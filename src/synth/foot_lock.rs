@@ -16,7 +16,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 
 use crate::motion::contacts::{box_average, foot_contacts, local_floor, runs, sliding, support_heights, ContactConfig, FootContacts};
-use crate::motion::ik::{hip_offset, two_bone, MAX_STRETCH};
+use crate::motion::ik::{hip_offset, two_bone, two_bone_folding, MAX_STRETCH};
 use super::smoothstep;
 use crate::motion::{solve_local_poses, JointRoles, Motion, Side, Skeleton};
 
@@ -517,7 +517,7 @@ fn locked_frame(frame: &[Vec3], legs: &[LegLock], targets: &[(Vec<Vec3>, f32)], 
         // from front to back in one frame. Every frame is solved, locked or not, so the knee
         // never switches between the network's and the solver's side.
         let pole = out[leg.knee] + facing * upper;
-        let (knee, reached) = two_bone(out[leg.hip], foot[0], pole, upper, lower);
+        let (knee, reached) = two_bone_folding(out[leg.hip], foot[0], pole, frame[leg.knee] - frame[leg.hip], upper, lower);
         out[leg.knee] = knee;
         // A target out of reach leaves the foot as close as the leg gets, shape unchanged.
         let miss = reached - foot[0];
