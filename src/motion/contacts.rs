@@ -205,6 +205,11 @@ fn fill_short_runs(flags: &mut [bool], value: bool, min: usize) {
     }
 }
 
+/// The frame ranges where `flags` is set, as ranges.
+pub fn run_ranges(flags: &[bool]) -> Vec<std::ops::Range<usize>> {
+    runs(flags).into_iter().map(|(start, end)| start..end).collect()
+}
+
 /// The `[start, end)` frame ranges where `flags` is set.
 pub fn runs(flags: &[bool]) -> Vec<(usize, usize)> {
     let mut out = Vec::new();
@@ -226,6 +231,12 @@ pub fn runs(flags: &[bool]) -> Vec<(usize, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn runs_are_maximal() {
+        assert_eq!(run_ranges(&[true, true, false, true, false, false, true]), vec![0..2, 3..4, 6..7]);
+        assert_eq!(run_ranges(&[false, false]), Vec::<std::ops::Range<usize>>::new());
+    }
 
     #[test]
     fn short_gaps_and_blips_go() {

@@ -40,6 +40,7 @@ use std::ops::Range;
 use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
+use super::contacts::run_ranges;
 use super::{LocalPose, Skeleton, SHORT_BONE_FRACTION};
 
 /// Local poses whose forward kinematics reproduce `positions` (frame-major, `frames * joints`
@@ -120,7 +121,7 @@ fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usi
             let (a, b) = whole_either_side(r, frames);
             (a.min(r.start)..b.max(r.end - 1)).any(|t| bone(t).angle_between(bone(t + 1)) > COLLAPSED_SNAP.to_radians())
         };
-        let runs: Vec<Range<usize>> = runs_of(&collapsed).into_iter().filter(|r| r.len() < frames && snaps(r)).collect();
+        let runs: Vec<Range<usize>> = run_ranges(&collapsed).into_iter().filter(|r| r.len() < frames && snaps(r)).collect();
         if runs.is_empty() {
             continue;
         }
@@ -170,23 +171,6 @@ fn bridge_rotation(poses: &mut [LocalPose], j: usize, run: &Range<usize>) {
     for (t, share) in shares(run) {
         poses[t].rotations[j] = before.slerp(after, share).normalize();
     }
-}
-
-/// The stretches of consecutive true values in `flags`.
-fn runs_of(flags: &[bool]) -> Vec<Range<usize>> {
-    let mut runs = Vec::new();
-    let mut start = None;
-    for (t, &flag) in flags.iter().chain([&false]).enumerate() {
-        match (flag, start) {
-            (true, None) => start = Some(t),
-            (false, Some(s)) => {
-                runs.push(s..t);
-                start = None;
-            }
-            _ => {}
-        }
-    }
-    runs
 }
 
 /// Whether every frame of `positions` keeps joint `j`'s end sites (`children`, rest

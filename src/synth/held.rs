@@ -27,6 +27,7 @@ use crate::data::features::{wrap, FeatureLayout, ROOT_FEATURES};
 use crate::model::block::BlockWorkspace;
 use crate::model::glogen::GloGen;
 use crate::model::spec::ModelSpec;
+use crate::motion::contacts::run_ranges;
 use crate::motion::{solve_local_poses, LocalPose, Motion};
 
 /// The most frames a request holds, in seconds of the take: five minutes keep a project file
@@ -145,8 +146,8 @@ impl HeldConstraint {
             }
         }
         let sparse = sparse_features(spec, timeline, &positions);
-        let free_sparse = runs(&sparse.iter().map(Option::is_none).collect::<Vec<_>>());
-        let free = runs(&positions.iter().map(Option::is_none).collect::<Vec<_>>());
+        let free_sparse = run_ranges(&sparse.iter().map(Option::is_none).collect::<Vec<_>>());
+        let free = run_ranges(&positions.iter().map(Option::is_none).collect::<Vec<_>>());
         let step_seconds = (0..sparse.len()).map(|i| timeline.step_seconds[timeline.segment_at(i)]).collect();
         Ok(Self { positions, poses, sparse, free_sparse, free, step_seconds, block_len: spec.block_len, key_frames })
     }
@@ -314,23 +315,6 @@ impl TakeConstraint for HeldConstraint {
     }
 }
 
-/// Maximal runs of `true`.
-fn runs(flags: &[bool]) -> Vec<Range<usize>> {
-    let mut out = Vec::new();
-    let mut start = None;
-    for (i, &on) in flags.iter().chain(std::iter::once(&false)).enumerate() {
-        match (on, start) {
-            (true, None) => start = Some(i),
-            (false, Some(s)) => {
-                out.push(s..i);
-                start = None;
-            }
-            _ => {}
-        }
-    }
-    out
-}
-
 /// Each sparse pose's features (normalised) where the frames it falls between are held: the
 /// held pose at its (possibly fractional) frame, its step measured from the sparse pose
 /// before it, or (when that one is not held) taken from the step after it.
@@ -361,15 +345,4 @@ fn sparse_features(spec: &ModelSpec, timeline: &SparseTimeline, held: &[Option<V
         out.push(Some(features));
     }
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn runs_are_maximal() {
-        assert_eq!(runs(&[true, true, false, true, false, false, true]), vec![0..2, 3..4, 6..7]);
-        assert_eq!(runs(&[false, false]), Vec::<Range<usize>>::new());
-    }
 }
