@@ -154,7 +154,7 @@ fn foot_lock_plants_generated_walking() {
             // until the heel lifts at the end of the stance (a leg that would snap straight
             // turns the foot about its toe).
             let toe = roles.leg(side).toe.expect("both models' legs have toes");
-            for (start, end) in phases {
+            for std::ops::Range { start, end } in phases {
                 for t in start..end {
                     for &j in &foot {
                         let moved = motion.frame(t)[j].distance(motion.frame(start)[j]) * unit;

@@ -205,13 +205,8 @@ fn fill_short_runs(flags: &mut [bool], value: bool, min: usize) {
     }
 }
 
-/// The frame ranges where `flags` is set, as ranges.
-pub fn run_ranges(flags: &[bool]) -> Vec<std::ops::Range<usize>> {
-    runs(flags).into_iter().map(|(start, end)| start..end).collect()
-}
-
-/// The `[start, end)` frame ranges where `flags` is set.
-pub fn runs(flags: &[bool]) -> Vec<(usize, usize)> {
+/// The maximal frame ranges where `flags` is set.
+pub fn runs(flags: &[bool]) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
     let mut t = 0;
     while t < flags.len() {
@@ -220,7 +215,7 @@ pub fn runs(flags: &[bool]) -> Vec<(usize, usize)> {
             while t < flags.len() && flags[t] {
                 t += 1;
             }
-            out.push((start, t));
+            out.push(start..t);
         } else {
             t += 1;
         }
@@ -234,8 +229,8 @@ mod tests {
 
     #[test]
     fn runs_are_maximal() {
-        assert_eq!(run_ranges(&[true, true, false, true, false, false, true]), vec![0..2, 3..4, 6..7]);
-        assert_eq!(run_ranges(&[false, false]), Vec::<std::ops::Range<usize>>::new());
+        assert_eq!(runs(&[true, true, false, true, false, false, true]), vec![0..2, 3..4, 6..7]);
+        assert_eq!(runs(&[false, false]), Vec::<std::ops::Range<usize>>::new());
     }
 
     #[test]
@@ -244,6 +239,6 @@ mod tests {
         fill_short_runs(&mut f, false, 2);
         fill_short_runs(&mut f, true, 2);
         assert_eq!(f, vec![true, true, true, true, true, true, false, false, false, false, false, false, false]);
-        assert_eq!(runs(&f), vec![(0, 6)]);
+        assert_eq!(runs(&f), vec![0..6]);
     }
 }

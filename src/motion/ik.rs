@@ -40,12 +40,14 @@ pub fn two_bone(hip: Vec3, target: Vec3, pole: Vec3, upper: f32, lower: f32) -> 
 const FOLDED_BELOW: f32 = 0.25;
 
 /// [`two_bone`]'s knee and ankle, with the knee turned towards the leg's own thigh direction
-/// `own_thigh` as the leg folds (fully from half of [`FOLDED_BELOW`]): there the ankle follows
-/// the knee and may miss `target` by the little the fold leaves.
-pub fn two_bone_folding(hip: Vec3, target: Vec3, pole: Vec3, own_thigh: Vec3, upper: f32, lower: f32) -> (Vec3, Vec3) {
+/// `own_thigh` as the leg folds (fully from half of [`FOLDED_BELOW`]), by as much as the ankle
+/// is `free` to leave `target` (0 for a planted foot, which stays exact; 1 for a swinging
+/// one): the ankle then follows the knee and misses the target by at most the hip-to-target
+/// distance plus the difference of the two bones, a few centimetres in a fold.
+pub fn two_bone_folding(hip: Vec3, target: Vec3, pole: Vec3, own_thigh: Vec3, (upper, lower): (f32, f32), free: f32) -> (Vec3, Vec3) {
     let (knee, ankle) = two_bone(hip, target, pole, upper, lower);
     let fold = target.distance(hip) / (upper + lower);
-    let folded = ((FOLDED_BELOW - fold) / (FOLDED_BELOW / 2.0)).clamp(0.0, 1.0);
+    let folded = ((FOLDED_BELOW - fold) / (FOLDED_BELOW / 2.0)).clamp(0.0, 1.0) * free.clamp(0.0, 1.0);
     let Some(own) = own_thigh.try_normalize().filter(|_| folded > 0.0) else { return (knee, ankle) };
     let thigh = ((knee - hip) / upper).lerp(own, folded).try_normalize().unwrap_or(own);
     let knee = hip + thigh * upper;
@@ -187,7 +189,7 @@ mod tests {
             .map(|k| {
                 let angle = k as f32 * std::f32::consts::TAU / 12.0;
                 let heel = hip + Vec3::new(angle.cos(), angle.sin(), 0.3).normalize() * 0.02;
-                let (knee, ankle) = two_bone_folding(hip, heel, pole, thigh, 0.45, 0.45);
+                let (knee, ankle) = two_bone_folding(hip, heel, pole, thigh, (0.45, 0.45), 1.0);
                 assert!((knee.distance(hip) - 0.45).abs() < 1e-4 && (ankle.distance(knee) - 0.45).abs() < 1e-4);
                 knee
             })
@@ -197,7 +199,22 @@ mod tests {
             assert!(turn < 1.0, "the thigh turned {turn:.1} degrees between two heel positions");
         }
         let target = Vec3::new(0.1, 0.2, 0.1);
-        assert_eq!(two_bone_folding(hip, target, pole, thigh, 0.45, 0.45), two_bone(hip, target, pole, 0.45, 0.45));
+        assert_eq!(two_bone_folding(hip, target, pole, thigh, (0.45, 0.45), 1.0), two_bone(hip, target, pole, 0.45, 0.45));
+        // A planted foot's ankle stays on its target however far the leg folds.
+        let heel = hip + Vec3::new(0.0, 0.01, 0.02);
+        assert_eq!(two_bone_folding(hip, heel, pole, thigh, (0.45, 0.45), 0.0), two_bone(hip, heel, pole, 0.45, 0.45));
+        // Folding gradually, from a quarter of the leg's length to a twentieth, the knee
+        // moves on smoothly: no step where the turn towards the thigh sets in.
+        let knees: Vec<Vec3> = (0..=40)
+            .map(|k| {
+                let heel = hip + Vec3::new(0.0, -1.0, 0.3).normalize() * (0.225 - k as f32 * 0.18 / 40.0);
+                two_bone_folding(hip, heel, pole, thigh, (0.45, 0.45), 1.0).0
+            })
+            .collect();
+        for pair in knees.windows(2) {
+            let turn = (pair[0] - hip).angle_between(pair[1] - hip).to_degrees();
+            assert!(turn < 3.0, "the thigh turned {turn:.1} degrees between two folds");
+        }
     }
 
     #[test]

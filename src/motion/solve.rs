@@ -40,7 +40,7 @@ use std::ops::Range;
 use glam::{DQuat, DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
-use super::contacts::run_ranges;
+use super::contacts::runs;
 use super::{LocalPose, Skeleton, SHORT_BONE_FRACTION};
 
 /// Local poses whose forward kinematics reproduce `positions` (frame-major, `frames * joints`
@@ -70,7 +70,7 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
     let is_leaf = |j: usize| children[j].is_empty();
     let end_site_joints: Vec<usize> = (0..n).filter(|&j| children[j].len() >= 2 && children[j].iter().all(|&(c, _)| is_leaf(c)) && !keeps_shape(positions, n, j, &children[j])).collect();
     // A hand's end sites are left to the limit on its turn: bridged alone, one was set against
-    // the other.
+    // the other. Parents in index order, each child after its parent (`children` keeps p < c).
     let bridged_bones: Vec<(usize, usize)> = (0..n).filter(|p| !end_site_joints.contains(p)).flat_map(|p| children[p].iter().map(move |&(c, _)| (p, c))).collect();
     let bridged = bridge_collapsed_bones(skeleton, positions, &bridged_bones);
     let positions = bridged.as_ref().map_or(positions, |b| &b.positions);
@@ -101,15 +101,17 @@ struct Bridged {
 }
 
 /// `positions` with every stretch of frames in which a bone of `bones` (parent, child) has
-/// collapsed bridged: the bone turns along the shortest arc from its direction in the whole
-/// frame before the stretch to the one after (its length likewise), and the child moves with
-/// everything below it. None when no bone collapses (motion capture never does).
+/// collapsed and snaps (turns more than [`COLLAPSED_SNAP`] in a frame, from the whole frame
+/// before the stretch to the one after) bridged: the bone turns along the shortest arc from
+/// its direction in the whole frame before the stretch to the one after (its length
+/// likewise), and the child moves with everything below it. `bones` lists parents before
+/// their children, so a bone is measured once the bones above it are bridged. None when no
+/// bone is bridged (motion capture never collapses); a bone collapsed all take long is left.
 fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usize, usize)]) -> Option<Bridged> {
     let n = skeleton.len();
     let frames = positions.len() / n;
     let rest = skeleton.rest_bone_lengths();
     let mut out: Option<Bridged> = None;
-    // Parents come before their children, so a bone is bridged after the bones above it.
     for &(p, c) in bones {
         let current = out.as_ref().map_or(positions, |b| &b.positions);
         let bone = |t: usize| current[t * n + c] - current[t * n + p];
@@ -117,11 +119,9 @@ fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usi
         // A collapsed bone whose direction holds (an h36m forearm shortened while its elbow
         // bent from 162 to 74 degrees and back, smoothly) is left as it is: bridged, its arc
         // passed through the folded elbow and twisted the hand.
-        let snaps = |r: &Range<usize>| {
-            let (a, b) = whole_either_side(r, frames);
-            (a.min(r.start)..b.max(r.end - 1)).any(|t| bone(t).angle_between(bone(t + 1)) > COLLAPSED_SNAP.to_radians())
-        };
-        let runs: Vec<Range<usize>> = run_ranges(&collapsed).into_iter().filter(|r| r.len() < frames && snaps(r)).collect();
+        // (A bone of no length at all has no direction: it counts as a snap.)
+        let snaps = |r: &Range<usize>| (r.start.saturating_sub(1)..r.end.min(frames - 1)).any(|t| !(bone(t).angle_between(bone(t + 1)) <= COLLAPSED_SNAP.to_radians()));
+        let runs: Vec<Range<usize>> = runs(&collapsed).into_iter().filter(|r| r.len() < frames && snaps(r)).collect();
         if runs.is_empty() {
             continue;
         }
@@ -503,26 +503,32 @@ mod tests {
 
     /// A forearm that sweeps from level to hanging over eight frames while, for three of
     /// them, the hand passes a centimetre from the elbow (backwards): the solve turns the bone
-    /// along the sweep through the collapse instead of flipping it, and leaves motion without
-    /// a collapse as it is.
+    /// along the sweep through the collapse instead of flipping it, holds it at its last whole
+    /// direction through a collapse that ends the take, and leaves motion without a collapse
+    /// as it is.
     #[test]
     fn a_collapsed_bone_turns_along_its_arc() {
         let s = body();
         let (arm, hand, n) = (5, 6, s.len());
         let sweep = |t: usize| Quat::from_rotation_z(-(t as f32) * std::f32::consts::FRAC_PI_2 / 8.0) * s.offsets()[hand];
-        let mut frames = Vec::new();
-        for t in 0..=8 {
-            let mut frame = s.rest_positions();
-            frame[hand] = frame[arm] + if (3..=5).contains(&t) { -sweep(t).normalize() } else { sweep(t) };
-            frames.extend(frame);
-        }
+        let take = |collapsed: std::ops::RangeInclusive<usize>| -> Vec<Vec3> {
+            (0..=8)
+                .flat_map(|t| {
+                    let mut frame = s.rest_positions();
+                    frame[hand] = frame[arm] + if collapsed.contains(&t) { -sweep(t).normalize() } else { sweep(t) };
+                    frame
+                })
+                .collect()
+        };
         let bones: Vec<(usize, usize)> = (1..n).filter_map(|c| Some((s.parents()[c]?, c))).collect();
         assert!(bridge_collapsed_bones(&s, &s.rest_positions(), &bones).is_none(), "nothing collapsed, nothing moved");
-        let solved: Vec<Vec<Vec3>> = solve_local_poses(&s, &frames).iter().map(|pose| fk(&s, pose)).collect();
         let direction = |f: &[Vec3]| (f[hand] - f[arm]).normalize();
-        for pair in solved.windows(2) {
-            let turn = direction(&pair[0]).angle_between(direction(&pair[1])).to_degrees();
-            assert!(turn < 11.3, "the forearm turned {turn:.1} degrees in one frame");
+        for collapsed in [3..=5, 7..=8] {
+            let solved: Vec<Vec<Vec3>> = solve_local_poses(&s, &take(collapsed.clone())).iter().map(|pose| fk(&s, pose)).collect();
+            for pair in solved.windows(2) {
+                let turn = direction(&pair[0]).angle_between(direction(&pair[1])).to_degrees();
+                assert!(turn < 11.3, "collapsed over {collapsed:?}: the forearm turned {turn:.1} degrees in one frame");
+            }
         }
     }
 

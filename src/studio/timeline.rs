@@ -578,7 +578,7 @@ fn contacts_track(painter: &egui::Painter, visuals: &egui::Visuals, input: &Inpu
 /// draw every frame than the rest of the timeline.
 fn stance_bars(planted: &[bool], pixels_per_frame: f32) -> Vec<(f32, f32)> {
     let mut bars: Vec<(f32, f32)> = Vec::new();
-    for (start, end) in runs(planted) {
+    for std::ops::Range { start, end } in runs(planted) {
         let (x0, x1) = (start as f32 * pixels_per_frame, end as f32 * pixels_per_frame);
         match bars.last_mut() {
             Some(last) if x0 <= last.1 + 1.0 => last.1 = last.1.max(x1),

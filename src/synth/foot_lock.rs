@@ -200,7 +200,7 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
     let frames = motion.frames();
     let both: Vec<bool> = contacts.left.iter().zip(&contacts.right).map(|(l, r)| *l && *r).collect();
     let shortest = (STAND_SECONDS * motion.fps).round() as usize;
-    let standing = runs(&both).into_iter().filter(|(s, e)| e - s >= shortest);
+    let standing = runs(&both).into_iter().filter(|r| r.len() >= shortest);
     let weight = eased(standing, frames, (STAND_EASE_SECONDS * motion.fps).max(1.0));
     let ankles = [roles.left.ankle, roles.right.ankle];
     // The feet's own frame-to-frame jitter is not drift: subtracted from the whole body, it
@@ -217,9 +217,9 @@ fn held_still(motion: &Motion, roles: &JointRoles, contacts: &FootContacts) -> M
 
 /// Per frame of `frames`, 1 inside each of the runs `[start, end)` and easing to 0 over
 /// `ease` frames at its ends.
-fn eased(runs: impl IntoIterator<Item = (usize, usize)>, frames: usize, ease: f32) -> Vec<f32> {
+fn eased(runs: impl IntoIterator<Item = std::ops::Range<usize>>, frames: usize, ease: f32) -> Vec<f32> {
     let mut weight = vec![0.0f32; frames];
-    for (start, end) in runs {
+    for std::ops::Range { start, end } in runs {
         for (t, w) in weight.iter_mut().enumerate().take(end).skip(start) {
             *w = smoothstep((t - start + 1).min(end - t) as f32 / ease);
         }
@@ -366,7 +366,7 @@ struct Stance {
 /// the foot stays within reach of where it stood there, and what is left either side,
 /// [`REPLANT_SECONDS`] short, is split the same way (dropped when shorter than a contact can
 /// be).
-fn stances(motion: &Motion, ankle: usize, contacts: &[(usize, usize)]) -> Vec<Stance> {
+fn stances(motion: &Motion, ankle: usize, contacts: &[std::ops::Range<usize>]) -> Vec<Stance> {
     let unit = motion.skeleton.meters_per_unit();
     let flat = |t: usize| {
         let p = motion.frame(t)[ankle] * unit;
@@ -375,7 +375,7 @@ fn stances(motion: &Motion, ankle: usize, contacts: &[(usize, usize)]) -> Vec<St
     let gap = (REPLANT_SECONDS * motion.fps).round() as usize;
     let shortest = (ContactConfig::default().min_seconds * motion.fps).round().max(1.0) as usize;
     let mut out = Vec::new();
-    let mut todo: Vec<(usize, usize, usize)> = contacts.iter().enumerate().map(|(k, &(start, end))| (start, end, k)).collect();
+    let mut todo: Vec<(usize, usize, usize)> = contacts.iter().enumerate().map(|(k, r)| (r.start, r.end, k)).collect();
     while let Some((start, end, contact)) = todo.pop() {
         if end - start < shortest {
             continue;
@@ -517,9 +517,11 @@ fn locked_frame(frame: &[Vec3], legs: &[LegLock], targets: &[(Vec<Vec3>, f32)], 
         // from front to back in one frame. Every frame is solved, locked or not, so the knee
         // never switches between the network's and the solver's side.
         let pole = out[leg.knee] + facing * upper;
-        let (knee, reached) = two_bone_folding(out[leg.hip], foot[0], pole, frame[leg.knee] - frame[leg.hip], upper, lower);
+        // A folded leg's knee keeps to the network's thigh where the foot is free to give.
+        let (knee, reached) = two_bone_folding(out[leg.hip], foot[0], pole, frame[leg.knee] - frame[leg.hip], (upper, lower), 1.0 - weight);
         out[leg.knee] = knee;
-        // A target out of reach leaves the foot as close as the leg gets, shape unchanged.
+        // A target out of reach (or given up by a folded free leg) leaves the foot as close as
+        // the leg gets, shape unchanged.
         let miss = reached - foot[0];
         for (p, &j) in foot.iter().zip(&leg.foot) {
             out[j] = *p + miss;

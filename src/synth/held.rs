@@ -27,7 +27,7 @@ use crate::data::features::{wrap, FeatureLayout, ROOT_FEATURES};
 use crate::model::block::BlockWorkspace;
 use crate::model::glogen::GloGen;
 use crate::model::spec::ModelSpec;
-use crate::motion::contacts::run_ranges;
+use crate::motion::contacts::runs;
 use crate::motion::{solve_local_poses, LocalPose, Motion};
 
 /// The most frames a request holds, in seconds of the take: five minutes keep a project file
@@ -146,8 +146,8 @@ impl HeldConstraint {
             }
         }
         let sparse = sparse_features(spec, timeline, &positions);
-        let free_sparse = run_ranges(&sparse.iter().map(Option::is_none).collect::<Vec<_>>());
-        let free = run_ranges(&positions.iter().map(Option::is_none).collect::<Vec<_>>());
+        let free_sparse = runs(&sparse.iter().map(Option::is_none).collect::<Vec<_>>());
+        let free = runs(&positions.iter().map(Option::is_none).collect::<Vec<_>>());
         let step_seconds = (0..sparse.len()).map(|i| timeline.step_seconds[timeline.segment_at(i)]).collect();
         Ok(Self { positions, poses, sparse, free_sparse, free, step_seconds, block_len: spec.block_len, key_frames })
     }

@@ -160,7 +160,7 @@ fn feet_on_the_floor(m: &Motion, contacts: &crate::motion::contacts::FootContact
     let up = |h: f32| (h - floor) * unit > FEET_UP_M;
     let floating: Vec<bool> = lowest_foot_heights(m, &roles).into_iter().map(up).collect();
     let feet_up = floating.iter().filter(|&&f| f).count() as f64 / floating.len().max(1) as f64;
-    let longest = runs(&floating).iter().map(|(s, e)| e - s).max().unwrap_or(0) as f32 / m.fps;
+    let longest = runs(&floating).iter().map(|r| r.len()).max().unwrap_or(0) as f32 / m.fps;
     let (mut planted, mut off) = (0usize, 0usize);
     for side in Side::BOTH {
         let foot = roles.leg(side).foot_joints(&m.skeleton);
