@@ -318,3 +318,23 @@ fn the_model_of_everythings_ten_minute_walks_do_not_repeat() {
         assert_eq!(repeat, 0.0, "{class_name} repeats itself for {repeat:.1} s at a lag of {lag:.1} s");
     }
 }
+
+/// A hand is not carried round by its forearm at a nearly folded elbow: in this h36m posing
+/// take the elbow bends to 171-175 degrees, where the forearm's smallest swing from its rest
+/// direction turns about an unstable axis; its twist flipped and the hand, whose own turn is
+/// limited, went round with it: the thumb turned 112 degrees in one frame and the wrist end
+/// 100 while the forearm and hand bones turned at most 8.
+#[test]
+fn a_folded_elbow_does_not_carry_the_hand_round() {
+    let m = model("h36m");
+    let o = GenerateOptions { init: InitPose::SeedIndex(83), seed: 1, ..opts("posing:12") };
+    let motion = generate(&m, &o, &mut |_| true).unwrap().motion;
+    for end in ["RightHandThumbSite", "RightWristEnd"] {
+        let j = motion.skeleton.index_of(end).expect("h36m's hand ends");
+        let hand = motion.skeleton.parents()[j].expect("a hand end has a parent");
+        let direction = |t: usize| (motion.frame(t)[j] - motion.frame(t)[hand]).normalize();
+        let worst = (1..motion.frames()).map(|t| direction(t - 1).angle_between(direction(t)).to_degrees()).fold(0.0, f32::max);
+        eprintln!("{end}: at most {worst:.0} degrees in one frame");
+        assert!(worst < 45.0, "{end} turns {worst:.0} degrees in one frame");
+    }
+}

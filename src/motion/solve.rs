@@ -80,8 +80,57 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
     for (j, run) in bridged.iter().flat_map(|b| &b.stretches).filter(|(j, _)| end_site_joints.contains(j)) {
         bridge_rotation(&mut poses, *j, run);
     }
+    for &hand in &end_site_joints {
+        if let Some(forearm) = skeleton.parents()[hand].filter(|&f| solver.children[f].len() == 1 && solver.leans[f].is_none()) {
+            carry_twist_through_folds(skeleton, &mut poses, forearm, hand, solver.children[forearm][0].1);
+        }
+    }
     end_site_joints.into_iter().for_each(|j| limit_turns(&mut poses, j));
     poses
+}
+
+/// A bone bent further than this from its rest direction (degrees; an elbow nearly folded
+/// shut) has no stable smallest swing: its twist is carried from frame to frame instead.
+const FOLDED_ABOVE: f32 = 150.0;
+
+/// Frames over which a carried twist eases back to the solved one after a fold.
+const TWIST_EASE_FRAMES: usize = 10;
+
+/// The twist of `forearm` (one child, `hand`, whose own turn is limited; `rest` the forearm's
+/// rest direction) carried from frame to frame while the forearm is folded past
+/// [`FOLDED_ABOVE`], and eased back to the solved twist over [`TWIST_EASE_FRAMES`] after; the
+/// hand keeps its world rotation. The solve's smallest swing from the rest direction,
+/// collinear with the upper arm, turns about an unstable axis near a full fold: an h36m elbow
+/// bent to 171-175 degrees flipped the forearm's twist, and the hand, limited in its local
+/// turn, was carried round (its thumb 107-112 degrees in one frame while the forearm and
+/// hand bones turned at most 8).
+fn carry_twist_through_folds(skeleton: &Skeleton, poses: &mut [LocalPose], forearm: usize, hand: usize, rest: Vec3) {
+    let upper = skeleton.ancestors(forearm).next();
+    let world_of = |pose: &LocalPose, j: Option<usize>| j.map_or(Quat::IDENTITY, |j| std::iter::once(j).chain(skeleton.ancestors(j)).fold(Quat::IDENTITY, |w, a| pose.rotations[a] * w));
+    let parents: Vec<Quat> = poses.iter().map(|pose| world_of(pose, upper)).collect();
+    let solved: Vec<Quat> = poses.iter().zip(&parents).map(|(pose, p)| *p * pose.rotations[forearm]).collect();
+    let folded: Vec<bool> = solved.iter().zip(&parents).map(|(w, p)| (*p * rest).angle_between(*w * rest) > FOLDED_ABOVE.to_radians()).collect();
+    // A fold that follows within the easing of the one before carries on from it.
+    let mut folds: Vec<Range<usize>> = Vec::new();
+    for run in runs(&folded) {
+        match folds.last_mut() {
+            Some(last) if run.start <= last.end + TWIST_EASE_FRAMES => last.end = run.end,
+            _ => folds.push(run),
+        }
+    }
+    for run in folds {
+        let end = (run.end + TWIST_EASE_FRAMES).min(poses.len());
+        let mut carried = solved[run.start.saturating_sub(1)];
+        for t in run.start..end {
+            let direction = solved[t] * rest;
+            carried = (Quat::from_rotation_arc((carried * rest).normalize(), direction.normalize()) * carried).normalize();
+            let back = t.saturating_sub(run.end - 1) as f32 / TWIST_EASE_FRAMES as f32;
+            let world = carried.slerp(solved[t], back.min(1.0)).normalize();
+            let hand_world = solved[t] * poses[t].rotations[hand];
+            poses[t].rotations[forearm] = (parents[t].inverse() * world).normalize();
+            poses[t].rotations[hand] = (world.inverse() * hand_world).normalize();
+        }
+    }
 }
 
 /// A bone shorter than this fraction of its rest length has collapsed: its direction says
