@@ -28,6 +28,11 @@
 //! thumb once round in five frames, and the fit of two end sites nearly opposite each other
 //! swings about their bisector, so a hand end turned 79 degrees in one frame.
 //!
+//! A bone the input collapses to under half its rest length while it snaps round is bridged
+//! first ([`bridge_collapsed_bones`]), and a forearm folded nearly shut above such a hand
+//! carries its twist from frame to frame ([`carry_twist_through_folds`]): neither the
+//! collapsed bone's direction nor the swing's axis at a full fold says anything.
+//!
 //! The root's translation is its position; every other translation is its rest offset, so the
 //! result has the skeleton's rest bone lengths whatever the input's (a bone-length projection).
 //! Directions are taken from the input positions (not from the rebuilt ones), so errors do not
