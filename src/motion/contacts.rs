@@ -65,6 +65,10 @@ impl FootContacts {
     }
 }
 
+/// A body whose seat reaches the floor within this many seconds is sitting down onto it, and
+/// its feet rest as a seated body's do ([`ContactConfig::seated_height`]).
+const SEAT_APPROACH_SECONDS: f32 = 0.3;
+
 /// How far under the hip joints the seat is on a floor sit, metres: the buttocks under the
 /// hip sockets' centres, about 10 cm on an adult.
 pub const SEAT_DEPTH: f32 = 0.1;
@@ -113,7 +117,9 @@ pub fn foot_contacts(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -
     let seat = seat_heights(motion, roles);
     let floor = local_floor(&lower_of(&lowest_foot_heights(motion, roles), &seat), half);
     let unit = motion.skeleton.meters_per_unit();
-    let seated: Vec<bool> = seat.iter().zip(&floor).map(|(seat, floor)| (seat - floor) * unit <= cfg.height_on).collect();
+    let on_floor: Vec<bool> = seat.iter().zip(&floor).map(|(seat, floor)| (seat - floor) * unit <= cfg.height_off).collect();
+    let ahead = (SEAT_APPROACH_SECONDS * motion.fps).round() as usize;
+    let seated: Vec<bool> = (0..on_floor.len()).map(|t| on_floor[t..(t + ahead + 1).min(on_floor.len())].contains(&true)).collect();
     let ground = Ground { floor: &floor, seated: &seated };
     let body = body_speeds(motion, roles.body_root);
     let contacts = |leg: &Leg| leg_contacts(motion, leg, &ground, &body, cfg);
@@ -122,7 +128,7 @@ pub fn foot_contacts(motion: &Motion, roles: &JointRoles, cfg: &ContactConfig) -
 
 /// The horizontal speed of joint `root` per frame (units/s), averaged over
 /// [`BODY_SPEED_SECONDS`] either side.
-fn body_speeds(motion: &Motion, root: usize) -> Vec<f32> {
+pub fn body_speeds(motion: &Motion, root: usize) -> Vec<f32> {
     let flat = |t: usize| {
         let mut v = joint_velocity(motion, root, t);
         v.y = 0.0;
@@ -144,6 +150,15 @@ where
             window.iter().copied().sum::<T>() / window.len() as f32
         })
         .collect()
+}
+
+/// Three passes of a moving average `2 * half + 1` wide (close to a Gaussian): a single box
+/// leaves corners in the velocity, which show as jerk.
+pub fn smoothed<T>(values: &[T], half: usize) -> Vec<T>
+where
+    T: Copy + std::iter::Sum<T> + std::ops::Div<f32, Output = T>,
+{
+    box_average(&box_average(&box_average(values, half), half), half)
 }
 
 /// Per frame, the local floor and whether the body sits on it.

@@ -4,6 +4,7 @@
 
 pub mod contacts;
 pub mod cycle;
+mod hands;
 pub mod ik;
 mod keys;
 mod kinematics;
@@ -18,6 +19,7 @@ mod solve;
 mod standard;
 mod take;
 
+pub use hands::keep_hands_above_floor;
 pub use kinematics::{forward_kinematics, LocalPose};
 pub use keys::{guess_key_joints, Key, KeyJoints};
 pub use names::Side;

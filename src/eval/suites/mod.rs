@@ -13,6 +13,7 @@ mod inbetween;
 mod locgen;
 mod long_term;
 mod motion;
+mod random_takes;
 mod style_control;
 
 use std::str::FromStr;
