@@ -15,7 +15,8 @@ use super::args::TransitionArg;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, motion, constraints, or all.
+    /// cmu-euclid, h36m-mmd, h36m, bandai, locgen, long-term, motion, constraints, inbetween,
+    /// first-takes, combined, styles, or all (the first nine).
     #[arg(long, value_parser = suites_named)]
     suite: Suites,
     /// Write the suite's numbers here as JSON (for `all`: one file per suite, NAME inserted

@@ -42,7 +42,7 @@ pub enum Suite {
     Motion,
     Constraints,
     Inbetween,
-    /// The motion suite's first takes alone.
+    /// The motion suite's first takes alone, and random takes ([`random_takes`]).
     FirstTakes,
 }
 
@@ -78,8 +78,8 @@ impl FromStr for Suite {
     type Err = anyhow::Error;
 
     fn from_str(s: &str) -> Result<Self> {
-        // `first-takes` is part of `motion`, so `all` leaves it out; `combined` is the model of
-        // everything's, which the paper's tables do not need.
+        // `first-takes` (the motion suite's first takes and random takes of its own), `combined`
+        // and `styles` (the model of everything's) are not the paper's tables: `all` leaves them out.
         let named = Self::ALL.into_iter().chain([Suite::FirstTakes, Suite::Combined, Suite::Styles]);
         named.clone().find(|x| x.name() == s).ok_or_else(|| anyhow!("unknown suite '{s}'; valid: {}", named.map(Suite::name).collect::<Vec<_>>().join(", ")))
     }
