@@ -42,6 +42,13 @@ fn cmu_dance(dir: &Path) -> PathBuf {
     write(dir, "cmu-salsa.bvh", &archive_text("cmu-dance", "cmu-dance/salsa/01.bvh"))
 }
 
+/// A CMU dance clip whose first frame is a reference pose 11 units (centimetres, read as the
+/// file's) from where the capture starts: its size, not Bandai's root joint placed 4.5 m from
+/// the hips, sets its unit (read as decimetres, the root moved at 138 m/s and was refused).
+fn cmu_dance_with_reference_frame(dir: &Path) -> PathBuf {
+    write(dir, "cmu-indian.bvh", &archive_text("cmu-dance", "cmu-dance/indian/04.bvh"))
+}
+
 const MIXAMO_NAMES: [(&str, &str); 21] = [
     ("Hips", "Hips"),
     ("Spine", "Spine"),
@@ -149,7 +156,7 @@ fn facing_bone_angle(bones: &[(Key, Key)], a: &[Vec3], ak: &KeyJoints, b: &[Vec3
 #[test]
 fn foreign_bvh_files_start_takes_on_both_models() {
     let dir = tempfile::tempdir().unwrap();
-    let sources = [(cmu_dance(dir.path()), 200), (mixamo_from_bandai(dir.path(), &MIXAMO_NAMES), 100), (cmu_asf(dir.path()), 30), (blender_unreal(), 20)];
+    let sources = [(cmu_dance(dir.path()), 200), (cmu_dance_with_reference_frame(dir.path()), 200), (mixamo_from_bandai(dir.path(), &MIXAMO_NAMES), 100), (cmu_asf(dir.path()), 30), (blender_unreal(), 20)];
     for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         let target = m.spec.layout.skeleton.clone();

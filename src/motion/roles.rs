@@ -76,6 +76,14 @@ impl JointRoles {
         }
     }
 
+    /// The legs' mean rest length, hip to knee to ankle, in the skeleton's units: the body's
+    /// size whatever else the rig holds (fingers, props, a root joint placed far from the body).
+    pub fn rest_leg_length(&self, skeleton: &Skeleton) -> f32 {
+        let rest = skeleton.rest_positions();
+        let leg = |l: &Leg| rest[l.hip].distance(rest[l.knee]) + rest[l.knee].distance(rest[l.ankle]);
+        (leg(&self.left) + leg(&self.right)) / 2.0
+    }
+
     /// The joint drawn as the top of the head.
     pub fn head_top(&self) -> usize {
         self.head_end.unwrap_or(self.head)

@@ -17,7 +17,7 @@ use crate::data::input::{check_plausible, read_bytes, read_text, MAX_MOTION_BYTE
 use crate::data::npy::{motion_from_npy, read_npy};
 use crate::data::registry::Dataset;
 use crate::model::glocal::GlocalModel;
-use crate::motion::{Motion, Skeleton};
+use crate::motion::{JointRoles, Motion, Skeleton};
 use super::export::in_units;
 
 /// Where the first sparse poses come from.
@@ -130,10 +130,12 @@ impl FileStart {
 /// A BVH exported in metres or centimetres (`glocal generate --units`) read as if in the
 /// model's unit: rescaled by the power of ten that makes its bones the model's length. A file
 /// on another skeleton (whose bones named as the model's are not its lengths times a power of
-/// ten) is judged by its size instead: the
-/// power of ten that makes its reach at rest (the farthest joint from its root) a person's,
-/// as the model's is, within a factor of two (a Bandai file in centimetres on the standard
-/// humanoid in metres).
+/// ten) is judged by its size instead: the power of ten that makes its legs (hip to knee to
+/// ankle at rest) a person's, as the model's are, within a factor of two (a Bandai file in
+/// centimetres on the standard humanoid in metres). A rig whose legs are not found is sized by
+/// its reach at rest (the farthest joint from its root): the legs come first because a root
+/// joint can rest far from the body (Bandai's `joint_Root` 4.5 m from its hips), which read a
+/// CMU dance file in centimetres as decimetres.
 fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     let s = &m.skeleton;
     let mut ratios: Vec<f32> = (0..s.len())
@@ -148,12 +150,8 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
         let power = ratio.log10().round();
         ((ratio.log10() - power).abs() <= tolerance && power.abs() <= 3.0).then_some(power)
     };
-    let reach = |k: &Skeleton| {
-        let rest = k.rest_positions();
-        rest.iter().map(|p| p.distance(rest[0])).fold(0.0f32, f32::max)
-    };
     let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02));
-    let Some(power) = by_names.or_else(|| power_of_ten(reach(model) / reach(s).max(f32::MIN_POSITIVE), 0.3)) else { return Ok(m) };
+    let Some(power) = by_names.or_else(|| power_of_ten(size_ratio(model, s), 0.3)) else { return Ok(m) };
     if power == 0.0 {
         return Ok(m);
     }
@@ -161,6 +159,20 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     let mut file = m;
     file.skeleton = Arc::new(skeleton);
     in_units(&file, model.meters_per_unit())
+}
+
+/// How many times `b`'s body is `a`'s, by their legs where both have them, else by their reach.
+fn size_ratio(a: &Skeleton, b: &Skeleton) -> f32 {
+    let legs = |k: &Skeleton| JointRoles::new(k).ok().map(|r| r.rest_leg_length(k));
+    let reach = |k: &Skeleton| {
+        let rest = k.rest_positions();
+        rest.iter().map(|p| p.distance(rest[0])).fold(0.0f32, f32::max)
+    };
+    let (size_a, size_b) = match (legs(a), legs(b)) {
+        (Some(la), Some(lb)) if la > 0.0 && lb > 0.0 => (la, lb),
+        _ => (reach(a), reach(b)),
+    };
+    size_a / size_b.max(f32::MIN_POSITIVE)
 }
 
 /// A motion file brought onto the model's joints and frame rate, with what frame numbers

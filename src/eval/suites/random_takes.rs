@@ -104,8 +104,7 @@ fn in_the_air(corpus: &Corpus) -> Result<Vec<f64>> {
         let m = &track.motion;
         let roles = JointRoles::new(&m.skeleton)?;
         let unit = m.skeleton.meters_per_unit();
-        let rest = m.skeleton.rest_positions();
-        let leg = rest[roles.left.hip].distance(rest[roles.left.knee]) + rest[roles.left.knee].distance(rest[roles.left.ankle]);
+        let leg = roles.rest_leg_length(&m.skeleton);
         let support = support_heights(m, &roles);
         let floor = local_floor(&support, (FLOOR_WINDOW_SECONDS * m.fps).round() as usize);
         let flying = |t: usize| (support[t] - floor[t]) * unit > FEET_UP_M && m.frame(t)[roles.body_root].y - floor[t] >= AIRBORNE_HIPS * leg;
