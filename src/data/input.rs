@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 
-use crate::motion::{Motion, Skeleton};
+use crate::motion::{JointRoles, Motion, Skeleton};
 
 /// The largest motion file (BVH, NPY, exponential map, JSON take) glocal reads: an hour-long
 /// take at 25 fps is about 75 MB of JSON.
@@ -44,42 +44,53 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String> {
 pub const MAX_DISTANCE_M: f32 = 1e5;
 /// Fastest the root may move between frames: 100 m/s, ten times a sprint.
 pub const MAX_ROOT_SPEED_M_S: f32 = 100.0;
-/// How far a joint may be from the root, against the farthest joint of the rest pose: a
-/// real pose stretches a little past its rest extent, never to four times it.
+/// How far a joint may be from the body's root, against the farthest joint of the rest pose:
+/// a real pose stretches a little past its rest extent, never to four times it.
 const MAX_REACH: f32 = 4.0;
 
-/// Refuses a motion no body could make: non-finite or astronomically far positions, a root
-/// that jumps faster than anything runs, joints flung far beyond the skeleton's size
-/// (`reference`'s rest pose, so a file cannot make itself look normal with huge offsets),
-/// or a clip longer than [`MAX_MOTION_SECONDS`]. The error names the first bad frame
-/// (from 1, as files count them).
+/// Refuses a motion no body could make: non-finite or astronomically far positions, a body
+/// root that jumps faster than anything runs, body joints flung far beyond the skeleton's
+/// size (`reference`'s rest pose, so a file cannot make itself look normal with huge
+/// offsets), or a clip longer than [`MAX_MOTION_SECONDS`]. The body is the joint both legs
+/// hang from and everything under it ([`body`]). The error names the first bad frame (from
+/// 1, as files count them).
 pub fn check_plausible(motion: &Motion, name: &str, reference: &Skeleton) -> Result<()> {
     if !(motion.fps.is_finite() && motion.fps > 0.0) || motion.frames() as f64 / motion.fps as f64 > MAX_MOTION_SECONDS {
         bail!("{name}: {} frames at {} fps is longer than the {} s glocal reads", motion.frames(), motion.fps, MAX_MOTION_SECONDS);
     }
     let unit = motion.skeleton.meters_per_unit();
+    let (reference_root, reference_body) = body(reference);
     let rest = reference.rest_positions();
-    let rest_reach = rest.iter().map(|p| p.distance(rest[0]) * reference.meters_per_unit()).fold(0.0f32, f32::max);
+    let rest_reach = reference_body.iter().map(|&j| rest[j].distance(rest[reference_root]) * reference.meters_per_unit()).fold(0.0f32, f32::max);
     // A one-joint or collapsed skeleton still gets a body's size.
     let max_reach = MAX_REACH * rest_reach.max(1.0);
+    let (body_root, body_joints) = body(&motion.skeleton);
     let mut previous_root: Option<Vec3> = None;
     for t in 0..motion.frames() {
         let frame = motion.frame(t);
-        let root = frame[0];
+        let root = frame[body_root];
         let bad = |what: String| anyhow::anyhow!("{name}: frame {}: {what}; the file is damaged or not motion capture", t + 1);
         if let Some(j) = frame.iter().position(|p| !p.is_finite() || p.length() * unit > MAX_DISTANCE_M) {
             return Err(bad(format!("joint {j} is at {} m, farther than {MAX_DISTANCE_M} m from the origin", frame[j].length() * unit)));
         }
-        if let Some(j) = frame.iter().position(|p| p.distance(root) * unit > max_reach) {
-            return Err(bad(format!("joint {j} is {:.1} m from the root, more than {MAX_REACH} times the skeleton's reach", frame[j].distance(root) * unit)));
+        if let Some(&j) = body_joints.iter().find(|&&j| frame[j].distance(root) * unit > max_reach) {
+            return Err(bad(format!("joint {j} is {:.1} m from the body's root, more than {MAX_REACH} times the skeleton's reach", frame[j].distance(root) * unit)));
         }
         if let Some(prev) = previous_root {
             let speed = prev.distance(root) * unit * motion.fps;
             if speed > MAX_ROOT_SPEED_M_S {
-                return Err(bad(format!("the root moves at {speed:.0} m/s, faster than {MAX_ROOT_SPEED_M_S} m/s")));
+                return Err(bad(format!("the body's root moves at {speed:.0} m/s, faster than {MAX_ROOT_SPEED_M_S} m/s")));
             }
         }
         previous_root = Some(root);
     }
     Ok(())
+}
+
+/// The joint both legs hang from (the skeleton's root where they are not found) and its
+/// subtree: the body, without a placement joint above it (Bandai's `joint_Root` rests where
+/// the capture began, 4.5 m from the hips in some of its files).
+fn body(skeleton: &Skeleton) -> (usize, Vec<usize>) {
+    let root = JointRoles::new(skeleton).map_or(0, |r| r.body_root);
+    (root, skeleton.subtree(root))
 }

@@ -105,8 +105,9 @@ impl Finishing<'_> {
         let starts_take = window.start == 0;
         let constraints = if starts_take { self.constraints } else { &[] };
         let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, layout, spec.fps)).collect();
-        let FootLocked { motion, contacts } = self.locked(positions)?;
+        let FootLocked { motion, mut contacts } = self.locked(positions)?;
         let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
+        constraints.iter().for_each(|c| c.on_contacts(&motion, &mut contacts));
         Ok(Stretch { first: frames.start, motion, contacts, warnings })
     }
 
@@ -168,6 +169,7 @@ impl Finishing<'_> {
         let mut motion = Motion::from_positions(layout.skeleton.clone(), spec.fps, positions);
         motion.local_poses = poses;
         let motion = self.constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
+        self.constraints.iter().for_each(|c| c.on_contacts(&motion, &mut contacts));
         Ok(Stretch { first: 0, motion, contacts, warnings: Vec::new() })
     }
 

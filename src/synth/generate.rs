@@ -11,7 +11,7 @@ use rand::{Rng, SeedableRng};
 
 use super::finish::{chunks, ChunkFinish, Finishing, Stretch};
 use super::foot_lock::Travel;
-use super::given::GivenStart;
+use super::given::{GivenFloor, GivenStart};
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
 use super::keys::{filled_gaps, learnt_travel, place_keys, KeyConstraint, PlacedKey};
@@ -171,14 +171,22 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     Ok(generated)
 }
 
-/// The take's constraints in the order they apply: the root path lays the take out, the keys
-/// pin it, a file start's given frames are put back as given, and held frames as held.
+/// The take's constraints in the order they apply: a file start's floor carries the take, the
+/// root path lays it out, the keys pin it, the file start's given frames are put back as
+/// given, and held frames as held.
 /// `held` is the request's held frames as a constraint, kept by the caller (the rollout and
 /// the finishing read them too); the keys come with the gaps before them the in-betweener
 /// fills.
 fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, (keys, gaps): (Vec<PlacedKey>, Vec<Range<usize>>), held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
     let spec = &model.spec;
     let mut constraints: Vec<Box<dyn TakeConstraint + 'a>> = Vec::new();
+    // The given frames of a file start keep their own timing only at pace 1.
+    let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);
+    let given = given_frames(model, &opts.init)?.filter(|_| first_pace == 1.0);
+    // First: the take onto the given frames' floor, which the keys and the path then keep.
+    if let Some(frames) = &given {
+        constraints.push(Box::new(GivenFloor { frames: frames.clone() }));
+    }
     if let Some(path) = &opts.path {
         path.check().context("root path")?;
         let units_per_metre = 1.0 / spec.layout.skeleton.meters_per_unit();
@@ -189,9 +197,7 @@ fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline
         let step_seconds = keys.iter().map(|k| timeline.step_seconds[timeline.segment_at(k.sparse)]).collect();
         constraints.push(Box::new(KeyConstraint { keys, model, gaps, step_seconds, method: opts.key_method }));
     }
-    // The given frames of a file start keep their own timing only at pace 1.
-    let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);
-    if let Some(frames) = given_frames(model, &opts.init)?.filter(|_| first_pace == 1.0) {
+    if let Some(frames) = given {
         constraints.push(Box::new(GivenStart { frames, until: first_key.unwrap_or(usize::MAX) }));
     }
     // Last: the held frames come out exactly as held, whatever the others did.

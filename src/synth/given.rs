@@ -1,16 +1,36 @@
 //! The given frames of a take started from a motion file, kept as given: the take shows the
-//! file's own frames over its starting poses, joined onto the generated motion after them.
+//! file's own frames over its starting poses, joined onto the generated motion after them,
+//! on one floor with them.
 
 use glam::Vec3;
 
 use super::plan::TakeConstraint;
 use super::raised_cosine;
 use crate::data::features::FeatureLayout;
-use crate::motion::{solve_local_poses, Motion};
+use crate::motion::contacts::{foot_contacts, support_heights, ContactConfig, FootContacts};
+use crate::motion::{solve_local_poses, JointRoles, Motion};
 
 /// Seconds over which the difference between a given start and the generated take fades
 /// out after the start's last frame.
 const GIVEN_BLEND_SECONDS: f32 = 0.5;
+
+/// The floor of a file start's given frames as a constraint: the finished take raised or
+/// lowered onto it ([`floor_gap`]), before the keys and the path place what they place in
+/// the file's world (which is the given frames').
+pub(super) struct GivenFloor {
+    pub frames: Vec<Vec3>,
+}
+
+impl TakeConstraint for GivenFloor {
+    fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
+        let given = self.frames.len() / layout.joints();
+        if given == 0 || motion.frames() <= given {
+            return motion;
+        }
+        let gap = floor_gap(&self.frames, &motion, given);
+        motion.translated(Vec3::Y * gap)
+    }
+}
 
 /// The given frames of a file start as a constraint: the finished take shows them as given
 /// (after the foot lock and the other constraints), and the difference they make at their
@@ -42,4 +62,32 @@ impl TakeConstraint for GivenStart {
         poses.splice(0..end, solve_local_poses(&skeleton, &positions[..end * j]));
         Motion::from_local_poses(skeleton, motion.fps, poses)
     }
+
+    /// Over the given frames, the contacts the file's feet make: where they stand on the floor
+    /// (the lock planted feet the file's frames then replaced, and a contact marker was drawn
+    /// under a salsa's lifted foot, or a cross-legged sit's).
+    fn on_contacts(&self, motion: &Motion, contacts: &mut FootContacts) {
+        let given = (self.frames.len() / motion.joints()).min(motion.frames());
+        let Ok(roles) = JointRoles::new(&motion.skeleton) else { return };
+        let defaults = ContactConfig::default();
+        let standing = ContactConfig { height_off: defaults.height_on, seated_height: defaults.height_on, ..defaults };
+        let own = foot_contacts(motion, &roles, &standing);
+        contacts.left[..given].copy_from_slice(&own.left[..given]);
+        contacts.right[..given].copy_from_slice(&own.right[..given]);
+    }
+}
+
+/// How far the given frames' floor (their lowest support, feet or seat) is above the finished
+/// take's over the same frames. A file's frames stand on the file's own floor where they are,
+/// which can differ from where the take's levelled floor puts them: a CMU salsa start stood
+/// 9 cm above it (the dance floor of that capture is not level), so the given frames and the
+/// half second after them floated with both feet up, 26% of a 9 s take.
+fn floor_gap(given: &[Vec3], take: &Motion, frames: usize) -> f32 {
+    let Ok(roles) = JointRoles::new(&take.skeleton) else { return 0.0 };
+    let lowest = |positions: Vec<Vec3>| {
+        let m = Motion::from_positions(take.skeleton.clone(), take.fps, positions);
+        support_heights(&m, &roles).into_iter().fold(f32::INFINITY, f32::min)
+    };
+    let gap = lowest(given.to_vec()) - lowest(take.positions()[..frames * take.joints()].to_vec());
+    if gap.is_finite() { gap } else { 0.0 }
 }

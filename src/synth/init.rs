@@ -256,7 +256,7 @@ fn read_onto_model(model: &GlocalModel, path: &Path, name: &str, joint_map: Opti
             let dataset: Dataset = spec.dataset.parse()?;
             let root = dataset
                 .root_encoding()
-                .with_context(|| format!("{name}: a {dataset} model takes BVH or NPY, not exponential-map text"))?;
+                .with_context(|| format!("{name}: the {dataset} model reads BVH or NPY starts; exponential-map text is read by the model of its own dataset"))?;
             let format = ExpmapFormat { skeleton: source.clone(), root, fps: dataset.source_fps(), major15: None };
             let text = read_text(path, MAX_MOTION_BYTES)?;
             let m = format.read(&text, &name)?;

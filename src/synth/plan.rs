@@ -13,6 +13,7 @@ use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
 use crate::model::glogen::GloGen;
 use crate::model::spec::ModelSpec;
+use crate::motion::contacts::FootContacts;
 use crate::motion::Motion;
 
 /// A segment's place in the generated take.
@@ -222,6 +223,10 @@ pub(super) trait TakeConstraint {
     fn on_finished(&self, motion: Motion, _layout: &FeatureLayout) -> Motion {
         motion
     }
+
+    /// The finished take's foot contacts, the lock's, for a constraint that put back frames
+    /// of its own in `motion` (the take after every `on_finished`).
+    fn on_contacts(&self, _motion: &Motion, _contacts: &mut FootContacts) {}
 }
 
 /// A constraint borrowed from where the take keeps it (held frames, which the rollout and the
@@ -237,6 +242,10 @@ impl<T: TakeConstraint + ?Sized> TakeConstraint for &T {
 
     fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
         (**self).on_finished(motion, layout)
+    }
+
+    fn on_contacts(&self, motion: &Motion, contacts: &mut FootContacts) {
+        (**self).on_contacts(motion, contacts)
     }
 }
 

@@ -61,7 +61,7 @@ fn generated_pools(model: &GlocalModel, cfg: &MotionSuiteConfig, base: &Generate
         let (m, boundaries) = scored_take(model, &base, &segments, init, variant, seed)?;
         if let Some((limits, tally)) = snaps.as_mut() {
             let label = format!("{} from {} variant {variant}, seed {seed}", segments.iter().map(|(c, s)| format!("{}:{s:.1}", spec.classes[*c])).collect::<Vec<_>>().join(","), spec.classes[init]);
-            tally.add(limits, &label, &m);
+            tally.add(limits, &label, &m, 0);
         }
         Ok((m, boundaries))
     };
@@ -235,7 +235,7 @@ fn real_training_snaps(corpus: &Corpus, limits: &SnapLimits, seconds: f32) -> Sn
     for track in &corpus.train {
         let m = track.motion.resample(COMMON_FPS);
         for piece in real_pieces(&m, seconds) {
-            tally.add(limits, &format!("{} at {:.1} s", track.file, piece.start as f32 / COMMON_FPS), &m.slice(piece.start, piece.end));
+            tally.add(limits, &format!("{} at {:.1} s", track.file, piece.start as f32 / COMMON_FPS), &m.slice(piece.start, piece.end), 0);
         }
     }
     tally
