@@ -91,14 +91,15 @@ pub struct SnapTally {
 }
 
 impl SnapTally {
-    /// Adds take `m` (at [`COMMON_FPS`]), named `take`, judged from frame `generated_from` on
-    /// (a file start's given frames before it are the file's own motion); returns its bones
-    /// over their `limits`, farthest over first, or its nearest bone when none is over.
-    pub fn add(&mut self, limits: &SnapLimits, take: &str, m: &Motion, generated_from: usize) -> Vec<Snap> {
+    /// Adds take `m` (at [`COMMON_FPS`]), named `take`, judged on the turns that end after frame
+    /// `given_until` (a file start's given frames up to it are the file's own motion; 0
+    /// judges every turn); returns its bones over their `limits`, farthest over first, or its
+    /// nearest bone when none is over.
+    pub fn add(&mut self, limits: &SnapLimits, take: &str, m: &Motion, given_until: usize) -> Vec<Snap> {
         let worst_per_bone = bone_turns(m).into_iter().filter_map(|(_, bone, turns)| {
             let limit = *limits.0.get(&bone)?;
             // Turn `t` ends at frame `t + 1`.
-            let (frame, degrees) = turns.iter().copied().enumerate().skip(generated_from.saturating_sub(1)).max_by(|a, b| a.1.total_cmp(&b.1))?;
+            let (frame, degrees) = turns.iter().copied().enumerate().skip(given_until).max_by(|a, b| a.1.total_cmp(&b.1))?;
             Some(Snap { take: take.to_string(), bone, frame: frame + 1, degrees, limit })
         });
         let mut bones: Vec<Snap> = worst_per_bone.collect();

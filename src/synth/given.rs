@@ -40,6 +40,14 @@ pub(super) struct GivenStart {
     pub until: usize,
 }
 
+impl GivenStart {
+    /// The blend's length after `given` frames of a take of `frames`, and where it ends.
+    fn blend(&self, given: usize, frames: usize, fps: f32) -> (usize, usize) {
+        let blend = ((GIVEN_BLEND_SECONDS * fps).round() as usize).min(self.until.saturating_sub(given));
+        (blend, frames.min(given + blend))
+    }
+}
+
 impl TakeConstraint for GivenStart {
     fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
         let (j, frames) = (layout.joints(), motion.frames());
@@ -51,8 +59,7 @@ impl TakeConstraint for GivenStart {
         let last = given - 1;
         let residual: Vec<Vec3> = (0..j).map(|k| self.frames[last * j + k] - positions[last * j + k]).collect();
         positions[..given * j].copy_from_slice(&self.frames);
-        let blend = ((GIVEN_BLEND_SECONDS * motion.fps).round() as usize).min(self.until.saturating_sub(given));
-        let end = frames.min(given + blend);
+        let (blend, end) = self.blend(given, frames, motion.fps);
         for f in given..end {
             let w = raised_cosine((f - last) as f32 / (blend + 1) as f32);
             positions[f * j..(f + 1) * j].iter_mut().zip(&residual).for_each(|(p, r)| *p += w * *r);
@@ -63,17 +70,21 @@ impl TakeConstraint for GivenStart {
         Motion::from_local_poses(skeleton, motion.fps, poses)
     }
 
-    /// Over the given frames, the contacts the file's feet make: where they stand on the floor
-    /// (the lock planted feet the file's frames then replaced, and a contact marker was drawn
-    /// under a salsa's lifted foot, or a cross-legged sit's).
+    /// Over the given frames and the blend after them, the contacts the feet there make: where
+    /// they stand on the floor (the lock planted feet the file's frames then replaced, and a
+    /// contact marker was drawn under a salsa's lifted foot, or a cross-legged sit's).
     fn on_contacts(&self, motion: &Motion, contacts: &mut FootContacts) {
-        let given = (self.frames.len() / motion.joints()).min(motion.frames());
+        let given = self.frames.len() / motion.joints();
+        if given == 0 || motion.frames() <= given {
+            return;
+        }
+        let (_, end) = self.blend(given, motion.frames(), motion.fps);
         let Ok(roles) = JointRoles::new(&motion.skeleton) else { return };
         let defaults = ContactConfig::default();
         let standing = ContactConfig { height_off: defaults.height_on, seated_height: defaults.height_on, ..defaults };
         let own = foot_contacts(motion, &roles, &standing);
-        contacts.left[..given].copy_from_slice(&own.left[..given]);
-        contacts.right[..given].copy_from_slice(&own.right[..given]);
+        contacts.left[..end].copy_from_slice(&own.left[..end]);
+        contacts.right[..end].copy_from_slice(&own.right[..end]);
     }
 }
 

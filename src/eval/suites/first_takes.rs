@@ -129,7 +129,7 @@ pub fn first_takes(dataset: Dataset, ctx: &SuiteContext, limits: &SnapLimits, sn
             let g = generate(&model, &opts, &mut |_| true)?;
             let (feet_up, longest_float_s, contacts_off_floor) = feet_on_the_floor(&g.motion, &g.contacts)?;
             // A file start's given frames are the file's motion (a salsa's hips turn 20 degrees
-            // a frame); the snaps judged are the generated ones after them.
+            // a frame); the turns judged are those after the last of them.
             let given_seconds = match recipe.start {
                 Start::File { .. } => ((model.spec.block_len - 1) * model.spec.stride) as f32 / model.spec.fps,
                 Start::Seed(_) => 0.0,
