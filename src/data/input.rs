@@ -52,19 +52,17 @@ const MAX_REACH: f32 = 4.0;
 /// root that jumps faster than anything runs, body joints flung far beyond the skeleton's
 /// size (`reference`'s rest pose, so a file cannot make itself look normal with huge
 /// offsets), or a clip longer than [`MAX_MOTION_SECONDS`]. The body is the joint both legs
-/// hang from and everything under it ([`body`]). The error names the first bad frame (from
-/// 1, as files count them).
+/// hang from and everything under it ([`JointRoles::body_of`]). The error names the first bad
+/// frame (from 1, as files count them).
 pub fn check_plausible(motion: &Motion, name: &str, reference: &Skeleton) -> Result<()> {
     if !(motion.fps.is_finite() && motion.fps > 0.0) || motion.frames() as f64 / motion.fps as f64 > MAX_MOTION_SECONDS {
         bail!("{name}: {} frames at {} fps is longer than the {} s glocal reads", motion.frames(), motion.fps, MAX_MOTION_SECONDS);
     }
     let unit = motion.skeleton.meters_per_unit();
-    let (reference_root, reference_body) = body(reference);
-    let rest = reference.rest_positions();
-    let rest_reach = reference_body.iter().map(|&j| rest[j].distance(rest[reference_root]) * reference.meters_per_unit()).fold(0.0f32, f32::max);
+    let rest_reach = JointRoles::rest_reach(reference) * reference.meters_per_unit();
     // A one-joint or collapsed skeleton still gets a body's size.
     let max_reach = MAX_REACH * rest_reach.max(1.0);
-    let (body_root, body_joints) = body(&motion.skeleton);
+    let (body_root, body_joints) = JointRoles::body_of(&motion.skeleton);
     let mut previous_root: Option<Vec3> = None;
     for t in 0..motion.frames() {
         let frame = motion.frame(t);
@@ -85,12 +83,4 @@ pub fn check_plausible(motion: &Motion, name: &str, reference: &Skeleton) -> Res
         previous_root = Some(root);
     }
     Ok(())
-}
-
-/// The joint both legs hang from (the skeleton's root where they are not found) and its
-/// subtree: the body, without a placement joint above it (Bandai's `joint_Root` rests where
-/// the capture began, 4.5 m from the hips in some of its files).
-fn body(skeleton: &Skeleton) -> (usize, Vec<usize>) {
-    let root = JointRoles::new(skeleton).map_or(0, |r| r.body_root);
-    (root, skeleton.subtree(root))
 }

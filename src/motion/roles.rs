@@ -84,6 +84,22 @@ impl JointRoles {
         (leg(&self.left) + leg(&self.right)) / 2.0
     }
 
+    /// The joint both legs hang from (the skeleton's root where the legs are not found) and
+    /// its subtree: the body, without a placement joint above it (Bandai's `joint_Root` rests
+    /// where the capture began, 4.5 m from the hips in some of its files).
+    pub fn body_of(skeleton: &Skeleton) -> (usize, Vec<usize>) {
+        let root = Self::new(skeleton).map_or(0, |r| r.body_root);
+        (root, skeleton.subtree(root))
+    }
+
+    /// The body's reach at rest ([`JointRoles::body_of`]): its farthest joint from its root, in
+    /// the skeleton's units.
+    pub fn rest_reach(skeleton: &Skeleton) -> f32 {
+        let (root, body) = Self::body_of(skeleton);
+        let rest = skeleton.rest_positions();
+        body.iter().map(|&j| rest[j].distance(rest[root])).fold(0.0f32, f32::max)
+    }
+
     /// The joint drawn as the top of the head.
     pub fn head_top(&self) -> usize {
         self.head_end.unwrap_or(self.head)

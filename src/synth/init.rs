@@ -133,9 +133,9 @@ impl FileStart {
 /// ten) is judged by its size instead: the power of ten that makes its legs (hip to knee to
 /// ankle at rest) a person's, as the model's are, within a factor of two (a Bandai file in
 /// centimetres on the standard humanoid in metres). A rig whose legs are not found is sized by
-/// its reach at rest (the farthest joint from its root): the legs come first because a root
-/// joint can rest far from the body (Bandai's `joint_Root` 4.5 m from its hips), which read a
-/// CMU dance file in centimetres as decimetres.
+/// its body's reach at rest. Both leave out a root joint resting far from the body (Bandai's
+/// `joint_Root`, 4.5 m from its hips), by whose reach a CMU dance file in centimetres read as
+/// decimetres.
 fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     let s = &m.skeleton;
     let mut ratios: Vec<f32> = (0..s.len())
@@ -164,13 +164,9 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
 /// How many times `b`'s body is `a`'s, by their legs where both have them, else by their reach.
 fn size_ratio(a: &Skeleton, b: &Skeleton) -> f32 {
     let legs = |k: &Skeleton| JointRoles::new(k).ok().map(|r| r.rest_leg_length(k));
-    let reach = |k: &Skeleton| {
-        let rest = k.rest_positions();
-        rest.iter().map(|p| p.distance(rest[0])).fold(0.0f32, f32::max)
-    };
     let (size_a, size_b) = match (legs(a), legs(b)) {
         (Some(la), Some(lb)) if la > 0.0 && lb > 0.0 => (la, lb),
-        _ => (reach(a), reach(b)),
+        _ => (JointRoles::rest_reach(a), JointRoles::rest_reach(b)),
     };
     size_a / size_b.max(f32::MIN_POSITIVE)
 }
