@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::plan::TakeConstraint;
 use super::raised_cosine;
 use crate::data::features::FeatureLayout;
-use crate::motion::contacts::{foot_contacts, support_heights, ContactConfig, FootContacts};
+use crate::motion::contacts::{foot_contacts, ContactConfig, FootContacts};
 use crate::motion::{solve_local_poses, JointRoles, Motion};
 
 /// Seconds over which the difference between a given start and the generated take fades
@@ -88,17 +88,13 @@ impl TakeConstraint for GivenStart {
     }
 }
 
-/// How far the given frames' floor (their lowest support, feet or seat) is above the finished
-/// take's over the same frames. A file's frames stand on the file's own floor where they are,
-/// which can differ from where the take's levelled floor puts them: a CMU salsa start stood
-/// 9 cm above it (the dance floor of that capture is not level), so the given frames and the
-/// half second after them floated with both feet up, 26% of a 9 s take.
+/// How far the given frames' floor (their lowest support, feet or seat:
+/// [`Motion::floor_height`], as [`super::init::FileStart`] puts them on the model's floor) is
+/// above the finished take's over the same frames. A file's frames stand on the file's own
+/// floor where they are, which can differ from where the take's levelled floor puts them: a
+/// CMU salsa start stood 9 cm above it (the dance floor of that capture is not level), so the
+/// given frames and the half second after them floated with both feet up, 26% of a 9 s take.
 fn floor_gap(given: &[Vec3], take: &Motion, frames: usize) -> f32 {
-    let Ok(roles) = JointRoles::new(&take.skeleton) else { return 0.0 };
-    let lowest = |positions: Vec<Vec3>| {
-        let m = Motion::from_positions(take.skeleton.clone(), take.fps, positions);
-        support_heights(&m, &roles).into_iter().fold(f32::INFINITY, f32::min)
-    };
-    let gap = lowest(given.to_vec()) - lowest(take.positions()[..frames * take.joints()].to_vec());
-    if gap.is_finite() { gap } else { 0.0 }
+    let given = Motion::from_positions(take.skeleton.clone(), take.fps, given.to_vec());
+    given.floor_height() - take.slice(0, frames).floor_height()
 }
