@@ -114,24 +114,23 @@ fn killed_training_resumes_from_its_checkpoint() {
 /// `glocal train --residual` saves a GloGen that predicts offsets from the last observed
 /// pose, and generation runs it that way: its first forecast pose lies nearer the last
 /// observed one than that of the same GloGen trained on absolute poses, and it beats
-/// zero-velocity on the test split.
+/// zero-velocity on the test split. `--residual-fade`, whose offset fades over the block,
+/// starts its blocks nearer too.
 #[test]
 fn residual_glogen_starts_where_its_context_leaves_off() {
     use glocal::data::{archive::DataRoot, registry::Dataset};
     let tmp = tempfile::tempdir().unwrap();
-    let train = |name: &str, residual: bool| -> PathBuf {
+    let train = |name: &str, flag: Option<&str>| -> PathBuf {
         let out = tmp.path().join(name);
         let mut c = Command::new(env!("CARGO_BIN_EXE_glocal"));
         c.args(["train", "--dataset", "cmu-expmap", "--stage", "glogen", "--hidden", "48", "--batch", "16", "--stride", "2"])
             .args(["--steps", "300", "--eval-every", "300", "--checkpoint-every", "300", "--out"])
             .arg(&out);
-        if residual {
-            c.arg("--residual");
-        }
+        c.args(flag);
         assert!(c.status().unwrap().success(), "training {name} failed");
         out
     };
-    let (absolute, residual) = (train("absolute", false), train("residual", true));
+    let (absolute, residual, fading) = (train("absolute", None), train("residual", Some("--residual")), train("fading", Some("--residual-fade")));
     let corpus = glocal::model::corpus::Corpus::load(Dataset::CmuExpmap, &DataRoot::resolve(None), 2, 3).unwrap();
     let first_step = |dir: &Path| -> f32 {
         let model = GlocalModel::load(dir).unwrap();
@@ -151,8 +150,10 @@ fn residual_glogen_starts_where_its_context_leaves_off() {
     assert!(spec.glogen.residual, "model.json does not say the GloGen is residual");
     let record = spec.training.glogen.unwrap();
     assert!(record.val_error < record.baseline_error, "residual GloGen {} against zero-velocity {}", record.val_error, record.baseline_error);
-    let (a, r) = (first_step(&absolute), first_step(&residual));
+    assert!(ModelSpec::read(&fading).unwrap().glogen.residual_fade, "model.json does not say the GloGen's offset fades");
+    let (a, r, f) = (first_step(&absolute), first_step(&residual), first_step(&fading));
     assert!(r < a, "first forecast pose {r:.3} units from the last observed one (residual) against {a:.3} (absolute)");
+    assert!(f < a, "first forecast pose {f:.3} units from the last observed one (fading residual) against {a:.3} (absolute)");
 }
 
 /// Each shipped model's in-betweener beats linear interpolation on its held-out split (the

@@ -71,6 +71,10 @@ struct ShapeArgs {
     /// start where their context leaves off.
     #[arg(long)]
     residual: bool,
+    /// GloGen's offset from the last pose of its input fades out over the block: a block
+    /// continues its context where it meets it and ends on poses of its own.
+    #[arg(long, conflicts_with = "residual")]
+    residual_fade: bool,
     /// GloGen trains on its blocks joined at their seams, as generation shows them.
     #[arg(long)]
     joined: bool,
@@ -100,14 +104,15 @@ impl ShapeArgs {
         shape.rollout_blocks = self.rollout;
         shape.class_dropout = self.class_dropout;
         shape.residual = self.residual;
+        shape.residual_fade = self.residual_fade;
         shape.joined = self.joined;
         shape.seam_join = if self.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
         shape.target = self.target;
         shape.stride = self.stride;
         shape.locgen_keys = self.locgen_keys;
         if self.paper {
-            if self.residual || self.joined || self.two_sided_join || self.target {
-                bail!("--paper trains the paper's GloGen, which has neither --residual, --joined, --two-sided-join nor --target");
+            if self.residual || self.residual_fade || self.joined || self.two_sided_join || self.target {
+                bail!("--paper trains the paper's GloGen, which has neither --residual, --residual-fade, --joined, --two-sided-join nor --target");
             }
             shape.class_in_decoder = false;
             shape.class_dropout = 0.0;

@@ -162,7 +162,7 @@ impl GlocalModel {
     /// observed sparse poses ending at `t0`. Positions are in the motion's own world frame.
     pub fn forecast(&self, m: &Motion, t0: usize, class: usize, blocks: usize, join_seams: bool) -> Result<Vec<Vec3>> {
         let (s, t, dim) = (self.spec.stride, self.spec.block_len, self.spec.layout.dim());
-        let first = t0 as isize - ((t - 1) * s) as isize;
+        let first = t0 as isize - self.spec.observed_span() as isize;
         if first < s as isize || t0 >= m.frames() {
             bail!("frame {t0} has too little observed motion before it for the model ({} frames needed)", t * s);
         }

@@ -80,15 +80,16 @@ impl GloGen {
     }
 
     /// What the network's block is an offset from: the straight way to the target when the
-    /// block has one ([`straight_way`]), else the last pose of its input for a residual GloGen.
+    /// block has one ([`straight_way`]), else (a share of) the last pose of its input for a
+    /// residual GloGen ([`GloGenSpec::base_weights`]).
     fn add_base(&self, input: &[f32], cond: &[f32], out: &mut [f32]) {
         let last = &input[input.len() - self.dim..];
         let way = if self.spec.target { straight_way(last, &cond[self.class_len..], self.block_len, &self.norm) } else { None };
         if let Some(way) = way {
             out.iter_mut().zip(&way).for_each(|(o, w)| *o += w);
-        } else if self.spec.residual {
-            for pose in out.chunks_exact_mut(self.dim) {
-                pose.iter_mut().zip(last).for_each(|(o, l)| *o += l);
+        } else if let Some(weights) = self.spec.base_weights(self.block_len) {
+            for (pose, w) in out.chunks_exact_mut(self.dim).zip(weights) {
+                pose.iter_mut().zip(last).for_each(|(o, l)| *o += w * l);
             }
         }
     }

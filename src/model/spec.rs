@@ -50,6 +50,12 @@ pub struct GloGenSpec {
     /// decoder places its first pose (models saved before the choice: absolute poses).
     #[serde(default)]
     pub residual: bool,
+    /// The offset from the last pose of the block's input fades out over the block (a raised
+    /// cosine, whole at its first pose, gone at its last): a block continues its context where
+    /// it meets it, as a residual GloGen does, and ends on poses of its own, as an absolute one
+    /// does (models saved before the choice: off).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub residual_fade: bool,
     /// Trained on its blocks joined at their seams as generation joins them
     /// (`GloGen::rollout_block`): the loss sees the joined block and the rollout's next
     /// block reads it.
@@ -74,6 +80,17 @@ impl GloGenSpec {
         } else {
             0
         }
+    }
+
+    /// How much of the input's last pose each of a block's `block_len` poses is an offset
+    /// from: all of it for a residual GloGen, a fading share with [`GloGenSpec::residual_fade`],
+    /// None for absolute poses.
+    pub fn base_weights(&self, block_len: usize) -> Option<Vec<f32>> {
+        if self.residual {
+            return Some(vec![1.0; block_len]);
+        }
+        let last = block_len.saturating_sub(1).max(1) as f32;
+        self.residual_fade.then(|| (0..block_len).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / last).cos())).collect())
     }
 
     /// The whole conditioning vector: the labels, then the target when the block reads one.
@@ -441,6 +458,12 @@ impl ModelSpec {
     /// one-hot entry, then the style's after all the classes'.
     pub fn label_indices(&self, class: usize, style: Option<usize>) -> impl Iterator<Item = usize> {
         std::iter::once(class).chain(style.map(|s| self.classes.len() + s))
+    }
+
+    /// Dense frames from the first to the last of the sparse poses a block observes: what a
+    /// start from a file gives of its own motion before GloGen's first pose.
+    pub fn observed_span(&self) -> usize {
+        (self.block_len - 1) * self.stride
     }
 
     /// Sets `class` and `style` in the label part of a conditioning row.

@@ -42,7 +42,7 @@ pub fn keep_hands_above_floor(positions: &mut [Vec3], skeleton: &Skeleton, roles
 
 /// `under` widened and smoothed so that it eases in and out, never below `under` itself: the
 /// largest within three smoothing half-widths either side, then three moving averages.
-fn eased(under: &[f32], fps: f32) -> Vec<f32> {
+pub(super) fn eased(under: &[f32], fps: f32) -> Vec<f32> {
     let half = (EASE_SECONDS * fps / 3.0).round().max(1.0) as usize;
     let widest = sliding(under, 3 * half, f32::max, 0.0);
     smoothed(&widest, half)

@@ -7,7 +7,8 @@
 //! floor, blended in and out over a few frames, each swing is lifted clear of the floor
 //! while the other foot carries the body, and analytic two-bone IK bends the legs to reach,
 //! the heel lifting rather than the leg snapping straight and the hips moving only when a
-//! leg cannot; a hand pushed through the floor is lifted onto it. Bone lengths stay exact,
+//! leg cannot; a hand pushed through the floor is lifted onto it, and a body kneeling
+//! through it onto its knees. Bone lengths stay exact,
 //! and a take that came with rotations gets them solved again from the new positions.
 
 use std::ops::Range;
@@ -18,7 +19,7 @@ use glam::Vec3;
 use crate::motion::contacts::{body_speeds, foot_contacts, local_floor, runs, sliding, smoothed, support_heights, ContactConfig, FootContacts};
 use crate::motion::ik::{hip_offset, two_bone, two_bone_folding, MAX_STRETCH};
 use super::smoothstep;
-use crate::motion::{keep_hands_above_floor, solve_local_poses, JointRoles, Motion, Side, Skeleton};
+use crate::motion::{keep_hands_above_floor, keep_knees_above_floor, solve_local_poses, JointRoles, Motion, Side, Skeleton};
 
 /// Seconds over which a lock fades in before a contact and out after it, at least and at
 /// most: within that, long enough that the foot travels to or from its lock at no more than
@@ -141,6 +142,7 @@ pub fn foot_lock(motion: Motion, enabled: bool, travel: &Travel) -> Result<FootL
     };
     let detected = foot_contacts(&carried, &roles, &cfg);
     let (mut positions, contacts) = locked_positions(&carried, &roles, &detected);
+    keep_knees_above_floor(&mut positions, &motion.skeleton, &roles, 0.0, motion.fps);
     keep_hands_above_floor(&mut positions, &motion.skeleton, &roles, 0.0, motion.fps);
     // Back to the model's world (Human3.6M's hips near 0, its floor near -0.9 m).
     positions.iter_mut().for_each(|p| p.y += floor);

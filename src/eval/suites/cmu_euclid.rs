@@ -34,6 +34,8 @@ struct CmuGlogen {
     paper: bool,
     /// Poses predicted as offsets from the last observed one ([`crate::model::spec::GloGenSpec::residual`]).
     residual: bool,
+    /// The offset from the last observed pose fading over the block ([`crate::model::spec::GloGenSpec::residual_fade`]).
+    residual_fade: bool,
     /// The shipped design's GloGen fine-tuned on its blocks joined two-sided at their seams
     /// ([`crate::model::spec::GloGenSpec::joined`]), as the shipped models are.
     joined: bool,
@@ -41,14 +43,15 @@ struct CmuGlogen {
 
 /// The paper's GloGen and its three ablations, then the design the shipped models use (the
 /// joined one fine-tunes the one before it, so it comes after it).
-const GLOGEN_VARIANTS: [CmuGlogen; 7] = [
-    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false, joined: false },
-    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false, joined: false },
-    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false, joined: false },
-    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false, joined: false },
-    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, joined: false },
-    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, joined: true },
-    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, joined: false },
+const GLOGEN_VARIANTS: [CmuGlogen; 8] = [
+    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false, residual_fade: false, joined: false },
+    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false, residual_fade: false, joined: false },
+    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false, residual_fade: false, joined: false },
+    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false, residual_fade: false, joined: false },
+    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joined: false },
+    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joined: true },
+    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, residual_fade: false, joined: false },
+    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: true, joined: false },
 ];
 const CMU_STRIDE: usize = 2;
 /// Validation error was still falling at 1200 steps (the budget when GloGen trained at a
@@ -86,6 +89,7 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     t.shape.loss = variant.loss;
     t.shape.use_class = variant.use_class;
     t.shape.residual = variant.residual;
+    t.shape.residual_fade = variant.residual_fade;
     if variant.joined {
         t.init_from = Some(variant_dir(opts, dataset, "-shipped"));
         t.shape.joined = true;

@@ -131,7 +131,7 @@ pub fn first_takes(dataset: Dataset, ctx: &SuiteContext, limits: &SnapLimits, sn
             // A file start's given frames are the file's motion (a salsa's hips turn 20 degrees
             // a frame); the turns judged are those after the last of them.
             let given_seconds = match recipe.start {
-                Start::File { .. } => ((model.spec.block_len - 1) * model.spec.stride) as f32 / model.spec.fps,
+                Start::File { .. } => model.spec.observed_span() as f32 / model.spec.fps,
                 Start::Seed(_) => 0.0,
             };
             let bone_turns = snaps.add(limits, &command, &g.motion.resample(COMMON_FPS), (given_seconds * COMMON_FPS).round() as usize);

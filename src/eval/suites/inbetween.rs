@@ -194,10 +194,10 @@ fn clip_file(dir: &Path, track: &Track, index: usize) -> Result<PathBuf> {
 /// real frames and the baselines.
 fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, file: &Path, first: usize, gap: usize, row: &mut GapRow) -> Result<()> {
     let spec = &model.spec;
-    let (s, t, joints) = (spec.stride, spec.block_len, spec.layout.joints());
+    let (s, joints) = (spec.stride, spec.layout.joints());
     let cm = 100.0 * spec.layout.skeleton.meters_per_unit();
     // The take's frame 0 is the clip's first + s; its given poses end at frame (t - 1) s.
-    let last_given = (t - 1) * s;
+    let last_given = spec.observed_span();
     let key_frame = last_given + gap;
     let seconds = key_frame as f32 / spec.fps;
     let key = Key { seconds, source: KeySource::Init(InitPose::file(file.to_path_buf(), first + s + key_frame)), fix_root: true };

@@ -76,6 +76,7 @@ pub fn random_takes(model: &GlocalModel, corpus: &Corpus, base: &GenerateOptions
         let under = deepest_under_floor(&g.motion);
         if under > THROUGH_FLOOR_M {
             r.through_floor += 1;
+            log(&format!("random takes: `{command}` has a joint {:.1} cm under its floor", 100.0 * under));
         }
         r.deepest_m = r.deepest_m.max(under);
         // A take started from an airborne class's pose may float while it lands.

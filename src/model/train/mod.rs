@@ -141,6 +141,8 @@ pub struct ModelShape {
     pub rollout_blocks: usize,
     /// GloGen predicts offsets from the last pose of its input ([`GloGenSpec::residual`]).
     pub residual: bool,
+    /// GloGen's offset from its input's last pose fades over the block ([`GloGenSpec::residual_fade`]).
+    pub residual_fade: bool,
     /// GloGen trains on its blocks joined at their seams ([`GloGenSpec::joined`]).
     pub joined: bool,
     /// How GloGen's blocks are joined, in training and in generation ([`GloGenSpec::seam_join`]).
@@ -179,6 +181,7 @@ impl TrainOptions {
                 class_dropout: 0.1,
                 rollout_blocks: 2,
                 residual: false,
+                residual_fade: false,
                 joined: false,
                 seam_join: SeamJoin::OneSided,
                 target: false,
@@ -230,8 +233,8 @@ impl TrainOptions {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
         let two_sided = self.shape.seam_join == SeamJoin::TwoSided;
-        if self.stage == Stage::Locgen && (self.shape.residual || self.shape.joined || two_sided || self.shape.target) {
-            bail!("--residual, --joined, --two-sided-join and --target shape GloGen's blocks; they do not apply to --stage locgen");
+        if self.stage == Stage::Locgen && (self.shape.residual || self.shape.residual_fade || self.shape.joined || two_sided || self.shape.target) {
+            bail!("--residual, --residual-fade, --joined, --two-sided-join and --target shape GloGen's blocks; they do not apply to --stage locgen");
         }
         Ok(())
     }
@@ -404,6 +407,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         rollout_blocks: shape.rollout_blocks.max(1),
         loss: shape.loss,
         residual: shape.residual,
+        residual_fade: shape.residual_fade,
         joined: shape.joined,
         seam_join: shape.seam_join,
         target: shape.target,

@@ -216,12 +216,18 @@ impl GloGenTraining<'_> {
 
     /// A block from `input` `[B, T, dim]`, as [`GloGen::block`] makes it: a window with a
     /// target is an offset from the straight way to it, else a residual GloGen's is an offset
-    /// from the input's last pose.
+    /// from (a share of) the input's last pose.
     fn predict(&self, block: &Seq2SeqBlock, input: &Tensor, cond: Option<&Tensor>) -> Result<Tensor> {
         let spec = self.0.spec;
         let pred = block.forward(input, cond, true)?;
         let last = input.narrow(1, input.dim(1)? - 1, 1)?;
-        let free = if spec.glogen.residual { pred.broadcast_add(&last)? } else { pred.clone() };
+        let free = match spec.glogen.base_weights(spec.block_len) {
+            Some(w) => {
+                let w = Tensor::from_vec(w, (1, spec.block_len, 1), pred.device())?;
+                pred.broadcast_add(&last.broadcast_mul(&w)?)?
+            }
+            None => pred.clone(),
+        };
         let Some(cond) = cond.filter(|_| spec.glogen.target) else { return Ok(free) };
         let (t, dim) = (spec.block_len, self.0.layout().dim());
         let class_len = spec.label_len();
