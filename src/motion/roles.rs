@@ -80,8 +80,7 @@ impl JointRoles {
     /// size whatever else the rig holds (fingers, props, a root joint placed far from the body).
     pub fn rest_leg_length(&self, skeleton: &Skeleton) -> f32 {
         let rest = skeleton.rest_positions();
-        let leg = |l: &Leg| rest[l.hip].distance(rest[l.knee]) + rest[l.knee].distance(rest[l.ankle]);
-        (leg(&self.left) + leg(&self.right)) / 2.0
+        mean_leg_length([&self.left, &self.right].map(|l| [rest[l.hip], rest[l.knee], rest[l.ankle]]))
     }
 
     /// The joint both legs hang from (the skeleton's root where the legs are not found) and
@@ -104,6 +103,12 @@ impl JointRoles {
     pub fn head_top(&self) -> usize {
         self.head_end.unwrap_or(self.head)
     }
+}
+
+/// The mean length of two legs, each given by its hip, knee and ankle positions: hip to knee
+/// to ankle.
+pub(super) fn mean_leg_length(legs: [[Vec3; 3]; 2]) -> f32 {
+    legs.iter().map(|[hip, knee, ankle]| hip.distance(*knee) + knee.distance(*ankle)).sum::<f32>() / 2.0
 }
 
 /// Roles as one finder saw them, some perhaps missing.

@@ -28,6 +28,7 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 
 use super::keys::{Key, KeyJoints};
+use super::roles::mean_leg_length;
 use super::{LocalPose, Motion, Skeleton};
 use body::BodyPiece;
 use stance::Stance;
@@ -359,8 +360,7 @@ fn required(keys: &KeyJoints, key: Key, side: &'static str) -> Result<usize, Ret
 /// Mean rest length of the two legs, hip to knee to ankle.
 fn leg_length(rest: &[Vec3], keys: &KeyJoints) -> f32 {
     let at = |k: Key| keys.get(k).map_or(Vec3::ZERO, |j| rest[j]);
-    let leg = |hip: Key, knee: Key, ankle: Key| at(hip).distance(at(knee)) + at(knee).distance(at(ankle));
-    (leg(Key::LeftUpLeg, Key::LeftLeg, Key::LeftFoot) + leg(Key::RightUpLeg, Key::RightLeg, Key::RightFoot)) / 2.0
+    mean_leg_length([[Key::LeftUpLeg, Key::LeftLeg, Key::LeftFoot], [Key::RightUpLeg, Key::RightLeg, Key::RightFoot]].map(|leg| leg.map(at)))
 }
 
 /// Mean angle in degrees between the `bones` (as [`mapped_bones`] gives them) of two poses in
