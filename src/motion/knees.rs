@@ -1,10 +1,11 @@
 //! Knees stay on top of the floor. Kneeling, or sitting back on the heels on the way down to
 //! the floor, h36m's network can put a knee a few centimetres through it with the foot
 //! planted behind (a GloGen of h36m fine-tuned with its residual fading over blocks did in one
-//! of 200 random takes: a knee 2.9 cm under for 0.2 s of a sitting down). The shin lying on the floor is what holds
-//! the body there, so the whole body is lifted by the knee's depth, eased in and out as a
-//! hand's lift is ([`super::hands`]); the planted foot rises by as much (a few centimetres for
-//! a few frames), which a body resting on its knees does not stand on anyway.
+//! of 200 random takes: a knee 2.9 cm under for 0.2 s of a sitting down). The shin lying on
+//! the floor is what holds the body there, so the whole body is lifted by the knee's depth,
+//! eased in and out as a hand's lift is ([`super::hands`]); the planted foot rises by as much
+//! (a few centimetres for a few frames), which a body resting on its knees does not stand on
+//! anyway.
 
 use glam::Vec3;
 

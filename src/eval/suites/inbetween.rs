@@ -196,7 +196,7 @@ fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, 
     let spec = &model.spec;
     let (s, joints) = (spec.stride, spec.layout.joints());
     let cm = 100.0 * spec.layout.skeleton.meters_per_unit();
-    // The take's frame 0 is the clip's first + s; its given poses end at frame (t - 1) s.
+    // The take's frame 0 is the clip's first + s; its given poses end one observed span on.
     let last_given = spec.observed_span();
     let key_frame = last_given + gap;
     let seconds = key_frame as f32 / spec.fps;
