@@ -156,9 +156,9 @@ struct Bridged {
 
 /// `positions` with every stretch of frames in which a bone of `bones` (parent, child) has
 /// collapsed and snaps (turns more than [`COLLAPSED_SNAP`] in a frame, from the whole frame
-/// before the stretch to the one after) bridged: the bone turns along the shortest arc from
-/// its direction in the whole frame before the stretch to the one after (its length
-/// likewise), and the child moves with everything below it. `bones` lists parents before
+/// before the stretch to the one after) bridged: the bone turns with its parent's bone from
+/// its direction in the whole frame before the stretch to the one after ([`Ends::at`]; its
+/// length likewise), and the child moves with everything below it. `bones` lists parents before
 /// their children, so a bone is measured once the bones above it are bridged. None when no
 /// bone is bridged (motion capture never collapses); a bone collapsed all take long is left.
 fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usize, usize)]) -> Option<Bridged> {
@@ -169,6 +169,9 @@ fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usi
     for &(p, c) in bones {
         let current = out.as_ref().map_or(positions, |b| &b.positions);
         let bone = |t: usize| current[t * n + c] - current[t * n + p];
+        // The parent's own bone, about which a bridged bone turns (none for the root's children).
+        let grandparent = skeleton.parents()[p];
+        let axis = |positions: &[Vec3], t: usize| grandparent.map(|g| positions[t * n + p] - positions[t * n + g]).and_then(|d| d.try_normalize());
         let collapsed: Vec<bool> = (0..frames).map(|t| bone(t).length() < COLLAPSED_BELOW * rest[c]).collect();
         // A collapsed bone whose direction holds (an h36m forearm shortened while its elbow
         // bent from 162 to 74 degrees and back, smoothly) is left as it is: bridged, its arc
@@ -180,15 +183,13 @@ fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usi
             continue;
         }
         // A stretch at either end of the take keeps the one whole frame it has.
-        let ends: Vec<(Vec3, Vec3)> = runs.iter().map(|r| whole_either_side(r, frames)).map(|(a, b)| (bone(a), bone(b))).collect();
+        let ends: Vec<Ends> = runs.iter().map(|r| whole_either_side(r, frames)).map(|(a, b)| Ends::new(bone(a), bone(b), axis(current, a).zip(axis(current, b)))).collect();
         let bridged = out.get_or_insert_with(|| Bridged { positions: positions.to_vec(), stretches: Vec::new() });
         let below = skeleton.subtree(c);
-        for (run, (before, after)) in runs.into_iter().zip(ends) {
-            let arc = Quat::from_rotation_arc(before.normalize(), after.normalize());
+        for (run, ends) in runs.into_iter().zip(ends) {
+            let mut way_round = None;
             for (t, share) in shares(&run) {
-                let length = before.length() + share * (after.length() - before.length());
-                let direction = Quat::IDENTITY.slerp(arc, share) * before.normalize();
-                let shift = bridged.positions[t * n + p] + direction * length - bridged.positions[t * n + c];
+                let shift = bridged.positions[t * n + p] + ends.at(share, axis(&bridged.positions, t), &mut way_round) - bridged.positions[t * n + c];
                 below.iter().for_each(|&j| bridged.positions[t * n + j] += shift);
             }
             bridged.stretches.push((c, run));
@@ -196,6 +197,72 @@ fn bridge_collapsed_bones(skeleton: &Skeleton, positions: &[Vec3], bones: &[(usi
     }
     out
 }
+
+/// A collapsed bone in the whole frames either side of its stretch, and its parent's bone
+/// (unit directions) in each: none for the root's children.
+struct Ends {
+    before: Vec3,
+    after: Vec3,
+    parent_bone: Option<(Vec3, Vec3)>,
+    /// Whether the bone goes round its parent's bone rather than along the arc between its ends.
+    goes_round: bool,
+}
+
+impl Ends {
+    fn new(before: Vec3, after: Vec3, parent_bone: Option<(Vec3, Vec3)>) -> Self {
+        let goes_round = parent_bone.is_some_and(|(from, to)| arc_bends_further(from, before.normalize(), Quat::from_rotation_arc(to, from) * after.normalize()));
+        Self { before, after, parent_bone, goes_round }
+    }
+
+    /// The bone a `share` of the way through its stretch, its parent's bone pointing `now`
+    /// there: both ends carried onto `now` by the parent bone's own turn, then along the
+    /// shortest arc between them, or round the parent bone ([`round_parent_bone`]) where that
+    /// arc would bend the bone further than either end, towards a joint folded shut. A
+    /// world-space arc ignores the parent moving meanwhile: an h36m forearm bent 81 degrees
+    /// before its collapse and 69 after was carried through an elbow bent 164 degrees, where
+    /// the forearm's twist flips, and the hand's thumb turned 166 degrees in one frame.
+    fn at(&self, share: f32, now: Option<Vec3>, way_round: &mut Option<f32>) -> Vec3 {
+        let (before, after) = (self.before.normalize(), self.after.normalize());
+        let arc = |from: Vec3, to: Vec3| Quat::IDENTITY.slerp(Quat::from_rotation_arc(from, to), share) * from;
+        let direction = match self.parent_bone.zip(now) {
+            Some(((from, to), now)) => {
+                let (before, after) = (Quat::from_rotation_arc(from, now) * before, Quat::from_rotation_arc(to, now) * after);
+                let round = self.goes_round.then(|| round_parent_bone(now, before, after, share, way_round)).flatten();
+                round.unwrap_or_else(|| arc(before, after))
+            }
+            None => arc(before, after),
+        };
+        direction * (self.before.length() + share * (self.after.length() - self.before.length()))
+    }
+}
+
+/// Whether the shortest arc from `before` to `after` (unit) bends further from `axis` than
+/// both ends do at its middle (or has no middle: the ends opposite).
+fn arc_bends_further(axis: Vec3, before: Vec3, after: Vec3) -> bool {
+    (before + after).try_normalize().is_none_or(|middle| axis.angle_between(middle) > axis.angle_between(before).max(axis.angle_between(after)))
+}
+
+/// A bone's direction a `share` of the way from `before` to `after` round its parent's bone
+/// `now` (all unit): the angle to the parent bone and the way round it interpolated. The way
+/// round (radians) stays within half a turn of the frame before's (`way_round`, updated):
+/// ends on opposite sides of the parent bone would otherwise go round one way in one frame
+/// and the other way in the next. None when an end lies along the parent bone (no way round
+/// it to interpolate).
+fn round_parent_bone(now: Vec3, before: Vec3, after: Vec3, share: f32, way_round: &mut Option<f32>) -> Option<Vec3> {
+    let across = |d: Vec3| (d - now * d.dot(now)).try_normalize().filter(|_| d.cross(now).length() > ALONG_PARENT_BONE.to_radians().sin());
+    let (side_before, side_after) = (across(before)?, across(after)?);
+    let bend = now.angle_between(before) + share * (now.angle_between(after) - now.angle_between(before));
+    let mut round = side_before.cross(side_after).dot(now).atan2(side_before.dot(side_after));
+    if let Some(previous) = *way_round {
+        round += std::f32::consts::TAU * ((previous - round) / std::f32::consts::TAU).round();
+    }
+    *way_round = Some(round);
+    let side = Quat::from_axis_angle(now, share * round) * side_before;
+    Some(now * bend.cos() + side * bend.sin())
+}
+
+/// A bone within this angle of its parent's bone (degrees) has no way round it to follow.
+const ALONG_PARENT_BONE: f32 = 10.0;
 
 /// The whole frames either side of the stretch `run` of a take of `frames` frames: the
 /// frame before it and the one after, or the one it has twice at an end of the take.
@@ -248,14 +315,21 @@ const MAX_HAND_TURN_PER_FRAME: f32 = 20.0;
 
 /// Joint `j`'s local rotation turning at most [`MAX_HAND_TURN_PER_FRAME`] a frame: followed
 /// at that speed forwards and backwards in time, and the two halfway met, so a snap is spread
-/// evenly before and after it rather than trailing behind.
+/// evenly before and after it rather than trailing behind; the meeting is followed forwards
+/// once more, which leaves it as it is but where it still snaps. Through a half-turn flip of
+/// the input the two passes are nearly half a turn apart, and the shorter way from one to the
+/// other changes sides from one frame to the next: the residual h36m GloGen's hand turned 179
+/// degrees in one frame there (its thumb 159). Meeting on the side nearer the frame before's
+/// instead (the first try) ran on along the far side until the passes met, then snapped back
+/// (a wrist end of the shipped h36m's posing take 145 degrees in one frame).
 fn limit_turns(poses: &mut [LocalPose], j: usize) {
     let own: Vec<Quat> = poses.iter().map(|p| p.rotations[j]).collect();
     let forwards = followed(own.iter().copied());
     let mut backwards = followed(own.iter().rev().copied());
     backwards.reverse();
-    for ((pose, a), b) in poses.iter_mut().zip(forwards).zip(backwards) {
-        pose.rotations[j] = a.slerp(b, 0.5).normalize();
+    let met = forwards.into_iter().zip(backwards).map(|(a, b)| a.slerp(b, 0.5).normalize());
+    for (pose, q) in poses.iter_mut().zip(followed(met)) {
+        pose.rotations[j] = q;
     }
 }
 
@@ -583,6 +657,57 @@ mod tests {
                 let turn = direction(&pair[0]).angle_between(direction(&pair[1])).to_degrees();
                 assert!(turn < 11.3, "collapsed over {collapsed:?}: the forearm turned {turn:.1} degrees in one frame");
             }
+        }
+    }
+
+    /// A forearm bent 110 degrees that goes 170 degrees round its upper arm while the hand
+    /// passes the elbow: bridged, it goes round the upper arm at the same bend (a world-space
+    /// arc between its ends bent the elbow to 143 degrees).
+    #[test]
+    fn a_collapsed_bone_goes_round_its_parent_bone() {
+        let s = body();
+        let (chest, arm, hand) = (2, 5, 6);
+        let upper = s.offsets()[arm].normalize();
+        let across = upper.cross(Vec3::Z);
+        let bend = 110.0f32.to_radians();
+        let forearm = |round: f32| (upper * bend.cos() + (Vec3::Z * round.cos() + across * round.sin()) * bend.sin()) * s.offsets()[hand].length();
+        let take: Vec<Vec3> = (0..=8)
+            .flat_map(|t| {
+                let mut frame = s.rest_positions();
+                frame[hand] = frame[arm]
+                    + match t {
+                        0..=2 => forearm(0.0),
+                        3..=5 => -0.04 * forearm(0.0),
+                        _ => forearm(170.0f32.to_radians()),
+                    };
+                frame
+            })
+            .collect();
+        for pose in solve_local_poses(&s, &take) {
+            let f = fk(&s, &pose);
+            let solved = (f[arm] - f[chest]).angle_between(f[hand] - f[arm]).to_degrees();
+            assert!((solved - 110.0).abs() < 1.0, "the elbow bent {solved:.1} degrees, not 110");
+        }
+    }
+
+    /// A hand whose input turns anywhere from frame to frame (flips of half a turn among
+    /// them) comes out turning at most the limit a frame, wherever its two passes meet.
+    #[test]
+    fn a_limited_hand_never_turns_faster_than_the_limit() {
+        let s = body();
+        let hand = 6;
+        let mut rng = Rng(7);
+        let mut poses: Vec<LocalPose> = (0..300)
+            .map(|_| {
+                let mut rotations = vec![Quat::IDENTITY; s.len()];
+                rotations[hand] = rng.quat();
+                LocalPose { rotations, translations: s.offsets().to_vec() }
+            })
+            .collect();
+        limit_turns(&mut poses, hand);
+        for (t, pair) in poses.windows(2).enumerate() {
+            let turn = pair[0].rotations[hand].angle_between(pair[1].rotations[hand]).to_degrees();
+            assert!(turn <= MAX_HAND_TURN_PER_FRAME + 0.01, "the hand turned {turn:.1} degrees at frame {}", t + 1);
         }
     }
 

@@ -36,22 +36,23 @@ struct CmuGlogen {
     residual: bool,
     /// The offset from the last observed pose fading over the block ([`crate::model::spec::GloGenSpec::residual_fade`]).
     residual_fade: bool,
-    /// The shipped design's GloGen fine-tuned on its blocks joined two-sided at their seams
-    /// ([`crate::model::spec::GloGenSpec::joined`]), as the shipped models are.
-    joined: bool,
+    /// The variant (its suffix) this one fine-tunes on its blocks joined two-sided at their
+    /// seams ([`crate::model::spec::GloGenSpec::joined`]), as the shipped models are.
+    joins: Option<&'static str>,
 }
 
-/// The paper's GloGen and its three ablations, then the design the shipped models use (the
-/// joined one fine-tunes the one before it, so it comes after it).
-const GLOGEN_VARIANTS: [CmuGlogen; 8] = [
-    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false, residual_fade: false, joined: false },
-    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false, residual_fade: false, joined: false },
-    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false, residual_fade: false, joined: false },
-    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false, residual_fade: false, joined: false },
-    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joined: false },
-    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joined: true },
-    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, residual_fade: false, joined: false },
-    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: true, joined: false },
+/// The paper's GloGen and its three ablations, then the design the shipped models use (a
+/// joined one fine-tunes the one it names, so it comes after it).
+const GLOGEN_VARIANTS: [CmuGlogen; 9] = [
+    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false, residual_fade: false, joins: None },
+    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false, residual_fade: false, joins: None },
+    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false, residual_fade: false, joins: None },
+    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false, residual_fade: false, joins: None },
+    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joins: None },
+    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joins: Some("-shipped") },
+    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, residual_fade: false, joins: None },
+    CmuGlogen { suffix: "-residual-joined", label: "GloGen, shipped design, residual poses, then on two-sided joined blocks", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, residual_fade: false, joins: Some("-residual") },
+    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: true, joins: None },
 ];
 const CMU_STRIDE: usize = 2;
 /// Validation error was still falling at 1200 steps (the budget when GloGen trained at a
@@ -70,7 +71,7 @@ fn variant_dir(opts: &SuiteOptions, dataset: Dataset, suffix: &str) -> PathBuf {
 
 fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
     let dir = variant_dir(opts, dataset, variant.suffix);
-    let steps = if variant.joined { CMU_JOINED_STEPS } else { CMU_GLOGEN_STEPS };
+    let steps = if variant.joins.is_some() { CMU_JOINED_STEPS } else { CMU_GLOGEN_STEPS };
     let done = ModelSpec::read(&dir).ok().and_then(|s| s.training.glogen).is_some_and(|r| r.steps >= steps);
     if done {
         return Ok(dir);
@@ -90,8 +91,8 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     t.shape.use_class = variant.use_class;
     t.shape.residual = variant.residual;
     t.shape.residual_fade = variant.residual_fade;
-    if variant.joined {
-        t.init_from = Some(variant_dir(opts, dataset, "-shipped"));
+    if let Some(base) = variant.joins {
+        t.init_from = Some(variant_dir(opts, dataset, base));
         t.shape.joined = true;
         t.shape.seam_join = SeamJoin::TwoSided;
     }
