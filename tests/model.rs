@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 use glocal::model::block::BlockWorkspace;
 use glocal::model::glocal::GlocalModel;
-use glocal::model::spec::ModelSpec;
+use glocal::model::spec::{ModelSpec, PoseBase};
 
 fn shipped(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)
@@ -147,10 +147,10 @@ fn residual_glogen_starts_where_its_context_leaves_off() {
         gap / n as f32
     };
     let spec = ModelSpec::read(&residual).unwrap();
-    assert!(spec.glogen.residual, "model.json does not say the GloGen is residual");
+    assert_eq!(spec.glogen.base, PoseBase::Residual, "model.json does not say the GloGen is residual");
     let record = spec.training.glogen.unwrap();
     assert!(record.val_error < record.baseline_error, "residual GloGen {} against zero-velocity {}", record.val_error, record.baseline_error);
-    assert!(ModelSpec::read(&fading).unwrap().glogen.residual_fade, "model.json does not say the GloGen's offset fades");
+    assert_eq!(ModelSpec::read(&fading).unwrap().glogen.base, PoseBase::ResidualFade, "model.json does not say the GloGen's offset fades");
     let (a, r, f) = (first_step(&absolute), first_step(&residual), first_step(&fading));
     assert!(r < a, "first forecast pose {r:.3} units from the last observed one (residual) against {a:.3} (absolute)");
     assert!(f < a, "first forecast pose {f:.3} units from the last observed one (fading residual) against {a:.3} (absolute)");

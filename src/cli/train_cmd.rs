@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::data::archive::DataRoot;
 use crate::data::features::Interpolation;
 use super::args::{LossArg, StageArg};
-use crate::model::spec::SeamJoin;
+use crate::model::spec::{PoseBase, SeamJoin};
 use crate::model::train::{train, ModelShape, Stage, TrainOptions};
 
 #[derive(Args, Debug)]
@@ -103,8 +103,11 @@ impl ShapeArgs {
         shape.use_class = !self.no_class;
         shape.rollout_blocks = self.rollout;
         shape.class_dropout = self.class_dropout;
-        shape.residual = self.residual;
-        shape.residual_fade = self.residual_fade;
+        shape.base = match (self.residual, self.residual_fade) {
+            (true, _) => PoseBase::Residual,
+            (false, true) => PoseBase::ResidualFade,
+            (false, false) => PoseBase::Absolute,
+        };
         shape.joined = self.joined;
         shape.seam_join = if self.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
         shape.target = self.target;

@@ -45,17 +45,9 @@ pub struct GloGenSpec {
     /// Blocks the model rolls out on its own outputs per training window (1 in the paper).
     pub rollout_blocks: usize,
     pub loss: LossKind,
-    /// Each predicted pose is an offset from the last pose of the block's input (Seq2Seq's
-    /// residual), so a block starts where its context leaves off instead of wherever the
-    /// decoder places its first pose (models saved before the choice: absolute poses).
-    #[serde(default)]
-    pub residual: bool,
-    /// The offset from the last pose of the block's input fades out over the block (a raised
-    /// cosine, whole at its first pose, gone at its last): a block continues its context where
-    /// it meets it, as a residual GloGen does, and ends on poses of its own, as an absolute one
-    /// does (models saved before the choice: off).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub residual_fade: bool,
+    /// What each predicted pose is measured from.
+    #[serde(flatten)]
+    pub base: PoseBase,
     /// Trained on its blocks joined at their seams as generation joins them
     /// (`GloGen::rollout_block`): the loss sees the joined block and the rollout's next
     /// block reads it.
@@ -83,19 +75,62 @@ impl GloGenSpec {
     }
 
     /// How much of the input's last pose each of a block's `block_len` poses is an offset
-    /// from: all of it for a residual GloGen, a fading share with [`GloGenSpec::residual_fade`],
-    /// None for absolute poses.
+    /// from ([`PoseBase`]); None for absolute poses.
     pub fn base_weights(&self, block_len: usize) -> Option<Vec<f32>> {
-        if self.residual {
-            return Some(vec![1.0; block_len]);
-        }
         let last = block_len.saturating_sub(1).max(1) as f32;
-        self.residual_fade.then(|| (0..block_len).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / last).cos())).collect())
+        match self.base {
+            PoseBase::Absolute => None,
+            PoseBase::Residual => Some(vec![1.0; block_len]),
+            PoseBase::ResidualFade => Some((0..block_len).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / last).cos())).collect()),
+        }
     }
 
     /// The whole conditioning vector: the labels, then the target when the block reads one.
     pub fn cond_len(&self, labels: usize, pose_dim: usize) -> usize {
         self.class_len(labels) + if self.target { super::target::target_len(pose_dim) } else { 0 }
+    }
+}
+
+/// What each pose a GloGen block predicts is measured from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(from = "PoseBaseFlags", into = "PoseBaseFlags")]
+pub enum PoseBase {
+    /// Poses of their own, wherever the decoder places the block's first (the paper's).
+    #[default]
+    Absolute,
+    /// Each pose an offset from the last pose of the block's input (Seq2Seq's residual), so
+    /// a block starts where its context leaves off.
+    Residual,
+    /// The offset from the last pose of the block's input fading out over the block (a raised
+    /// cosine, whole at its first pose, gone at its last): a block continues its context where
+    /// it meets it, as a residual GloGen does, and ends on poses of its own, as an absolute
+    /// one does.
+    ResidualFade,
+}
+
+/// How model.json spells a [`PoseBase`]: the flags it had before there were three choices, so
+/// folders saved before and after read alike (saved before either flag: absolute poses).
+#[derive(Serialize, Deserialize)]
+struct PoseBaseFlags {
+    #[serde(default)]
+    residual: bool,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    residual_fade: bool,
+}
+
+impl From<PoseBaseFlags> for PoseBase {
+    fn from(flags: PoseBaseFlags) -> Self {
+        match (flags.residual, flags.residual_fade) {
+            (true, _) => Self::Residual,
+            (false, true) => Self::ResidualFade,
+            (false, false) => Self::Absolute,
+        }
+    }
+}
+
+impl From<PoseBase> for PoseBaseFlags {
+    fn from(base: PoseBase) -> Self {
+        Self { residual: base == PoseBase::Residual, residual_fade: base == PoseBase::ResidualFade }
     }
 }
 
@@ -592,6 +627,28 @@ mod tests {
             for (field, value) in read.as_object().unwrap() {
                 assert!(written.get(field).is_some_and(|w| holds(w, value)), "{model}: {field}");
             }
+        }
+    }
+
+    /// model.json's two flags read as the three pose bases and are written back as they were
+    /// (`residual_fade` only when set; a GloGen saved before either flag is absolute).
+    #[test]
+    fn pose_base_reads_and_writes_model_json_flags() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join("h36m");
+        let model: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
+        for (flags, base) in [(None, PoseBase::Absolute), (Some((false, false)), PoseBase::Absolute), (Some((true, false)), PoseBase::Residual), (Some((false, true)), PoseBase::ResidualFade)] {
+            let mut glogen = model["glogen"].clone();
+            let fields = glogen.as_object_mut().unwrap();
+            fields.remove("residual");
+            if let Some((residual, fade)) = flags {
+                fields.insert("residual".into(), residual.into());
+                fields.insert("residual_fade".into(), fade.into());
+            }
+            let spec: GloGenSpec = serde_json::from_value(glogen).unwrap();
+            assert_eq!(spec.base, base, "{flags:?}");
+            let written = serde_json::to_value(&spec).unwrap();
+            assert_eq!(written["residual"], base == PoseBase::Residual, "{flags:?}");
+            assert_eq!(written.get("residual_fade").is_some(), base == PoseBase::ResidualFade, "{flags:?}");
         }
     }
 }

@@ -18,7 +18,7 @@ use crate::eval::metrics::{self, HORIZONS_MS};
 use crate::eval::table::{fixed as f, Markdown, Table};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
-use crate::model::spec::{LossKind, ModelSpec, SeamJoin};
+use crate::model::spec::{LossKind, ModelSpec, PoseBase, SeamJoin};
 use crate::model::train::{train, Stage, TrainOptions};
 
 /// One GloGen the CMU suite trains and forecasts with.
@@ -32,10 +32,8 @@ struct CmuGlogen {
     /// training window) rather than the shipped design (class in the decoder too, 10% class
     /// dropout, two-block rollout).
     paper: bool,
-    /// Poses predicted as offsets from the last observed one ([`crate::model::spec::GloGenSpec::residual`]).
-    residual: bool,
-    /// The offset from the last observed pose fading over the block ([`crate::model::spec::GloGenSpec::residual_fade`]).
-    residual_fade: bool,
+    /// What its poses are measured from: the last observed pose, wholly or fading, or none.
+    base: PoseBase,
     /// The variant (its suffix) this one fine-tunes on its blocks joined two-sided at their
     /// seams ([`crate::model::spec::GloGenSpec::joined`]), as the shipped models are.
     joins: Option<&'static str>,
@@ -44,15 +42,15 @@ struct CmuGlogen {
 /// The paper's GloGen and its three ablations, then the design the shipped models use (a
 /// joined one fine-tunes the one it names, so it comes after it).
 const GLOGEN_VARIANTS: [CmuGlogen; 9] = [
-    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, residual: false, residual_fade: false, joins: None },
-    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, residual: false, residual_fade: false, joins: None },
-    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, residual: false, residual_fade: false, joins: None },
-    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, residual: false, residual_fade: false, joins: None },
-    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joins: None },
-    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: false, joins: Some("-shipped") },
-    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, residual_fade: false, joins: None },
-    CmuGlogen { suffix: "-residual-joined", label: "GloGen, shipped design, residual poses, then on two-sided joined blocks", loss: LossKind::JointFlow, use_class: true, paper: false, residual: true, residual_fade: false, joins: Some("-residual") },
-    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, residual: false, residual_fade: true, joins: None },
+    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: Some("-shipped") },
+    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Residual, joins: None },
+    CmuGlogen { suffix: "-residual-joined", label: "GloGen, shipped design, residual poses, then on two-sided joined blocks", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Residual, joins: Some("-residual") },
+    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::ResidualFade, joins: None },
 ];
 const CMU_STRIDE: usize = 2;
 /// Validation error was still falling at 1200 steps (the budget when GloGen trained at a
@@ -89,8 +87,7 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     t.optimiser.batch = 32;
     t.shape.loss = variant.loss;
     t.shape.use_class = variant.use_class;
-    t.shape.residual = variant.residual;
-    t.shape.residual_fade = variant.residual_fade;
+    t.shape.base = variant.base;
     if let Some(base) = variant.joins {
         t.init_from = Some(variant_dir(opts, dataset, base));
         t.shape.joined = true;

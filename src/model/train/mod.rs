@@ -27,7 +27,7 @@ use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
 use super::glocal::{load_weights, SEEDS_FILE};
 use super::inbetween::GAP_CHANNELS;
-use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
+use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, PoseBase, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{Interpolation, Normalizer};
 use crate::data::registry::Dataset;
@@ -139,10 +139,8 @@ pub struct ModelShape {
     pub class_in_decoder: bool,
     pub class_dropout: f32,
     pub rollout_blocks: usize,
-    /// GloGen predicts offsets from the last pose of its input ([`GloGenSpec::residual`]).
-    pub residual: bool,
-    /// GloGen's offset from its input's last pose fades over the block ([`GloGenSpec::residual_fade`]).
-    pub residual_fade: bool,
+    /// What GloGen's poses are measured from ([`GloGenSpec::base`]).
+    pub base: PoseBase,
     /// GloGen trains on its blocks joined at their seams ([`GloGenSpec::joined`]).
     pub joined: bool,
     /// How GloGen's blocks are joined, in training and in generation ([`GloGenSpec::seam_join`]).
@@ -180,8 +178,7 @@ impl TrainOptions {
                 class_in_decoder: true,
                 class_dropout: 0.1,
                 rollout_blocks: 2,
-                residual: false,
-                residual_fade: false,
+                base: PoseBase::Absolute,
                 joined: false,
                 seam_join: SeamJoin::OneSided,
                 target: false,
@@ -233,7 +230,7 @@ impl TrainOptions {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
         let two_sided = self.shape.seam_join == SeamJoin::TwoSided;
-        if self.stage == Stage::Locgen && (self.shape.residual || self.shape.residual_fade || self.shape.joined || two_sided || self.shape.target) {
+        if self.stage == Stage::Locgen && (self.shape.base != PoseBase::Absolute || self.shape.joined || two_sided || self.shape.target) {
             bail!("--residual, --residual-fade, --joined, --two-sided-join and --target shape GloGen's blocks; they do not apply to --stage locgen");
         }
         Ok(())
@@ -406,8 +403,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         class_dropout: if shape.use_class { shape.class_dropout } else { 0.0 },
         rollout_blocks: shape.rollout_blocks.max(1),
         loss: shape.loss,
-        residual: shape.residual,
-        residual_fade: shape.residual_fade,
+        base: shape.base,
         joined: shape.joined,
         seam_join: shape.seam_join,
         target: shape.target,
