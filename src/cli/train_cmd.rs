@@ -103,11 +103,7 @@ impl ShapeArgs {
         shape.use_class = !self.no_class;
         shape.rollout_blocks = self.rollout;
         shape.class_dropout = self.class_dropout;
-        shape.base = match (self.residual, self.residual_fade) {
-            (true, _) => PoseBase::Residual,
-            (false, true) => PoseBase::ResidualFade,
-            (false, false) => PoseBase::Absolute,
-        };
+        shape.base = PoseBase::from_flags(self.residual, self.residual_fade);
         shape.joined = self.joined;
         shape.seam_join = if self.two_sided_join { SeamJoin::TwoSided } else { SeamJoin::OneSided };
         shape.target = self.target;

@@ -77,11 +77,13 @@ impl GloGenSpec {
     /// How much of the input's last pose each of a block's `block_len` poses is an offset
     /// from ([`PoseBase`]); None for absolute poses.
     pub fn base_weights(&self, block_len: usize) -> Option<Vec<f32>> {
-        let last = block_len.saturating_sub(1).max(1) as f32;
         match self.base {
             PoseBase::Absolute => None,
             PoseBase::Residual => Some(vec![1.0; block_len]),
-            PoseBase::ResidualFade => Some((0..block_len).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / last).cos())).collect()),
+            PoseBase::ResidualFade => {
+                let last = block_len.saturating_sub(1).max(1) as f32;
+                Some((0..block_len).map(|k| 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / last).cos())).collect())
+            }
         }
     }
 
@@ -118,13 +120,21 @@ struct PoseBaseFlags {
     residual_fade: bool,
 }
 
-impl From<PoseBaseFlags> for PoseBase {
-    fn from(flags: PoseBaseFlags) -> Self {
-        match (flags.residual, flags.residual_fade) {
+impl PoseBase {
+    /// The base the `residual` and `residual_fade` flags (model.json's, the command line's)
+    /// name: residual wins where both are set.
+    pub fn from_flags(residual: bool, residual_fade: bool) -> Self {
+        match (residual, residual_fade) {
             (true, _) => Self::Residual,
             (false, true) => Self::ResidualFade,
             (false, false) => Self::Absolute,
         }
+    }
+}
+
+impl From<PoseBaseFlags> for PoseBase {
+    fn from(flags: PoseBaseFlags) -> Self {
+        Self::from_flags(flags.residual, flags.residual_fade)
     }
 }
 
