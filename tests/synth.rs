@@ -286,7 +286,7 @@ fn ten_minute_takes_stay_at_their_class_speed() {
     // slowest, its bowing the fastest).
     let mut failures = Vec::new();
     // The model of everything is measured in docs/RESULTS.md and left out but for its walks
-    // (below): its ten-minute sittingdown runs at up to 3.56x, its soccer at 0.45x (issue 35).
+    // (below): its ten-minute sittingdown runs at up to 2.15x (issue 35).
     for name in ["h36m", "bandai"] {
         let mut m = model(name);
         for class in 0..m.spec.classes.len() {
