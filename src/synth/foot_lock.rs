@@ -94,7 +94,7 @@ const RUN_SPEED: f32 = 2.0;
 const FLIGHT_SLACK: f32 = 1.5;
 const GRAVITY: f32 = 9.81;
 /// The longest lift an unlaunched float keeps (seconds, see [`set_down`]). With 0.2, `all`
-/// side-stepped in hops of 0.2 s with both feet 5-8 cm up (13% of a first take's frames);
+/// walked to the right in hops of 0.2 s with both feet 5-8 cm up (13% of a first take's frames);
 /// Bandai's jerk reads the same with either.
 const UNLAUNCHED_LIFT_SECONDS: f32 = 0.1;
 
