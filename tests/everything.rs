@@ -59,3 +59,22 @@ fn styles_change_the_take_and_activities_of_every_dataset_follow_each_other() {
     assert!(mixed.positions().iter().all(|p| p.is_finite()));
     assert!(mixed.seconds() > 10.0);
 }
+
+/// A class the calibration gave its own guidance (`glocal calibrate`; `all`'s CMU dances and
+/// sports came out damped at the model's 1.5) is made with it: its take is the one the same
+/// strength asked for take-wide makes, and not the one the model's own makes.
+#[test]
+fn a_calibrated_class_is_made_with_its_own_guidance() {
+    let model = GlocalModel::load(&shipped("all")).unwrap_or_else(|e| panic!("{e:#}"));
+    let spec = &model.spec;
+    let salsa = spec.class_index("salsa").unwrap();
+    let own = spec.class_strength_of(salsa);
+    assert!(own > spec.class_strength, "salsa's guidance {own} against the model's {}", spec.class_strength);
+    let with = |strength: Option<f32>| {
+        let opts = GenerateOptions { timeline: "salsa:4".parse().unwrap(), init: InitPose::SeedClass { class: "salsa".into(), variant: 0 }, class_strength: strength, ..Default::default() }.varied(3);
+        generate(&model, &opts, &mut |_| true).unwrap().motion
+    };
+    let calibrated = with(None);
+    assert_eq!(mean_distance(&calibrated, &with(Some(own))), 0.0);
+    assert!(mean_distance(&calibrated, &with(Some(spec.class_strength))) > 0.01);
+}

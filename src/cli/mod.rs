@@ -13,6 +13,7 @@ macro_rules! say {
 mod args;
 mod bench_cmd;
 mod bench_edit;
+mod calibrate_cmd;
 mod data_cmd;
 mod eval_cmd;
 mod synth_cmd;
@@ -43,6 +44,9 @@ pub enum Command {
     Render(synth_cmd::RenderArgs),
     /// Run an evaluation suite and print its table.
     Eval(eval_cmd::EvalArgs),
+    /// Tune a trained model's guidance per class: the lowest at which each class's generated
+    /// motion is as lively as its training clips (writes model.json's `class_strengths`).
+    Calibrate(calibrate_cmd::CalibrateArgs),
     /// Time the engine's parts.
     Bench {
         #[command(subcommand)]
@@ -61,6 +65,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::Generate(args)) => synth_cmd::run_generate(args),
         Some(Command::Render(args)) => synth_cmd::run_render(args),
         Some(Command::Eval(args)) => eval_cmd::run(args),
+        Some(Command::Calibrate(args)) => calibrate_cmd::run(args),
         Some(Command::Bench { command }) => bench_cmd::run(command),
     }
 }

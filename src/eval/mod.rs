@@ -5,6 +5,7 @@
 //! (`glocal eval --suite NAME`).
 
 pub mod baselines;
+pub mod calibrate;
 pub mod classifier;
 pub mod constraints;
 pub mod metrics;

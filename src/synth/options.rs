@@ -138,9 +138,16 @@ impl GenerateOptions {
         self
     }
 
-    /// The guidance a take of the model `spec` describes is made with.
+    /// The guidance a take of the model `spec` describes is made with (its classes without
+    /// their own: [`Self::class_strength_of`]).
     pub fn class_strength_for(&self, spec: &ModelSpec) -> f32 {
         self.class_strength.unwrap_or(spec.class_strength)
+    }
+
+    /// The guidance the take's blocks of class `class` are made with: the take's own, else
+    /// the class's ([`ModelSpec::class_strength_of`]).
+    pub fn class_strength_of(&self, spec: &ModelSpec, class: usize) -> f32 {
+        self.class_strength.unwrap_or_else(|| spec.class_strength_of(class))
     }
 }
 

@@ -116,7 +116,8 @@ pub(super) struct Steering {
     last_anchor: Option<usize>,
     anchors: StdRng,
     keep_alive: bool,
-    class_strength: f32,
+    /// Per class, the guidance its blocks are made with.
+    class_strengths: Vec<f32>,
     dim: usize,
     block_len: usize,
 }
@@ -141,7 +142,7 @@ impl Steering {
             last_anchor: None,
             anchors: anchor_draws(opts.seed),
             keep_alive: opts.keep_alive,
-            class_strength: opts.class_strength_for(&model.spec),
+            class_strengths: (0..spec.classes.len()).map(|c| opts.class_strength_of(spec, c)).collect(),
             dim: spec.layout.dim(),
             block_len: spec.block_len,
         }
@@ -217,7 +218,8 @@ impl Steering {
         }
         // A class change is where the prior must beat the context's momentum most: its blocks
         // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`].
-        let strength = if changing || settling { self.class_strength.max(CHANGE_CLASS_STRENGTH) } else { self.class_strength };
+        let own = self.class_strengths[plan.target];
+        let strength = if changing || settling { own.max(CHANGE_CLASS_STRENGTH) } else { own };
         // A stalled block's class is urged on too: guidance scaled by how far it fell short.
         if !self.keep_alive || changing {
             strength

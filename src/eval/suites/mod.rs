@@ -12,7 +12,7 @@ mod h36m_mmd;
 mod inbetween;
 mod locgen;
 mod long_term;
-mod motion;
+pub(crate) mod motion;
 mod random_takes;
 mod style_control;
 

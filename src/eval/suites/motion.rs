@@ -94,7 +94,7 @@ const PAIR_TAKES: usize = 4;
 /// A take of `segments` ((class, seconds)) from `init`'s seed window `variant` under `base`'s
 /// options and noise seed `seed`: the take after its seed block at [`COMMON_FPS`], and where each
 /// later segment begins in it.
-fn scored_take(model: &GlocalModel, base: &GenerateOptions, segments: &[(usize, f32)], init: usize, variant: usize, seed: u64) -> Result<(Motion, Vec<usize>)> {
+pub(crate) fn scored_take(model: &GlocalModel, base: &GenerateOptions, segments: &[(usize, f32)], init: usize, variant: usize, seed: u64) -> Result<(Motion, Vec<usize>)> {
     let spec = &model.spec;
     let segments = segments.iter().map(|&(c, s)| Segment::new(spec.classes[c].clone(), s)).collect();
     let opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedClass { class: spec.classes[init].clone(), variant }, ..base.clone() }.varied(seed);

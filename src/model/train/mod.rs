@@ -8,6 +8,7 @@ mod checkpoint;
 mod inbetween;
 mod stage;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -436,6 +437,11 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         if !opts.resume {
             opts.stage.set_shape(&mut spec, shapes);
         }
+        // A GloGen trained again is calibrated again (`glocal calibrate`): its classes' own
+        // guidance was tuned to the weights it replaces.
+        if opts.stage == Stage::Glogen {
+            spec.class_strengths.clear();
+        }
         spec.write(&opts.out)?;
         return Ok(spec);
     }
@@ -461,6 +467,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         foot_lock: true,
         carry_by_feet: carries_by_feet(opts.dataset),
         class_strength: DEFAULT_CLASS_STRENGTH,
+        class_strengths: BTreeMap::new(),
         glogen: shapes.glogen,
         locgen: shapes.locgen,
         inbetween: (opts.stage == Stage::Inbetween).then_some(shapes.inbetween),

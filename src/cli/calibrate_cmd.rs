@@ -1,0 +1,43 @@
+//! `glocal calibrate`: per-class guidance for a trained model ([`crate::eval::calibrate`]).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+
+use crate::data::archive::DataRoot;
+use crate::eval::calibrate::{calibrate, LIVELY_SHARE};
+use crate::model::spec::ModelSpec;
+
+#[derive(Args, Debug)]
+pub struct CalibrateArgs {
+    /// The model folder; its model.json gains the classes' own guidance.
+    #[arg(long)]
+    model: PathBuf,
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// The guidance weights to try, rising from the model's own.
+    #[arg(long, value_delimiter = ',', default_value = "1.5,2.5,3.5,5")]
+    strengths: Vec<f32>,
+    /// Print the readings without writing model.json.
+    #[arg(long)]
+    dry_run: bool,
+}
+
+pub fn run(args: CalibrateArgs) -> Result<()> {
+    let data = DataRoot::resolve(args.data.as_deref());
+    let classes = calibrate(&args.model, &data, &args.strengths, &mut |m| eprintln!("{m}"))?;
+    let mut spec = ModelSpec::read(&args.model)?;
+    say!("| class | training clips' jerk (m/s^3) | at each strength: generated jerk over the training clips', travel (m/s) | chosen |\n|---|---|---|---|");
+    for c in &classes {
+        let readings: Vec<String> = c.readings.iter().map(|r| format!("{}: {:.2}, {:.2}", r.strength, r.jerk / c.real_jerk, r.mean_travel())).collect();
+        say!("| {} | {:.1} | {} | {} |", c.class, c.real_jerk, readings.join(", "), c.chosen);
+    }
+    spec.class_strengths = classes.iter().filter(|c| c.chosen != spec.class_strength).map(|c| (c.class.clone(), c.chosen)).collect();
+    say!("{} of {} classes need more than the model's guidance ({}) to reach {LIVELY_SHARE} of their training clips' jerk", spec.class_strengths.len(), classes.len(), spec.class_strength);
+    if !args.dry_run {
+        spec.write(&args.model)?;
+        say!("wrote {}", args.model.join("model.json").display());
+    }
+    Ok(())
+}
