@@ -215,10 +215,15 @@ impl StudioApp {
             .on_hover_text("Seconds over which each class change happens, centred on its boundary (0: a cut). A segment can have its own: select it on the timeline");
         // Until it is moved, the slider shows (and takes are made with) the model's own strength.
         let own = self.engine.model.as_ref().map_or(DEFAULT_CLASS_STRENGTH, |m| m.spec.class_strength);
+        // A calibrated model's classes with their own strength, which the slider overrides.
+        let per_class = self.engine.model.as_ref().map_or(String::new(), |m| {
+            let own: Vec<String> = m.spec.class_strengths.iter().map(|(class, w)| format!("{class} {w}")).collect();
+            if own.is_empty() { String::new() } else { format!(" ({} have their own until the slider is moved)", own.join(", ")) }
+        });
         let mut strength = self.editing.doc.options.class_strength.unwrap_or(own);
         let slider = ui
             .add_enabled(guidance, Slider::new(&mut strength, 0.0..=4.0).text("class strength"))
-            .on_hover_text(format!("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity. This model's own: {own}"))
+            .on_hover_text(format!("How clearly each segment shows its activity: 1 is the model as trained, higher is more typical of the activity but less varied, 0 ignores the activity. This model's own: {own}{per_class}"))
             .on_disabled_hover_text("This model was trained without class dropout, so the strength cannot be changed");
         if slider.changed() {
             self.editing.doc.options.class_strength = Some(strength);
