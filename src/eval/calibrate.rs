@@ -23,8 +23,9 @@ use crate::synth::GenerateOptions;
 pub const LIVELY_SHARE: f64 = 0.7;
 /// A stronger guidance is not taken where any of the class's takes travels less than this
 /// share of what the same take travels at the model's own, less [`TRAVEL_SLACK`] (m/s) for
-/// classes that stand: at 3.5 `all`'s walk from its first seed window moved its legs more
-/// but covered 3.0 m in 6 s against 4.0 at 1.5, curving where it had walked on.
+/// classes that stand: calibrated on takes with variation noise, `all`'s walk got 3.5, and
+/// its default take from the first walking window then covered 3.0 m in 6 s against 4.0 at
+/// 1.5, curving where it had walked on.
 const KEPT_TRAVEL: f64 = 0.8;
 const TRAVEL_SLACK: f64 = 0.05;
 const TRAVEL_HOP_SECONDS: f32 = 0.5;
@@ -74,30 +75,15 @@ pub fn calibrate(dir: &Path, data: &DataRoot, strengths: &[f32], log: &mut dyn F
         bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
     }
     let roles = JointRoles::new(&spec.layout.skeleton)?;
-    let mut real: Vec<Pool> = spec.classes.iter().map(|_| Pool::default()).collect();
-    for track in &corpus.train {
-        let m = track.motion.resample(COMMON_FPS);
-        for piece in real_pieces(&m, TAKE_SECONDS) {
-            real[track.class].add_take(&m.slice(piece.start, piece.end), &roles, None);
-        }
-    }
-    let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
+    let real_jerks = training_jerks(&corpus, &roles);
     let mut out = Vec::new();
     for (class, name) in spec.classes.iter().enumerate() {
-        let real_jerk = real[class].summary()[Measure::JerkMean];
-        let mut readings = Vec::new();
+        let real_jerk = real_jerks[class];
+        let mut readings: Vec<Reading> = Vec::new();
         for &strength in strengths {
             log(&format!("calibrate: {name} at {strength}"));
-            let base = GenerateOptions { class_strength: Some(strength), ..Default::default() };
-            let mut pool = Pool::default();
-            let mut travels = Vec::new();
-            for variant in 0..TAKES {
-                let (m, _) = scored_take(&model, &base, &[(class, seed_s + TAKE_SECONDS)], class, variant, 0)?;
-                pool.add_take(&m, &roles, None);
-                travels.push(travel_speed(&m, roles.body_root));
-            }
-            let reading = Reading { strength, jerk: pool.summary()[Measure::JerkMean], travels };
-            let done = reading.jerk >= LIVELY_SHARE * real_jerk || !keeps_travel(&readings.first().unwrap_or(&reading).clone(), &reading);
+            let reading = read_class(&model, &roles, class, strength)?;
+            let done = reading.jerk >= LIVELY_SHARE * real_jerk || readings.first().is_some_and(|own| !keeps_travel(own, &reading));
             readings.push(reading);
             if done {
                 break;
@@ -107,6 +93,33 @@ pub fn calibrate(dir: &Path, data: &DataRoot, strengths: &[f32], log: &mut dyn F
         out.push(ClassCalibration { class: name.clone(), real_jerk, readings, chosen });
     }
     Ok(out)
+}
+
+/// Per class, the mean jerk (m/s^3) of its training clips in pieces as long as the takes.
+fn training_jerks(corpus: &Corpus, roles: &JointRoles) -> Vec<f64> {
+    let mut pools: Vec<Pool> = corpus.classes.iter().map(|_| Pool::default()).collect();
+    for track in &corpus.train {
+        let m = track.motion.resample(COMMON_FPS);
+        for piece in real_pieces(&m, TAKE_SECONDS) {
+            pools[track.class].add_take(&m.slice(piece.start, piece.end), roles, None);
+        }
+    }
+    pools.iter().map(|p| p.summary()[Measure::JerkMean]).collect()
+}
+
+/// The class's [`TAKES`] takes at guidance `strength`, measured.
+fn read_class(model: &GlocalModel, roles: &JointRoles, class: usize, strength: f32) -> Result<Reading> {
+    let spec = &model.spec;
+    let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
+    let base = GenerateOptions { class_strength: Some(strength), ..Default::default() };
+    let mut pool = Pool::default();
+    let mut travels = Vec::new();
+    for variant in 0..TAKES {
+        let (m, _) = scored_take(model, &base, &[(class, seed_s + TAKE_SECONDS)], class, variant, 0)?;
+        pool.add_take(&m, roles, None);
+        travels.push(travel_speed(&m, roles.body_root));
+    }
+    Ok(Reading { strength, jerk: pool.summary()[Measure::JerkMean], travels })
 }
 
 /// The hips' horizontal path over the take in hops of [`TRAVEL_HOP_SECONDS`] (the sway of a
