@@ -482,7 +482,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
 /// Whether a new model of `dataset` has its body carried by its feet
 /// ([`ModelSpec::carry_by_feet`]): Bandai's network slides its stance feet with the body (its
 /// run's at 57 cm/s on the floor against the real 19), and so does `all`'s with Bandai's
-/// classes (its dash's a median 104 cm/s against 10, Bandai's classes 2.25x real); h36m's feet the
+/// classes (its dash's support point at a median 104 cm/s against 10, Bandai's classes 2.25x real); h36m's feet the
 /// lock alone holds.
 fn carries_by_feet(dataset: Dataset) -> bool {
     matches!(dataset, Dataset::Bandai | Dataset::Combined)
