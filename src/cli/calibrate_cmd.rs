@@ -7,7 +7,7 @@ use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::eval::calibrate::{calibrate, LIVELY_SHARE};
-use crate::model::spec::ModelSpec;
+use crate::model::glocal::GlocalModel;
 
 #[derive(Args, Debug)]
 pub struct CalibrateArgs {
@@ -26,8 +26,9 @@ pub struct CalibrateArgs {
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
     let data = DataRoot::resolve(args.data.as_deref());
-    let classes = calibrate(&args.model, &data, &args.strengths, &mut |m| eprintln!("{m}"))?;
-    let mut spec = ModelSpec::read(&args.model)?;
+    let model = GlocalModel::load(&args.model)?;
+    let classes = calibrate(&model, &data, &args.strengths, &mut |m| eprintln!("{m}"))?;
+    let mut spec = model.spec.clone();
     say!("| class | training clips' jerk (m/s^3) | at each strength: generated jerk over the training clips', travel (m/s) | chosen |\n|---|---|---|---|");
     for c in &classes {
         let readings: Vec<String> = c.readings.iter().map(|r| format!("{}: {:.2}, {:.2}", r.strength, r.jerk / c.real_jerk, r.mean_travel())).collect();

@@ -4,8 +4,6 @@
 //! 0.42x / 0.45x their real jerk, while its Human3.6M and Bandai classes were within 0.8-0.9x;
 //! guidance raised for every class at once took those past 1.3x (docs/RESULTS.md).
 
-use std::path::Path;
-
 use anyhow::{bail, Result};
 use glam::Vec3;
 
@@ -45,7 +43,7 @@ pub struct ClassCalibration {
 
 /// A class's takes at one strength: their mean jerk (m/s^3) and how fast the body travels in
 /// each ([`travel_speed`], m/s).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Reading {
     pub strength: f32,
     pub jerk: f64,
@@ -58,22 +56,18 @@ impl Reading {
     }
 }
 
-/// Each class of the model in `dir`, generated at each of `strengths` (ascending, the model's
+/// Each class of `model`, generated at each of `strengths` (ascending, the model's
 /// own first) from its first seed windows, against the mean jerk of its training clips: the
 /// lowest strength at which the class reaches [`LIVELY_SHARE`] of it, or the liveliest when
 /// none does, but never one at which it travels less than [`KEPT_TRAVEL`] of its own.
-pub fn calibrate(dir: &Path, data: &DataRoot, strengths: &[f32], log: &mut dyn FnMut(&str)) -> Result<Vec<ClassCalibration>> {
-    let model = GlocalModel::load(dir)?;
-    let spec = model.spec.clone();
+pub fn calibrate(model: &GlocalModel, data: &DataRoot, strengths: &[f32], log: &mut dyn FnMut(&str)) -> Result<Vec<ClassCalibration>> {
+    let spec = &model.spec;
     if strengths.is_empty() || strengths.windows(2).any(|w| w[0] >= w[1]) || strengths[0] < spec.class_strength {
         bail!("the strengths to try must rise from the model's own ({}), got {strengths:?}", spec.class_strength);
     }
     let dataset: Dataset = spec.dataset.parse()?;
     log(&format!("calibrate: {dataset} training clips"));
-    let corpus = Corpus::load(dataset, data, spec.stride, 3)?;
-    if corpus.classes != spec.classes {
-        bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
-    }
+    let corpus = Corpus::for_model(dataset, data, spec, &model.dir)?;
     let roles = JointRoles::new(&spec.layout.skeleton)?;
     let real_jerks = training_jerks(&corpus, &roles);
     let mut out = Vec::new();
@@ -82,7 +76,7 @@ pub fn calibrate(dir: &Path, data: &DataRoot, strengths: &[f32], log: &mut dyn F
         let mut readings: Vec<Reading> = Vec::new();
         for &strength in strengths {
             log(&format!("calibrate: {name} at {strength}"));
-            let reading = read_class(&model, &roles, class, strength)?;
+            let reading = read_class(model, &roles, class, strength)?;
             let done = reading.jerk >= LIVELY_SHARE * real_jerk || readings.first().is_some_and(|own| !keeps_travel(own, &reading));
             readings.push(reading);
             if done {

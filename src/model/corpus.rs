@@ -1,6 +1,7 @@
 //! Training material for one dataset: every clip resampled to the working frame rate, cut
 //! to the model's joints, with the normalisation statistics of the training split.
 
+use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
@@ -10,6 +11,7 @@ use rand::Rng;
 use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
+use super::spec::ModelSpec;
 use crate::motion::{JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
 
 /// The styles that mean "no particular style", which a class's usual style falls to on a tie.
@@ -44,6 +46,16 @@ pub struct Corpus {
 }
 
 impl Corpus {
+    /// The data the model in `dir` (of `spec`) was trained on: `dataset` at the model's
+    /// stride, refused when its classes are not the model's.
+    pub fn for_model(dataset: Dataset, root: &DataRoot, spec: &ModelSpec, dir: &Path) -> Result<Self> {
+        let corpus = Self::load(dataset, root, spec.stride, 3)?;
+        if corpus.classes != spec.classes {
+            bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
+        }
+        Ok(corpus)
+    }
+
     /// Loads a dataset. `min_clips` drops classes with fewer training clips (Bandai's
     /// one-clip contents cannot be learned or evaluated).
     pub fn load(dataset: Dataset, root: &DataRoot, stride: usize, min_clips: usize) -> Result<Self> {

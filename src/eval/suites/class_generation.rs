@@ -128,10 +128,7 @@ pub(super) fn run(dataset: Dataset, ctx: &SuiteContext, log: &mut dyn FnMut(&str
     let model = GlocalModel::load(&dir)?;
     let spec = model.spec.clone();
     log(&format!("{dataset}: loading data"));
-    let corpus = Corpus::load(dataset, &opts.data, spec.stride, 3)?;
-    if corpus.classes != spec.classes {
-        bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
-    }
+    let corpus = Corpus::for_model(dataset, &opts.data, &spec, &dir)?;
     let cfg = ClassifierConfig::default();
     let clf = Classifier::load_or_train(&corpus, &cfg, &opts.cache, &format!("classifier-{dataset}"), log)?;
     let k = spec.classes.len();

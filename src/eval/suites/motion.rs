@@ -2,7 +2,7 @@
 //! real test split and on generated takes (without and with the foot lock), per class and
 //! class-balanced, for each shipped model.
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use serde_json::{json, Value};
 
 use super::context::SuiteContext;
@@ -246,10 +246,7 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
     let model = GlocalModel::load(&dir)?;
     let spec = model.spec.clone();
     log(&format!("motion: {dataset} real test split"));
-    let corpus = Corpus::load(dataset, &ctx.options.data, spec.stride, 3)?;
-    if corpus.classes != spec.classes {
-        bail!("{}: the model's classes ({}) differ from the data's ({})", dir.display(), spec.classes.join(", "), corpus.classes.join(", "));
-    }
+    let corpus = Corpus::for_model(dataset, &ctx.options.data, &spec, &dir)?;
     let roles = JointRoles::new(&corpus.layout.skeleton)?;
     let grid = BlockGrid::new(spec.block_len, spec.stride, spec.fps);
     let real = real_pools(&corpus, &roles, grid, cfg.take_seconds);
