@@ -95,6 +95,24 @@ fn h1_resume_without_training_state_refuses_and_keeps_the_weights() {
 }
 
 #[test]
+fn a_fine_tuned_locgen_keeps_the_residual_scale_it_was_trained_with() {
+    let (_t, model) = model_copy("h36m");
+    let trained = ModelSpec::read(&model).unwrap().locgen.residual_scale;
+    assert!(!trained.is_empty());
+    succeeds(&["train", "--dataset", "h36m", "--stage", "locgen", "--steps", "3", "--eval-every", "3", "--checkpoint-every", "3", "--hidden", "128", "--out", s(&model), "--fine-tune"]);
+    assert_eq!(ModelSpec::read(&model).unwrap().locgen.residual_scale, trained);
+}
+
+#[test]
+fn fine_tuning_from_a_model_of_other_labels_is_refused_before_anything_is_written() {
+    let t = tempfile::tempdir().unwrap();
+    let out = t.path().join("new");
+    let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
+    refused(&["train", "--dataset", "bandai", "--stage", "glogen", "--steps", "3", "--stride", "3", "--out", s(&out), "--init-from", s(&from)], &["cannot fine-tune from", "models/h36m", "its classes (directions", "are not the data's (walk"]);
+    assert!(!out.exists());
+}
+
+#[test]
 fn h2_h3_overlong_inputs_and_takes_are_refused_up_front() {
     let (t, model) = model_copy("bandai");
     let start = take(&model, t.path(), "start.bvh");

@@ -148,11 +148,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
     args.shape.apply(&mut opts.shape)?;
-    if let Some(dir) = &opts.init_from {
-        eprintln!("fine-tuning {:?} from the trained weights in {}", opts.stage, dir.display());
-    }
     let bar = ProgressBar::new(opts.steps as u64);
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")?);
+    // Said once the weights are read: a refused fine-tuning says only why.
+    let fine_tuned = opts.init_from.as_ref().map_or_else(String::new, |dir| format!(", fine-tuned from the trained weights in {}", dir.display()));
     let cancel = Arc::new(AtomicBool::new(false));
     stop_on_interrupt(cancel.clone())?;
     let mut last_val = f32::NAN;
@@ -182,7 +181,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     }
     if let Some(r) = stage.record(&spec) {
         say!(
-            "{} steps; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
+            "{} steps{fine_tuned}; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
             r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit()
         );
     }

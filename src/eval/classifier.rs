@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 use crate::data::features::{FeatureLayout, Normalizer};
 use crate::data::write::write_atomic;
 use crate::model::corpus::{sample_window, Corpus, Track};
+use crate::model::spec::sha256_hex;
 use crate::model::train::save_weights;
 use crate::motion::Motion;
 
@@ -46,6 +47,10 @@ impl Default for ClassifierConfig {
 pub struct ClassifierRecord {
     pub dataset: String,
     pub classes: Vec<String>,
+    /// The SHA-256 of the training clips' names ([`training_clips`]): a cached classifier of
+    /// the same classes trained on another split is trained again, not reused.
+    #[serde(default)]
+    pub training_clips: String,
     pub config: ClassifierConfig,
     pub norm: Normalizer,
     pub train_seconds: f64,
@@ -53,6 +58,11 @@ pub struct ClassifierRecord {
     /// Accuracy on windows of the real test split (see [`real_windows`]).
     pub test_accuracy: f64,
     pub test_windows: usize,
+}
+
+/// A fingerprint of `corpus`'s training split: the SHA-256 of its clips' names, in order.
+fn training_clips(corpus: &Corpus) -> String {
+    sha256_hex(corpus.train.iter().map(|t| t.file.as_str()).collect::<Vec<_>>().join("\n").as_bytes())
 }
 
 pub struct Classifier {
@@ -109,7 +119,7 @@ impl Classifier {
         let (weights, json) = Self::paths(dir, name);
         if weights.exists() && json.exists() {
             let record: ClassifierRecord = serde_json::from_str(&std::fs::read_to_string(&json)?).with_context(|| format!("{} is not a classifier record", json.display()))?;
-            if record.config == *cfg && record.classes == corpus.classes && record.dataset == corpus.dataset.name() {
+            if record.config == *cfg && record.classes == corpus.classes && record.dataset == corpus.dataset.name() && record.training_clips == training_clips(corpus) {
                 let varmap = VarMap::new();
                 let (g, f1, f2) = build(VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu), corpus.layout.dim(), cfg.hidden, corpus.classes.len())?;
                 // Weights of another feature layout (a model skeleton that changed since) are
@@ -147,6 +157,7 @@ impl Classifier {
             record: ClassifierRecord {
                 dataset: corpus.dataset.name().into(),
                 classes: corpus.classes.clone(),
+                training_clips: training_clips(corpus),
                 config: cfg.clone(),
                 norm,
                 train_seconds: 0.0,

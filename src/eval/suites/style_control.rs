@@ -5,7 +5,7 @@
 //! can be trusted is measured by a second one, trained without one content's clips and tested
 //! on them.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use serde_json::{json, Value};
 
 use super::context::SuiteContext;
@@ -84,7 +84,14 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     }
     log("styles: loading data");
     let corpus = Corpus::load(Dataset::Combined, &ctx.options.data, spec.stride, 3)?;
-    let styles: Vec<usize> = (0..spec.styles.len()).filter(|&s| spec.styles[s] != NEUTRAL).collect();
+    // The model's styles as indices into the data's: the two lists differ when the data's
+    // split has changed since the model was trained (a style-classifier label is the data's).
+    let styles: Vec<usize> = spec
+        .styles
+        .iter()
+        .filter(|s| *s != NEUTRAL)
+        .map(|s| corpus.styles.iter().position(|c| c == s).with_context(|| format!("{}: the model's style '{s}' is not in the data", dir.display())))
+        .collect::<Result<_>>()?;
     let cfg = ClassifierConfig::default();
     let reference = Classifier::load_or_train(&style_corpus(&corpus, &styles, Some(HELD_OUT_CONTENT)), &cfg, &ctx.options.cache, "style-classifier-held-out-bye", log)?;
     let clf = Classifier::load_or_train(&style_corpus(&corpus, &styles, None), &cfg, &ctx.options.cache, "style-classifier-every-content", log)?;
@@ -104,7 +111,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     for (row, &class) in bandai_classes.iter().enumerate() {
         for (label, &style) in styles.iter().enumerate() {
             for v in 0..TAKES {
-                let segment = Segment { style: Some(spec.styles[style].clone()), ..Segment::new(spec.classes[class].clone(), seconds) };
+                let segment = Segment { style: Some(corpus.styles[style].clone()), ..Segment::new(spec.classes[class].clone(), seconds) };
                 let opts = GenerateOptions { timeline: Timeline { segments: vec![segment] }, init: InitPose::SeedClass { class: spec.classes[class].clone(), variant: v }, ..ctx.generation.clone() }.varied(1 + v as u64);
                 let take = generate(&model, &opts, &mut |_| true)?;
                 let clips: Vec<Vec<f32>> = settle_frames.iter().map(|&s| clf.clip(&take.motion, seed_frames + s)).collect();
@@ -133,10 +140,10 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     md.table(table);
     let per_style: Vec<Vec<f64>> = hits.iter().map(|by_class| (0..styles.len()).map(|l| by_class.iter().map(|h| h[l]).sum::<usize>() as f64 / (by_class.len() * TAKES) as f64).collect()).collect();
     let speed_rows = speed_markdown(&corpus, &spec.classes, &bandai_classes, &styles, &speeds, &mut md);
-    let listed = |accuracies: &[f64]| styles.iter().zip(accuracies).map(|(&s, a)| format!("{} {a:.2}", spec.styles[s])).collect::<Vec<_>>().join(", ");
+    let listed = |accuracies: &[f64]| styles.iter().zip(accuracies).map(|(&s, a)| format!("{} {a:.2}", corpus.styles[s])).collect::<Vec<_>>().join(", ");
     md.text(&format!("\nPer style, right after the seed: {}; after 2 s: {}.\n", listed(&per_style[0]), listed(&per_style[1])));
     Ok((md, json!({
-        "model": dir, "styles": styles.iter().map(|&s| spec.styles[s].clone()).collect::<Vec<_>>(),
+        "model": dir, "styles": styles.iter().map(|&s| corpus.styles[s].clone()).collect::<Vec<_>>(),
         "reference_classifier": {"test_accuracy": reference.record.test_accuracy, "test_windows": reference.record.test_windows, "held_out_content": HELD_OUT_CONTENT},
         "settle_seconds": SETTLE_SECONDS,
         "per_class": bandai_classes.iter().enumerate().map(|(row, &c)| json!({"class": spec.classes[c], "accuracy": hits.iter().map(|h| accuracy(&h[row])).collect::<Vec<_>>()})).collect::<Vec<_>>(),

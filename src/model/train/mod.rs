@@ -267,13 +267,22 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     if corpus.classes.is_empty() || corpus.train.is_empty() {
         bail!("{} has no class with at least {} training clips", opts.dataset, opts.shape.min_clips);
     }
+    // Read before this run rewrites the folder's model.json (a --fine-tune reads its own).
+    let from = opts.init_from.as_deref().map(ModelSpec::read).transpose()?;
+    // Widening appends inputs after the labels; it cannot move them.
+    if let (Some(from), Some(dir)) = (&from, &opts.init_from) {
+        for (what, trained, data) in [("classes", &from.classes, &corpus.classes), ("styles", &from.styles, &corpus.styles)] {
+            if trained != data {
+                bail!("cannot fine-tune from {}: its {what} ({}) are not the data's ({})", dir.display(), trained.join(", "), data.join(", "));
+            }
+        }
+    }
     std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
     let _lock = FolderLock::acquire(&opts.out)?;
     let mut spec = prepare_spec(opts, &corpus)?;
     let (cfg, norm) = opts.stage.block_and_norm(&spec);
     if !opts.resume {
         // Fine-tuned weights keep the scale they were trained with.
-        let from = opts.init_from.as_deref().map(ModelSpec::read).transpose()?;
         let data = TrainingData { opts, corpus: &corpus, spec: &spec, norm: &norm };
         match opts.stage {
             Stage::Glogen => {}
@@ -432,6 +441,10 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         let mut spec = ModelSpec::read(&opts.out)?;
         if spec.dataset != opts.dataset.name() || spec.layout.dim() != dim || spec.classes != corpus.classes {
             bail!("{} holds a model of another dataset or layout ({}); choose another --out", opts.out.display(), spec.dataset);
+        }
+        // Its labels are indices into the styles it was trained with.
+        if spec.styles != corpus.styles {
+            bail!("{} holds a model of the styles {}, the data has {}; train a new model in another --out", opts.out.display(), spec.styles.join(", "), corpus.styles.join(", "));
         }
         // The stage being trained takes this run's settings; the other keeps its own.
         if !opts.resume {
