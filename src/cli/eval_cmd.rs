@@ -53,7 +53,7 @@ pub struct EvalArgs {
     /// Fewer and shorter takes (the motion suite), for a quick look.
     #[arg(long)]
     quick: bool,
-    /// Takes per class and condition in the h36m and bandai suites' class-control matrix.
+    /// Takes per class and condition in the class-control matrix of the h36m, bandai and combined suites.
     #[arg(long, default_value_t = CLASS_CONTROL_TAKES as u64, value_parser = clap::value_parser!(u64).range(1..=1000))]
     class_control_takes: u64,
 }
