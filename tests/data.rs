@@ -189,8 +189,17 @@ fn every_dataset_lands_on_the_standard_humanoid() {
     assert_eq!(all.class_sources[all.class_index("running").unwrap()], "bandai run + cmu-expmap running");
     let corpus = Corpus::load(Dataset::Combined, &DataRoot::resolve(None), 3, 3).unwrap();
     assert!(corpus.classes.len() >= 25, "{} activities: {:?}", corpus.classes.len(), corpus.classes);
-    // Bandai's test styles (tired, musical) have no training clip, so the model is not conditioned on them.
-    assert_eq!(corpus.styles.len(), 14, "{:?}", corpus.styles);
+    // Bandai's 15 styles and neutral: its test styles (tired, musical) are each taught by the
+    // test clips of half its contents and tested on the other half's.
+    assert_eq!(corpus.styles.len(), 16, "{:?}", corpus.styles);
+    for held_out in ["tired", "musical"] {
+        let of_style: Vec<_> = corpus.test.iter().filter(|t| t.tag == held_out).collect();
+        let (teach, test) = (of_style.iter().filter(|t| t.teaches_style).count(), of_style.iter().filter(|t| !t.teaches_style).count());
+        println!("{held_out}: {teach} clips teach it, {test} test it");
+        assert!(teach >= 4 && test >= 4, "{held_out}: {teach} clips teach it, {test} test it");
+        assert!(!corpus.train.iter().any(|t| t.tag == held_out), "{held_out} has no training clip");
+    }
+    assert!(corpus.test.iter().filter(|t| t.teaches_style).all(|t| t.tag == "tired" || t.tag == "musical"));
     assert!(corpus.train.iter().filter(|t| t.file.starts_with("bandai")).all(|t| t.style.is_some_and(|s| corpus.styles[s] != "neutral")));
     assert!(corpus.train.iter().filter(|t| t.file.starts_with("h36m")).all(|t| t.style.is_some_and(|s| corpus.styles[s] == "neutral")));
 }

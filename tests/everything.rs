@@ -30,7 +30,7 @@ fn the_model_of_everything_has_every_activity_and_the_styles_on_the_standard_hum
     let spec = &model.spec;
     assert!(spec.classes.len() >= 25, "{:?}", spec.classes);
     assert_eq!(spec.class_sources.len(), spec.classes.len());
-    assert_eq!(spec.styles.len(), 14, "Bandai's 13 training styles and neutral: {:?}", spec.styles);
+    assert_eq!(spec.styles.len(), 16, "Bandai's 15 styles and neutral: {:?}", spec.styles);
     assert_eq!(spec.source_skeleton.names(), standard_humanoid().names());
     let size: u64 = ["glogen.safetensors", "locgen.safetensors"].iter().map(|f| std::fs::metadata(shipped("all").join(f)).unwrap().len()).sum();
     assert!(size < 20 << 20, "checkpoints of {size} bytes");

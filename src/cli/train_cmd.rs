@@ -47,6 +47,11 @@ pub struct TrainArgs {
     /// Fine-tune the stage already trained in --out (the same as --init-from OUT).
     #[arg(long)]
     fine_tune: bool,
+    /// Teach the GloGen of --fine-tune or --init-from these styles alone (comma-separated):
+    /// only their label inputs train, from zero, on the clips of these styles; every other
+    /// weight stays as it is, so every other class's and style's motion is unchanged.
+    #[arg(long, value_delimiter = ',', value_name = "STYLES")]
+    only_styles: Vec<String>,
 }
 
 /// The flags that shape the model a run trains.
@@ -147,6 +152,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     opts.eval_every = args.eval_every;
     opts.checkpoint_every = args.checkpoint_every;
     opts.init_from = if args.fine_tune { Some(opts.out.clone()) } else { args.init_from };
+    opts.only_styles = args.only_styles;
     args.shape.apply(&mut opts.shape)?;
     let bar = ProgressBar::new(opts.steps as u64);
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")?);
@@ -175,11 +181,11 @@ pub fn run(args: TrainArgs) -> Result<()> {
     )?;
     bar.finish();
     if cancel.load(Ordering::SeqCst) {
-        let steps = stage.record(&spec).map_or(0, |r| r.steps);
+        let steps = opts.record(&spec).map_or(0, |r| r.steps);
         eprintln!("interrupted: checkpoint at step {steps} saved in {}; continue with --resume", opts.out.display());
         std::process::exit(130);
     }
-    if let Some(r) = stage.record(&spec) {
+    if let Some(r) = opts.record(&spec) {
         say!(
             "{} steps{fine_tuned}; validation joint error {:.2} (baseline {:.2}) in skeleton units ({} m each)",
             r.steps, r.val_error, r.baseline_error, spec.source_skeleton.meters_per_unit()

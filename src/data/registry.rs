@@ -2,7 +2,8 @@
 //!
 //! Splits follow `../shared/data/README.md`: h36m tests on subject S11; bandai on the styles
 //! `tired` and `musical`; cmu-dance on the highest-numbered clip of each class; cmu-expmap on
-//! its own `test` folder.
+//! its own `test` folder. Bandai's held-out styles are each taught from half of their test
+//! clips ([`Clip::teaches_style`]) so a model with styles knows all fifteen.
 
 use std::fmt;
 use std::str::FromStr;
@@ -113,6 +114,11 @@ pub struct Clip {
     /// Bandai's style, Human3.6M's subject; on the combined dataset, the style (Bandai's, else
     /// [`super::combined::NEUTRAL`]).
     pub tag: String,
+    /// A test clip a model with styles learns its style from, by the style's inputs alone
+    /// (`glocal train --only-styles`): Bandai's tired clips of odd-numbered contents and its
+    /// musical clips of even-numbered ones. Every class figure still tests on it; the style
+    /// figures test on the other half.
+    pub teaches_style: bool,
     pub motion: Motion,
 }
 
@@ -198,11 +204,15 @@ fn load_expmap(dataset: Dataset, root: &DataRoot) -> Result<DatasetClips> {
             let class = classes.iter().position(|c| *c == action).expect("class collected above");
             let text = String::from_utf8(bytes).map_err(|_| skipped(&file, "not UTF-8 text"))?;
             let motion = format.read(&text, &file).map_err(|e| skipped_err(&file, e))?;
-            Ok(Clip { file, class, split, tag, motion })
+            Ok(Clip { file, class, split, tag, teaches_style: false, motion })
         })
         .collect();
     Ok(collect(dataset, classes, parsed))
 }
+
+/// Bandai's test styles; the one at a content's index modulo 2 is taught from that content's
+/// clip ([`Clip::teaches_style`]), so each is taught on some contents and tested on the others.
+const HELD_OUT_STYLES: [&str; 2] = ["musical", "tired"];
 
 fn load_bandai(root: &DataRoot) -> Result<DatasetClips> {
     let dataset = Dataset::Bandai;
@@ -232,8 +242,9 @@ fn load_bandai(root: &DataRoot) -> Result<DatasetClips> {
                 let style = styles.get(labels.style).ok_or_else(|| skipped(file, "style index out of range"))?;
                 let text = std::str::from_utf8(bytes).map_err(|_| skipped(file, "not UTF-8 text"))?;
                 let motion = bvh::read_bvh_with_unit(text, file, dataset.meters_per_unit()).map_err(|e| skipped_err(file, e))?;
-                let split = if style == "tired" || style == "musical" { Split::Test } else { Split::Train };
-                Ok((content.clone(), Clip { file: file.clone(), class: 0, split, tag: style.clone(), motion }))
+                let split = if HELD_OUT_STYLES.contains(&style.as_str()) { Split::Test } else { Split::Train };
+                let teaches_style = HELD_OUT_STYLES.get(labels.content % 2) == Some(&style.as_str());
+                Ok((content.clone(), Clip { file: file.clone(), class: 0, split, tag: style.clone(), teaches_style, motion }))
             })();
             match result {
                 Ok((content, clip)) => (Ok(clip), Some(content)),
@@ -274,7 +285,7 @@ fn load_cmu_dance(root: &DataRoot) -> Result<DatasetClips> {
                 motion.fps = 60.0;
             }
             let split = if number == test_clip[class] { Split::Test } else { Split::Train };
-            Ok(Clip { file: file.clone(), class, split, tag: number.to_string(), motion })
+            Ok(Clip { file: file.clone(), class, split, tag: number.to_string(), teaches_style: false, motion })
         })
         .collect();
     Ok(collect(dataset, classes, parsed))

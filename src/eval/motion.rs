@@ -518,7 +518,7 @@ pub fn real_pieces(m: &Motion, piece_seconds: f32) -> Vec<std::ops::Range<usize>
 
 /// Per class, the sum of every joint's speed and how many speeds it sums ([`joint_speed_sum`])
 /// over each tag's tracks of `tracks`.
-pub fn joint_speed_sums(tracks: &[Track], classes: usize) -> Vec<BTreeMap<&str, (f64, usize)>> {
+pub fn joint_speed_sums<'a>(tracks: impl IntoIterator<Item = &'a Track>, classes: usize) -> Vec<BTreeMap<&'a str, (f64, usize)>> {
     let mut sums: Vec<BTreeMap<&str, (f64, usize)>> = vec![BTreeMap::new(); classes];
     for track in tracks {
         let m = track.motion.resample(COMMON_FPS);

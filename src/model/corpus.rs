@@ -24,6 +24,8 @@ pub struct Track {
     pub tag: String,
     /// Its style in [`Corpus::styles`] (a model with styles only).
     pub style: Option<usize>,
+    /// A test clip whose style is learned from it ([`registry::Clip::teaches_style`]).
+    pub teaches_style: bool,
     pub motion: Motion,
 }
 
@@ -32,8 +34,8 @@ pub struct Corpus {
     pub classes: Vec<String>,
     /// Where each class's clips come from (the combined dataset only).
     pub class_sources: Vec<String>,
-    /// The styles a model of this corpus is conditioned on: those of the training clips (the
-    /// combined dataset only; empty otherwise).
+    /// The styles a model of this corpus is conditioned on: those of the training clips and of
+    /// the test clips that teach a style (the combined dataset only; empty otherwise).
     pub styles: Vec<String>,
     /// The dataset's whole skeleton, and the joints of it the model keeps.
     pub source_skeleton: Arc<Skeleton>,
@@ -74,20 +76,27 @@ impl Corpus {
         let kept: Vec<usize> = (0..loaded.classes.len()).filter(|&k| counts[k] >= min_clips).collect();
         let classes = kept.iter().map(|&k| loaded.classes[k].clone()).collect();
         let class_sources = kept.iter().filter_map(|&k| loaded.class_sources.get(k).cloned()).collect();
-        let styles: Vec<String> = loaded.styles.iter().filter(|s| loaded.split(Split::Train).any(|c| c.tag == **s)).cloned().collect();
+        let taught = |c: &&registry::Clip| c.split == Split::Train || c.teaches_style;
+        let styles: Vec<String> = loaded.styles.iter().filter(|s| loaded.clips.iter().filter(taught).any(|c| c.tag == **s)).cloned().collect();
         let (mut train, mut test) = (Vec::new(), Vec::new());
         for clip in loaded.clips {
             let Some(class) = kept.iter().position(|&k| k == clip.class) else { continue };
             let mut motion = clip.motion.resample(fps).subset(&source_joints);
             motion.skeleton = layout.skeleton.clone();
             let style = styles.iter().position(|s| *s == clip.tag);
-            let track = Track { class, file: clip.file, tag: clip.tag, style, motion };
+            let track = Track { class, file: clip.file, tag: clip.tag, style, teaches_style: clip.teaches_style, motion };
             match clip.split {
                 Split::Train => train.push(track),
                 Split::Test => test.push(track),
             }
         }
         Ok(Self { dataset, classes, class_sources, styles, source_skeleton: skeleton, source_joints, layout, fps, stride, train, test })
+    }
+
+    /// The clips styles are learned from: the training clips and the test clips that teach a
+    /// style ([`Track::teaches_style`]).
+    pub fn style_training(&self) -> impl Iterator<Item = &Track> {
+        self.train.iter().chain(self.test.iter().filter(|t| t.teaches_style))
     }
 
     /// Each class's usual style: the one most of its training clips have (empty without styles).

@@ -290,6 +290,10 @@ pub struct TrainingRecords {
     pub locgen: Option<StageRecord>,
     #[serde(default, rename = "inbetween_training", skip_serializing_if = "Option::is_none")]
     pub inbetween: Option<StageRecord>,
+    /// The run that taught GloGen styles by their label inputs alone (`--only-styles`),
+    /// after its own training.
+    #[serde(default, rename = "styles_training", skip_serializing_if = "Option::is_none")]
+    pub styles: Option<StageRecord>,
     /// SHA-256 of each weight file (by file name), written with it and checked at load.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub weights_sha256: BTreeMap<String, String>,

@@ -1,9 +1,9 @@
 //! `glocal eval --suite styles`: style control on a model with styles (`models/all`). A style
-//! classifier is trained on Bandai's training clips on the model's skeleton, by style; each of
+//! classifier is trained on the Bandai clips styles are learned from (the training clips and
+//! the test clips that teach tired and musical), on the model's skeleton, by style; each of
 //! Bandai's classes is then generated in each style, and the classifier says which style it
-//! sees. Bandai's test split holds other styles (tired, musical), so how far the classifier
-//! can be trusted is measured by a second one, trained without one content's clips and tested
-//! on them.
+//! sees. How far the classifier can be trusted is measured by a second one, trained without
+//! one content's clips and tested on them.
 
 use anyhow::{bail, Context, Result};
 use serde_json::{json, Value};
@@ -32,8 +32,8 @@ const SETTLE_SECONDS: [f32; 2] = [0.0, 2.0];
 fn speed_markdown(corpus: &Corpus, classes: &[String], bandai_classes: &[usize], styles: &[usize], speeds: &[Vec<f32>], md: &mut Markdown) -> Vec<(String, String, f32)> {
     let mut rows = Vec::new();
     let mut ratios = Vec::new();
-    // The training clips' speed per class and tag: a Bandai clip's tag is its style.
-    let training = joint_speed_sums(&corpus.train, classes.len());
+    // The style-training clips' speed per class and tag: a Bandai clip's tag is its style.
+    let training = joint_speed_sums(corpus.style_training(), classes.len());
     for (row, &class) in bandai_classes.iter().enumerate() {
         for (label, &style) in styles.iter().enumerate() {
             let Some(&(sum, count)) = training[class].get(corpus.styles[style].as_str()) else { continue };
@@ -51,15 +51,15 @@ fn speed_markdown(corpus: &Corpus, classes: &[String], bandai_classes: &[usize],
     rows
 }
 
-/// The Bandai clips of `corpus` labelled by style (among `styles`, indices into the corpus's),
-/// the `held_out` content's as the test split.
+/// The Bandai clips of `corpus` styles are learned from, labelled by style (among `styles`,
+/// indices into the corpus's), the `held_out` content's as the test split.
 fn style_corpus(corpus: &Corpus, styles: &[usize], held_out: Option<&str>) -> Corpus {
     let held_out = held_out.and_then(|h| corpus.classes.iter().position(|c| c == h));
     let relabel = |t: &Track| -> Option<Track> {
         let label = styles.iter().position(|&s| Some(s) == t.style)?;
-        t.file.starts_with("bandai").then(|| Track { class: label, file: t.file.clone(), tag: t.tag.clone(), style: t.style, motion: t.motion.clone() })
+        t.file.starts_with("bandai").then(|| Track { class: label, file: t.file.clone(), tag: t.tag.clone(), style: t.style, teaches_style: false, motion: t.motion.clone() })
     };
-    let (test, train): (Vec<(bool, Track)>, Vec<(bool, Track)>) = corpus.train.iter().filter_map(|t| relabel(t).map(|r| (Some(t.class) == held_out, r))).partition(|(held, _)| *held);
+    let (test, train): (Vec<(bool, Track)>, Vec<(bool, Track)>) = corpus.style_training().filter_map(|t| relabel(t).map(|r| (Some(t.class) == held_out, r))).partition(|(held, _)| *held);
     Corpus {
         dataset: corpus.dataset,
         classes: styles.iter().map(|&s| corpus.styles[s].clone()).collect(),
@@ -127,7 +127,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     let accuracy = |h: &[usize]| h.iter().sum::<usize>() as f64 / (h.len() * TAKES) as f64;
     let overall: Vec<f64> = hits.iter().map(|by_class| by_class.iter().map(|h| accuracy(h)).sum::<f64>() / by_class.len().max(1) as f64).collect();
     let mut md = Markdown::new(format!(
-        "Style control ({}, class strength {}): a GRU style classifier ({} frames at {} fps) trained on Bandai's training clips by style ({} styles; chance {:.3}). The same classifier trained without the content '{HELD_OUT_CONTENT}' recognises the style of its real clips at {:.3} ({} windows): the classifier's own reliability on unseen clips. Each of Bandai's {} classes generated {TAKES} times in each style from its own seed (a clip of any style), scored on the {} frames right after the seed and on those after a {} s transition.\n\n",
+        "Style control ({}, class strength {}): a GRU style classifier ({} frames at {} fps) trained on Bandai's clips by style (its training clips and the test clips that teach a style; {} styles; chance {:.3}). The same classifier trained without the content '{HELD_OUT_CONTENT}' recognises the style of its real clips at {:.3} ({} windows): the classifier's own reliability on unseen clips. Each of Bandai's {} classes generated {TAKES} times in each style from its own seed (a clip of any style), scored on the {} frames right after the seed and on those after a {} s transition.\n\n",
         dir.display(), ctx.generation.class_strength_for(&spec), cfg.frames, spec.fps, styles.len(), 1.0 / styles.len() as f64, reference.record.test_accuracy, reference.record.test_windows, bandai_classes.len(), cfg.frames, SETTLE_SECONDS[1]
     ));
     let kept: Vec<f64> = class_hits.iter().map(|h| accuracy(h)).collect();

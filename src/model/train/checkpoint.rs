@@ -44,7 +44,7 @@ pub(super) fn checkpoint(
 pub(super) fn publish(varmap: &VarMap, spec: &mut ModelSpec, opts: &TrainOptions, record: &StageRecord, weights_path: &Path) -> Result<()> {
     let bytes = save_weights(varmap, weights_path)?;
     spec.training.weights_sha256.insert(opts.stage.file().to_string(), sha256_hex(&bytes));
-    *opts.stage.record_mut(spec) = Some(record.clone());
+    *opts.record_mut(spec) = Some(record.clone());
     spec.write(&opts.out)
 }
 

@@ -7,6 +7,8 @@
 mod checkpoint;
 mod inbetween;
 mod stage;
+mod styles;
+mod widen;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -23,10 +25,12 @@ use self::checkpoint::{checkpoint, publish, Checkpoint, Legacy};
 pub use self::checkpoint::save_weights;
 use self::inbetween::inbetween_residual_scale;
 use self::stage::{locgen_residual_scale, stage_training, TrainingData};
+use self::styles::{style_corpus, style_indices, StyleInputs};
+use self::widen::{cond_sources, load_widened};
 use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
-use super::glocal::{load_weights, SEEDS_FILE};
+use super::glocal::SEEDS_FILE;
 use super::inbetween::GAP_CHANNELS;
 use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, PoseBase, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
@@ -118,6 +122,9 @@ pub struct TrainOptions {
     /// Start the stage from this folder's trained weights (with a fresh optimiser) instead
     /// of random ones: fine-tuning, e.g. after a change to the data.
     pub init_from: Option<PathBuf>,
+    /// Train only these styles' label inputs of the GloGen `init_from` holds, every other
+    /// weight frozen ([`styles`]).
+    pub only_styles: Vec<String>,
     pub optimiser: OptimiserOptions,
     pub shape: ModelShape,
 }
@@ -171,6 +178,7 @@ impl TrainOptions {
             eval_every: 250,
             checkpoint_every: 250,
             init_from: None,
+            only_styles: Vec::new(),
             optimiser: OptimiserOptions { batch: 64, lr: 0.002 },
             shape: ModelShape {
                 hidden: 200,
@@ -199,9 +207,28 @@ impl TrainOptions {
         self.out.join(self.stage.file())
     }
 
-    /// The stage's training checkpoint, the one file `--resume` reads.
+    /// The stage's training checkpoint, the one file `--resume` reads (a run of styles has
+    /// its own, so it never resumes the GloGen's own training or the other way round).
     pub fn state_path(&self) -> PathBuf {
-        self.out.join(format!("{}{TRAIN_STATE_SUFFIX}", self.stage.file().trim_end_matches(".safetensors")))
+        let run = if self.only_styles.is_empty() { "" } else { "-styles" };
+        self.out.join(format!("{}{run}{TRAIN_STATE_SUFFIX}", self.stage.file().trim_end_matches(".safetensors")))
+    }
+
+    /// The record of this run in `spec`: the stage's own, or that of the styles taught alone.
+    pub fn record<'s>(&self, spec: &'s ModelSpec) -> Option<&'s StageRecord> {
+        if self.only_styles.is_empty() {
+            self.stage.record(spec)
+        } else {
+            spec.training.styles.as_ref()
+        }
+    }
+
+    fn record_mut<'s>(&self, spec: &'s mut ModelSpec) -> &'s mut Option<StageRecord> {
+        if self.only_styles.is_empty() {
+            self.stage.record_mut(spec)
+        } else {
+            &mut spec.training.styles
+        }
     }
 
     /// Every option in its range before anything is loaded: each problem names its flag.
@@ -231,6 +258,9 @@ impl TrainOptions {
             bail!("--out {} is a file; training writes a model folder", self.out.display());
         }
         let two_sided = self.shape.seam_join == SeamJoin::TwoSided;
+        if !self.only_styles.is_empty() && (self.stage != Stage::Glogen || self.init_from.is_none()) {
+            bail!("--only-styles teaches a trained GloGen new styles: it needs --stage glogen and --fine-tune or --init-from");
+        }
         if self.stage == Stage::Locgen && (self.shape.base != PoseBase::Absolute || self.shape.joined || two_sided || self.shape.target) {
             bail!("--residual, --residual-fade, --joined, --two-sided-join and --target shape GloGen's blocks; they do not apply to --stage locgen");
         }
@@ -269,17 +299,12 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     }
     // Read before this run rewrites the folder's model.json (a --fine-tune reads its own).
     let from = opts.init_from.as_deref().map(ModelSpec::read).transpose()?;
-    // Widening appends inputs after the labels; it cannot move them.
     if let (Some(from), Some(dir)) = (&from, &opts.init_from) {
-        for (what, trained, data) in [("classes", &from.classes, &corpus.classes), ("styles", &from.styles, &corpus.styles)] {
-            if trained != data {
-                bail!("cannot fine-tune from {}: its {what} ({}) are not the data's ({})", dir.display(), trained.join(", "), data.join(", "));
-            }
-        }
+        check_labels(from, &corpus, opts.stage).with_context(|| format!("cannot fine-tune from {}", dir.display()))?;
     }
     std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
     let _lock = FolderLock::acquire(&opts.out)?;
-    let mut spec = prepare_spec(opts, &corpus)?;
+    let mut spec = prepare_spec(opts, &corpus, from.as_ref())?;
     let (cfg, norm) = opts.stage.block_and_norm(&spec);
     if !opts.resume {
         // Fine-tuned weights keep the scale they were trained with.
@@ -287,14 +312,14 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         match opts.stage {
             Stage::Glogen => {}
             Stage::Locgen => {
-                spec.locgen.residual_scale = match from {
-                    Some(from) => from.locgen.residual_scale,
+                spec.locgen.residual_scale = match &from {
+                    Some(from) => from.locgen.residual_scale.clone(),
                     None => locgen_residual_scale(data)?,
                 };
             }
             Stage::Inbetween => {
-                let scale = match from.and_then(|f| f.inbetween) {
-                    Some(from) => from.residual_scale,
+                let scale = match from.as_ref().and_then(|f| f.inbetween.as_ref()) {
+                    Some(from) => from.residual_scale.clone(),
                     None => inbetween_residual_scale(data)?,
                 };
                 spec.inbetween.as_mut().expect("set by prepare_spec").residual_scale = scale;
@@ -305,16 +330,31 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let varmap = VarMap::new();
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
     seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
-    if let Some(dir) = &opts.init_from {
-        let from = dir.join(opts.stage.file());
-        load_widened(&from, &varmap).with_context(|| format!("cannot fine-tune from {}", from.display()))?;
+    if let (Some(dir), Some(from)) = (&opts.init_from, &from) {
+        let (from_cond, sources) = match opts.stage {
+            Stage::Glogen => (from.glogen.block.cond_dim, cond_sources(from, &spec)),
+            Stage::Locgen | Stage::Inbetween => (0, Vec::new()),
+        };
+        let path = dir.join(opts.stage.file());
+        load_widened(&path, &varmap, &cfg, from_cond, &sources).with_context(|| format!("cannot fine-tune from {}", path.display()))?;
     }
-    let named: Vec<_> = varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
+    // `--only-styles` trains its styles' inputs alone, on their clips.
+    let style_run = if opts.only_styles.is_empty() {
+        None
+    } else {
+        let styles = style_indices(&corpus, &opts.only_styles)?;
+        let (inputs, trained) = StyleInputs::new(&varmap, &cfg, &spec, &styles, !opts.resume)?;
+        Some((inputs, trained, style_corpus(&corpus, &styles)?))
+    };
+    let named: Vec<_> = match &style_run {
+        Some((_, trained, _)) => trained.clone(),
+        None => varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect(),
+    };
     let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.optimiser.lr as f64, ..Default::default() })?;
     let mut record = StageRecord { seed: opts.seed, ..Default::default() };
     if opts.resume {
         if state_path.exists() {
-            let previous = opts.stage.record(&spec).cloned();
+            let previous = opts.record(&spec).cloned();
             let checkpoint = Checkpoint::read(&state_path, &varmap, Legacy { weights: &weights_path, record: previous })?;
             opt.load_state(&checkpoint.optimiser, checkpoint.step)?;
             record = checkpoint.record;
@@ -324,7 +364,8 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         }
     }
     let frozen_spec = spec.clone();
-    let trainer = stage_training(TrainingData { opts, corpus: &corpus, spec: &frozen_spec, norm: &norm });
+    let corpus = style_run.as_ref().map_or(&corpus, |(_, _, styled)| styled);
+    let trainer = stage_training(TrainingData { opts, corpus, spec: &frozen_spec, norm: &norm });
     let validation = trainer.validation_windows();
     let start = Instant::now();
     let seconds_before = record.seconds;
@@ -339,6 +380,9 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
             bail!("training diverged at step {} (loss {last_loss})", opt.step);
         }
         opt.backward_step(&loss)?;
+        if let Some((inputs, _, _)) = &style_run {
+            inputs.restore()?;
+        }
         let step = opt.step;
         let done = step == opts.steps;
         let mut val_error = None;
@@ -365,42 +409,27 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     Ok(spec)
 }
 
-/// Fills `varmap` from a stage's trained weights for fine-tuning, where the new block may
-/// read more conditioning than the trained one (a target after the class): the input
-/// weights of the new inputs start at zero, so training starts from the trained block's
-/// very motion. Every other tensor must match as [`load_weights`] checks it.
-fn load_widened(path: &Path, varmap: &VarMap) -> Result<()> {
-    let name = path.display();
-    let trained = candle_core::safetensors::load(path, &Device::Cpu).with_context(|| format!("cannot read {name}"))?;
-    let vars = varmap.data().lock().map_err(|_| anyhow::anyhow!("variable map poisoned"))?;
-    if vars.iter().all(|(k, v)| trained.get(k).is_some_and(|t| t.dims() == v.dims())) {
-        drop(vars);
-        return Ok(load_weights(path, varmap)?);
-    }
-    for (var_name, var) in vars.iter() {
-        let t = trained.get(var_name).with_context(|| format!("{name} has no tensor '{var_name}'"))?;
-        let (&[rows, new_in], &[trained_rows, trained_in]) = (var.dims(), t.dims()) else {
-            if t.dims() != var.dims() {
-                bail!("{name}: tensor '{var_name}' has shape {:?}, the model needs {:?}", t.dims(), var.dims());
-            }
-            var.set(t)?;
-            continue;
-        };
-        if rows != trained_rows || trained_in > new_in || (trained_in < new_in && !var_name.contains("weight_ih")) {
-            bail!("{name}: tensor '{var_name}' has shape {:?}, the model needs {:?}", t.dims(), var.dims());
+/// Whether a stage trained on `from`'s labels can be fine-tuned on the data of `corpus`: the
+/// same classes, and the same styles, or (a GloGen) styles the data has, whose weights the
+/// fine-tuned block takes by name ([`widen`]).
+fn check_labels(from: &ModelSpec, corpus: &Corpus, stage: Stage) -> Result<()> {
+    let widens = stage == Stage::Glogen && from.styles.iter().all(|s| corpus.styles.contains(s));
+    for (what, trained, data, allowed) in [("classes", &from.classes, &corpus.classes, false), ("styles", &from.styles, &corpus.styles, widens)] {
+        if trained != data && !allowed {
+            bail!("its {what} ({}) are not the data's ({})", trained.join(", "), data.join(", "));
         }
-        let zeros = Tensor::zeros((rows, new_in - trained_in), DType::F32, &Device::Cpu)?;
-        var.set(&Tensor::cat(&[t, &zeros], 1)?)?;
     }
     Ok(())
 }
 
 /// Reads `model.json` when the folder has one for this dataset, else describes a new model.
-fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
+fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) -> Result<ModelSpec> {
     let dim = corpus.layout.dim();
     let labels = corpus.classes.len() + corpus.styles.len();
     let shape = &opts.shape;
-    let mut glogen = GloGenSpec {
+    // Styles taught alone keep the trained GloGen's shape, whatever the flags say.
+    let trained_glogen = from.filter(|_| !opts.only_styles.is_empty()).map(|f| f.glogen.clone());
+    let mut glogen = trained_glogen.unwrap_or_else(|| GloGenSpec {
         block: BlockConfig {
             in_dim: dim,
             cond_dim: 0,
@@ -417,7 +446,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         joined: shape.joined,
         seam_join: shape.seam_join,
         target: shape.target,
-    };
+    });
     glogen.block.cond_dim = glogen.cond_len(labels, dim);
     // No dropout in LocGen: noise before its head, on a residual this small, taught it to
     // keep the head near zero (its output stayed at the interpolation).
@@ -442,17 +471,22 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus) -> Result<ModelSpec> {
         if spec.dataset != opts.dataset.name() || spec.layout.dim() != dim || spec.classes != corpus.classes {
             bail!("{} holds a model of another dataset or layout ({}); choose another --out", opts.out.display(), spec.dataset);
         }
-        // Its labels are indices into the styles it was trained with.
+        // Its labels are indices into the styles it was trained with: a GloGen fine-tuned
+        // onto more styles takes each trained one's weights by name.
         if spec.styles != corpus.styles {
-            bail!("{} holds a model of the styles {}, the data has {}; train a new model in another --out", opts.out.display(), spec.styles.join(", "), corpus.styles.join(", "));
+            if opts.stage != Stage::Glogen || opts.resume || !spec.styles.iter().all(|s| corpus.styles.contains(s)) {
+                bail!("{} holds a model of the styles {}, the data has {}; train a new model in another --out", opts.out.display(), spec.styles.join(", "), corpus.styles.join(", "));
+            }
+            spec.usual_styles = spec.usual_styles.iter().map(|&u| corpus.styles.iter().position(|s| *s == spec.styles[u]).expect("checked above")).collect();
+            spec.styles = corpus.styles.clone();
         }
         // The stage being trained takes this run's settings; the other keeps its own.
         if !opts.resume {
             opts.stage.set_shape(&mut spec, shapes);
         }
         // A GloGen trained again is calibrated again (`glocal calibrate`): its classes' own
-        // guidance was tuned to the weights it replaces.
-        if opts.stage == Stage::Glogen {
+        // guidance was tuned to the weights it replaces (new styles leave them as they were).
+        if opts.stage == Stage::Glogen && opts.only_styles.is_empty() {
             spec.class_strengths.clear();
         }
         spec.write(&opts.out)?;
@@ -507,7 +541,7 @@ fn split_description(d: Dataset) -> &'static str {
         Dataset::Bandai => "test = styles tired and musical; train = the other styles",
         Dataset::CmuDance => "test = the highest-numbered clip of each class",
         Dataset::CmuExpmap => "the archive's train and test folders",
-        Dataset::Combined => "each dataset's own: h36m S11, bandai styles tired and musical, cmu-dance the highest-numbered clip of each class, cmu-expmap its test folder",
+        Dataset::Combined => "each dataset's own: h36m S11, bandai styles tired and musical (half of their clips also teach the style, by its inputs alone: tired on odd contents, musical on even ones), cmu-dance the highest-numbered clip of each class, cmu-expmap its test folder",
     }
 }
 
