@@ -123,6 +123,11 @@ fn a_style_taught_alone_leaves_every_other_take_as_it_was() {
     };
     assert_eq!(take(&model, "walk-back/happy:3", "a.json"), take(&shipped, "walk-back/happy:3", "b.json"), "a take in another style changed");
     assert_ne!(take(&model, "walk-back/tired:3", "c.json"), take(&shipped, "walk-back/tired:3", "d.json"), "the take in tired did not change");
+    // A style the data does not have is refused before the folder is touched.
+    let files = |dir: &Path| ["model.json", "glogen.safetensors"].map(|f| std::fs::read(dir.join(f)).unwrap());
+    let kept = files(&model);
+    refused(&["train", "--dataset", "all", "--stage", "glogen", "--steps", "3", "--stride", "3", "--out", s(&model), "--fine-tune", "--only-styles", "tired,sleepy"], &["--only-styles", "'sleepy' is not a style of the data", "musical"]);
+    assert!(files(&model) == kept, "a refused run changed the model");
 }
 
 #[test]

@@ -302,6 +302,9 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     if let (Some(from), Some(dir)) = (&from, &opts.init_from) {
         check_labels(from, &corpus, opts.stage).with_context(|| format!("cannot fine-tune from {}", dir.display()))?;
     }
+    // Styles taught alone train on their own clips; both checked before anything is written.
+    let only_styles = style_indices(&corpus, &opts.only_styles)?;
+    let style_clips = (!only_styles.is_empty()).then(|| style_corpus(&corpus, &only_styles)).transpose()?;
     std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
     let _lock = FolderLock::acquire(&opts.out)?;
     let mut spec = prepare_spec(opts, &corpus, from.as_ref())?;
@@ -338,17 +341,12 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         let path = dir.join(opts.stage.file());
         load_widened(&path, &varmap, &cfg, from_cond, &sources).with_context(|| format!("cannot fine-tune from {}", path.display()))?;
     }
-    // `--only-styles` trains its styles' inputs alone, on their clips.
-    let style_run = if opts.only_styles.is_empty() {
-        None
+    // `--only-styles` trains its styles' inputs alone.
+    let (style_inputs, named) = if only_styles.is_empty() {
+        (None, varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
     } else {
-        let styles = style_indices(&corpus, &opts.only_styles)?;
-        let (inputs, trained) = StyleInputs::new(&varmap, &cfg, &spec, &styles, !opts.resume)?;
-        Some((inputs, trained, style_corpus(&corpus, &styles)?))
-    };
-    let named: Vec<_> = match &style_run {
-        Some((_, trained, _)) => trained.clone(),
-        None => varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect(),
+        let (inputs, trained) = StyleInputs::new(&varmap, &cfg, &spec, &only_styles, !opts.resume)?;
+        (Some(inputs), trained)
     };
     let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.optimiser.lr as f64, ..Default::default() })?;
     let mut record = StageRecord { seed: opts.seed, ..Default::default() };
@@ -364,7 +362,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         }
     }
     let frozen_spec = spec.clone();
-    let corpus = style_run.as_ref().map_or(&corpus, |(_, _, styled)| styled);
+    let corpus = style_clips.as_ref().unwrap_or(&corpus);
     let trainer = stage_training(TrainingData { opts, corpus, spec: &frozen_spec, norm: &norm });
     let validation = trainer.validation_windows();
     let start = Instant::now();
@@ -380,7 +378,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
             bail!("training diverged at step {} (loss {last_loss})", opt.step);
         }
         opt.backward_step(&loss)?;
-        if let Some((inputs, _, _)) = &style_run {
+        if let Some(inputs) = &style_inputs {
             inputs.restore()?;
         }
         let step = opt.step;

@@ -14,8 +14,12 @@ use crate::model::block::BlockConfig;
 use crate::model::corpus::{Corpus, Track};
 use crate::model::spec::ModelSpec;
 
-/// The indices in `corpus.styles` of the styles `names` asks for.
+/// The indices in `corpus.styles` of the styles `names` asks for, checked before anything is
+/// written.
 pub(super) fn style_indices(corpus: &Corpus, names: &[String]) -> Result<Vec<usize>> {
+    if corpus.styles.is_empty() && !names.is_empty() {
+        bail!("--only-styles: the {} data has no styles", corpus.dataset);
+    }
     names
         .iter()
         .map(|n| corpus.styles.iter().position(|s| s == n).with_context(|| format!("--only-styles: '{n}' is not a style of the data ({})", corpus.styles.join(", "))))
