@@ -26,7 +26,7 @@ pub use self::checkpoint::save_weights;
 use self::inbetween::inbetween_residual_scale;
 use self::stage::{locgen_residual_scale, stage_training, TrainingData};
 use self::styles::{style_corpus, style_indices, StyleInputs};
-use self::widen::{cond_sources, load_widened};
+use self::widen::load_fine_tuned;
 use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
@@ -334,12 +334,7 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
     seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
     if let (Some(dir), Some(from)) = (&opts.init_from, &from) {
-        let (from_cond, sources) = match opts.stage {
-            Stage::Glogen => (from.glogen.block.cond_dim, cond_sources(from, &spec)),
-            Stage::Locgen | Stage::Inbetween => (0, Vec::new()),
-        };
-        let path = dir.join(opts.stage.file());
-        load_widened(&path, &varmap, &cfg, from_cond, &sources).with_context(|| format!("cannot fine-tune from {}", path.display()))?;
+        load_fine_tuned(dir, opts.stage, from, &spec, &varmap)?;
     }
     // `--only-styles` trains its styles' inputs alone.
     let (style_inputs, named) = if only_styles.is_empty() {

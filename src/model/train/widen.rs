@@ -10,9 +10,22 @@ use anyhow::{bail, Context, Result};
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarMap;
 
+use super::Stage;
 use crate::model::block::BlockConfig;
 use crate::model::glocal::load_weights;
 use crate::model::spec::ModelSpec;
+
+/// Fills `varmap`, the block `stage` has in `spec`, from that stage's weights in `dir`,
+/// trained as `from` describes.
+pub(super) fn load_fine_tuned(dir: &Path, stage: Stage, from: &ModelSpec, spec: &ModelSpec, varmap: &VarMap) -> Result<()> {
+    let (from_cond, sources) = match stage {
+        Stage::Glogen => (from.glogen.block.cond_dim, cond_sources(from, spec)),
+        Stage::Locgen | Stage::Inbetween => (0, Vec::new()),
+    };
+    let path = dir.join(stage.file());
+    let (cfg, _) = stage.block_and_norm(spec);
+    load_widened(&path, varmap, &cfg, from_cond, &sources).with_context(|| format!("cannot fine-tune from {}", path.display()))
+}
 
 /// For each conditioning input of `to`'s GloGen, the one of `from`'s that has its meaning
 /// (None: an input `from` did not read): classes and styles by name, the target's inputs
@@ -35,7 +48,7 @@ pub(super) fn cond_sources(from: &ModelSpec, to: &ModelSpec) -> Vec<Option<usize
 /// `from_cond` inputs wide, the new block's conditioning inputs taken from `sources`
 /// ([`cond_sources`]; empty for a block without conditioning). Every other tensor must
 /// match as [`load_weights`] checks it.
-pub(super) fn load_widened(path: &Path, varmap: &VarMap, cfg: &BlockConfig, from_cond: usize, sources: &[Option<usize>]) -> Result<()> {
+fn load_widened(path: &Path, varmap: &VarMap, cfg: &BlockConfig, from_cond: usize, sources: &[Option<usize>]) -> Result<()> {
     let identity = sources.len() == from_cond && sources.iter().enumerate().all(|(i, s)| *s == Some(i));
     if identity {
         return Ok(load_weights(path, varmap)?);
