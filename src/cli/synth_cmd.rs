@@ -79,6 +79,11 @@ pub struct GenerateArgs {
     /// Leave planted feet as the network made them (no contact locking with leg IK).
     #[arg(long)]
     pub no_foot_lock: bool,
+    /// Let a travelling class turn as the network makes it (on `all`, a walk goes round in
+    /// circles, as Human3.6M's subjects did round their room) instead of keeping a straight
+    /// course where no --path is given.
+    #[arg(long)]
+    pub no_hold_course: bool,
     /// Cut the take (one activity) to a cycle of about its duration whose end joins its
     /// start in pose and velocity, for a game engine's loop; the travel per cycle is printed.
     #[arg(long = "loop")]
@@ -239,6 +244,7 @@ fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOpti
         keep_alive: !args.no_keep_alive,
         join_seams: !args.no_seam_join,
         foot_lock: !args.no_foot_lock,
+        hold_course: !args.no_hold_course,
         keys: args.keys.iter().map(|k| Key::parse(k, parse_init)).collect::<Result<_>>()?,
         path: args.path.as_deref().map(RootPath::read).transpose()?,
         cycle: args.cycle,

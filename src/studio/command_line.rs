@@ -109,6 +109,7 @@ fn option_args(options: &GenerateOptions, model: &ModelInfo) -> Vec<String> {
         (!options.keep_alive, "--no-keep-alive"),
         (!options.join_seams, "--no-seam-join"),
         (!options.foot_lock, "--no-foot-lock"),
+        (!options.hold_course, "--no-hold-course"),
         (options.cycle, "--loop"),
     ];
     args.extend(switches.into_iter().filter(|(on, _)| *on).map(|(_, flag)| flag.to_string()));

@@ -235,6 +235,10 @@ impl StudioApp {
             ui.add_enabled(locks_feet, egui::Checkbox::new(&mut self.editing.doc.options.foot_lock, "Foot lock"))
                 .on_hover_text("Keeps planted feet still on the floor (leg IK), marked orange on the feet and on the timeline's feet track. Off: the feet as the network made them, for comparison")
                 .on_disabled_hover_text("This model's takes are left as the network made them (its model.json turns the foot lock off)");
+            let holds_course = self.engine.model.as_ref().is_some_and(|m| m.spec.hold_course);
+            ui.add_enabled(holds_course, egui::Checkbox::new(&mut self.editing.doc.options.hold_course, "Hold course"))
+                .on_hover_text("Walks, runs and sidesteps keep a straight course where no root path is drawn. Off: they turn as the network makes them (this model's walk goes round in circles)")
+                .on_disabled_hover_text("This model's walks keep the course the network gives them (its model.json does not hold it)");
         });
         ui.horizontal(|ui| {
             let mut seed = self.editing.doc.options.seed;

@@ -10,6 +10,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::finish::{chunks, ChunkFinish, Finishing, Stretch};
+use super::course::HoldCourse;
 use super::foot_lock::Travel;
 use super::given::{GivenFloor, GivenStart};
 use super::held::HeldConstraint;
@@ -171,8 +172,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     Ok(generated)
 }
 
-/// The take's constraints in the order they apply: a file start's floor carries the take, the
-/// root path lays it out, the keys pin it, the file start's given frames are put back as
+/// The take's constraints in the order they apply: a file start's floor carries the take, a
+/// travelling class holds its course or the root path lays it out, the keys pin it, the file start's given frames are put back as
 /// given, and held frames as held.
 /// `held` is the request's held frames as a constraint, kept by the caller (the rollout and
 /// the finishing read them too); the keys come with the gaps before them the in-betweener
@@ -186,6 +187,10 @@ fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline
     // First: the take onto the given frames' floor, which the keys and the path then keep.
     if let Some(frames) = &given {
         constraints.push(Box::new(GivenFloor { frames: frames.clone() }));
+    }
+    // A travelling class keeps its course unless a path lays out another.
+    if let Some(course) = HoldCourse::new(model).filter(|_| opts.hold_course && opts.path.is_none()) {
+        constraints.push(Box::new(course));
     }
     if let Some(path) = &opts.path {
         path.check().context("root path")?;

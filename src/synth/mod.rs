@@ -2,6 +2,7 @@
 
 pub mod class_map;
 pub mod constraints;
+mod course;
 pub mod export;
 pub mod foot_lock;
 pub mod generate;

@@ -79,6 +79,10 @@ pub struct GenerateOptions {
     /// Lock planted feet in place with leg IK (see [`super::foot_lock`]), on models whose
     /// takes it suits ([`crate::model::spec::ModelSpec::foot_lock`]).
     pub foot_lock: bool,
+    /// Travelling classes keep a straight course where no path is given (see
+    /// [`super::course`]), on models whose walking would go round in circles
+    /// ([`crate::model::spec::ModelSpec::hold_course`]).
+    pub hold_course: bool,
     /// Full-body poses the take passes through (see [`super::constraints`]).
     pub keys: Vec<Key>,
     /// A path on the ground the take's locomotion follows.
@@ -109,6 +113,7 @@ impl Default for GenerateOptions {
             keep_alive: true,
             join_seams: true,
             foot_lock: true,
+            hold_course: true,
             keys: Vec::new(),
             path: None,
             key_method: KeyMethod::default(),

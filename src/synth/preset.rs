@@ -26,6 +26,7 @@ impl Preset {
             opts.keep_alive = false;
             opts.join_seams = false;
             opts.foot_lock = false;
+            opts.hold_course = false;
         }
         opts
     }
@@ -50,6 +51,6 @@ mod tests {
         assert_eq!(Preset::Shipped.apply(shipped.clone()), shipped);
         let paper = Preset::Paper.apply(shipped);
         assert_eq!((paper.transition, paper.transition_seconds, paper.class_strength), (Transition::Cut, 0.0, Some(1.0)));
-        assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock));
+        assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock || paper.hold_course));
     }
 }

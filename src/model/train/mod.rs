@@ -506,6 +506,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         class_speed: corpus.class_speeds(),
         foot_lock: true,
         carry_by_feet: carries_by_feet(opts.dataset),
+        hold_course: opts.dataset == Dataset::Combined,
         class_strength: DEFAULT_CLASS_STRENGTH,
         class_strengths: BTreeMap::new(),
         glogen: shapes.glogen,
