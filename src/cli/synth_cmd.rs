@@ -79,9 +79,9 @@ pub struct GenerateArgs {
     /// Leave planted feet as the network made them (no contact locking with leg IK).
     #[arg(long)]
     pub no_foot_lock: bool,
-    /// Let a travelling class turn as the network makes it (on `all`, a walk goes round in
-    /// circles, as Human3.6M's subjects did round their room) instead of keeping a straight
-    /// course where no --path is given.
+    /// Let a travelling class turn as the network makes it (on the h36m and `all` models a
+    /// walk goes round in circles, as Human3.6M's subjects did round their room) instead of
+    /// keeping a straight course where no --path is given.
     #[arg(long)]
     pub no_hold_course: bool,
     /// Cut the take (one activity) to a cycle of about its duration whose end joins its

@@ -258,9 +258,8 @@ pub struct ModelSpec {
     #[serde(default)]
     pub carry_by_feet: bool,
     /// Whether a travelling class keeps a straight course where the take has no root path
-    /// (`synth::course`): for a model whose walking went round its capture room
-    /// (`all`, whose walking is mostly Human3.6M's). The h36m model keeps the data's circles
-    /// for the paper's tables.
+    /// (`synth::course`): for a model whose walking went round its capture room (Human3.6M's,
+    /// and `all`, whose walking is mostly Human3.6M's).
     #[serde(default)]
     pub hold_course: bool,
     /// The classifier-free guidance weight its takes are made with unless one is asked for

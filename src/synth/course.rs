@@ -1,8 +1,8 @@
 //! A travelling class keeps a straight course where the take has no root path. Human3.6M's
-//! subjects walk round their capture room, and `all`'s walking, mostly theirs, went round
-//! in circles of about a metre's radius (35-40 degrees a second from every one of its seed
-//! windows, Bandai's straight walks included): not what an animator asking for a walk, or a
-//! game engine's locomotion clip, expects. Each block of a travelling class has its mean
+//! subjects walk round their capture room, and its model's walking, and `all`'s, mostly
+//! theirs, went round in circles of about a metre's radius (`all`'s 35-40 degrees a second
+//! from every one of its seed windows, Bandai's straight walks included): not what an
+//! animator asking for a walk, or a game engine's locomotion clip, expects. Each block of a travelling class has its mean
 //! turn taken out of its heading changes, so the body sways and steps as made and its
 //! course stays where the block found it; a path (`--path`) lays out any other course.
 

@@ -506,7 +506,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         class_speed: corpus.class_speeds(),
         foot_lock: true,
         carry_by_feet: carries_by_feet(opts.dataset),
-        hold_course: opts.dataset == Dataset::Combined,
+        hold_course: holds_course(opts.dataset),
         class_strength: DEFAULT_CLASS_STRENGTH,
         class_strengths: BTreeMap::new(),
         glogen: shapes.glogen,
@@ -527,6 +527,13 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
 /// lock alone holds.
 fn carries_by_feet(dataset: Dataset) -> bool {
     matches!(dataset, Dataset::Bandai | Dataset::Combined)
+}
+
+/// Whether a new model of `dataset` keeps a travelling class's course
+/// ([`ModelSpec::hold_course`]): Human3.6M's walking goes round its capture room (a 10 s walk
+/// turned through a full circle), and it is most of `all`'s; Bandai's walks go straight.
+fn holds_course(dataset: Dataset) -> bool {
+    matches!(dataset, Dataset::H36m | Dataset::Combined)
 }
 
 fn split_description(d: Dataset) -> &'static str {
