@@ -189,7 +189,7 @@ fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline
         constraints.push(Box::new(GivenFloor { frames: frames.clone() }));
     }
     // A travelling class keeps its course unless a path lays out another.
-    if let Some(course) = HoldCourse::new(model).filter(|_| opts.hold_course && opts.path.is_none()) {
+    if let Some(course) = HoldCourse::new(model, timeline, &opts.init).filter(|_| opts.hold_course && opts.path.is_none()) {
         constraints.push(Box::new(course));
     }
     if let Some(path) = &opts.path {
