@@ -17,6 +17,7 @@ use crate::motion::{JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
 /// The styles that mean "no particular style", which a class's usual style falls to on a tie.
 const PLAIN_STYLES: [&str; 2] = ["neutral", "normal"];
 
+#[derive(Clone)]
 pub struct Track {
     pub class: usize,
     pub file: String,
@@ -91,6 +92,28 @@ impl Corpus {
             }
         }
         Ok(Self { dataset, classes, class_sources, styles, source_skeleton: skeleton, source_joints, layout, fps, stride, train, test })
+    }
+
+    /// The same data with other clips: `train` and `test` in place of its own.
+    pub fn with_tracks(&self, train: Vec<Track>, test: Vec<Track>) -> Corpus {
+        Corpus {
+            dataset: self.dataset,
+            classes: self.classes.clone(),
+            class_sources: self.class_sources.clone(),
+            styles: self.styles.clone(),
+            source_skeleton: self.source_skeleton.clone(),
+            source_joints: self.source_joints.clone(),
+            layout: self.layout.clone(),
+            fps: self.fps,
+            stride: self.stride,
+            train,
+            test,
+        }
+    }
+
+    /// The index of the style `name` in [`Corpus::styles`].
+    pub fn style_index(&self, name: &str) -> Option<usize> {
+        self.styles.iter().position(|s| s == name)
     }
 
     /// The clips styles are learned from: the training clips and the test clips that teach a

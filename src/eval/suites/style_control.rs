@@ -57,22 +57,12 @@ fn style_corpus(corpus: &Corpus, styles: &[usize], held_out: Option<&str>) -> Co
     let held_out = held_out.and_then(|h| corpus.classes.iter().position(|c| c == h));
     let relabel = |t: &Track| -> Option<Track> {
         let label = styles.iter().position(|&s| Some(s) == t.style)?;
-        t.file.starts_with("bandai").then(|| Track { class: label, file: t.file.clone(), tag: t.tag.clone(), style: t.style, teaches_style: false, motion: t.motion.clone() })
+        t.file.starts_with("bandai").then(|| Track { class: label, ..t.clone() })
     };
     let (test, train): (Vec<(bool, Track)>, Vec<(bool, Track)>) = corpus.style_training().filter_map(|t| relabel(t).map(|r| (Some(t.class) == held_out, r))).partition(|(held, _)| *held);
-    Corpus {
-        dataset: corpus.dataset,
-        classes: styles.iter().map(|&s| corpus.styles[s].clone()).collect(),
-        class_sources: Vec::new(),
-        styles: Vec::new(),
-        source_skeleton: corpus.source_skeleton.clone(),
-        source_joints: corpus.source_joints.clone(),
-        layout: corpus.layout.clone(),
-        fps: corpus.fps,
-        stride: corpus.stride,
-        train: train.into_iter().map(|(_, t)| t).collect(),
-        test: test.into_iter().map(|(_, t)| t).collect(),
-    }
+    let tracks = |split: Vec<(bool, Track)>| split.into_iter().map(|(_, t)| t).collect();
+    // The style classifier's classes are the styles.
+    Corpus { classes: styles.iter().map(|&s| corpus.styles[s].clone()).collect(), class_sources: Vec::new(), styles: Vec::new(), ..corpus.with_tracks(tracks(train), tracks(test)) }
 }
 
 pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
@@ -90,7 +80,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         .styles
         .iter()
         .filter(|s| *s != NEUTRAL)
-        .map(|s| corpus.styles.iter().position(|c| c == s).with_context(|| format!("{}: the model's style '{s}' is not in the data", dir.display())))
+        .map(|s| corpus.style_index(s).with_context(|| format!("{}: the model's style '{s}' is not in the data", dir.display())))
         .collect::<Result<_>>()?;
     let cfg = ClassifierConfig::default();
     let reference = Classifier::load_or_train(&style_corpus(&corpus, &styles, Some(HELD_OUT_CONTENT)), &cfg, &ctx.options.cache, "style-classifier-held-out-bye", log)?;

@@ -406,13 +406,19 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
 /// same classes, and the same styles, or (a GloGen) styles the data has, whose weights the
 /// fine-tuned block takes by name ([`widen`]).
 fn check_labels(from: &ModelSpec, corpus: &Corpus, stage: Stage) -> Result<()> {
-    let widens = stage == Stage::Glogen && from.styles.iter().all(|s| corpus.styles.contains(s));
+    let widens = stage == Stage::Glogen && styles_within(&from.styles, &corpus.styles);
     for (what, trained, data, allowed) in [("classes", &from.classes, &corpus.classes, false), ("styles", &from.styles, &corpus.styles, widens)] {
         if trained != data && !allowed {
             bail!("its {what} ({}) are not the data's ({})", trained.join(", "), data.join(", "));
         }
     }
     Ok(())
+}
+
+/// Whether every style a GloGen was trained with is among `data`'s, so a fine-tuning can
+/// widen it onto them by name.
+fn styles_within(trained: &[String], data: &[String]) -> bool {
+    trained.iter().all(|s| data.contains(s))
 }
 
 /// Reads `model.json` when the folder has one for this dataset, else describes a new model.
@@ -467,7 +473,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         // Its labels are indices into the styles it was trained with: a GloGen fine-tuned
         // onto more styles takes each trained one's weights by name.
         if spec.styles != corpus.styles {
-            if opts.stage != Stage::Glogen || opts.resume || !spec.styles.iter().all(|s| corpus.styles.contains(s)) {
+            if opts.stage != Stage::Glogen || opts.resume || !styles_within(&spec.styles, &corpus.styles) {
                 bail!("{} holds a model of the styles {}, the data has {}; train a new model in another --out", opts.out.display(), spec.styles.join(", "), corpus.styles.join(", "));
             }
             spec.usual_styles = spec.usual_styles.iter().map(|&u| corpus.styles.iter().position(|s| *s == spec.styles[u]).expect("checked above")).collect();

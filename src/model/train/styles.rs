@@ -22,7 +22,7 @@ pub(super) fn style_indices(corpus: &Corpus, names: &[String]) -> Result<Vec<usi
     }
     names
         .iter()
-        .map(|n| corpus.styles.iter().position(|s| s == n).with_context(|| format!("--only-styles: '{n}' is not a style of the data ({})", corpus.styles.join(", "))))
+        .map(|n| corpus.style_index(n).with_context(|| format!("--only-styles: '{n}' is not a style of the data ({})", corpus.styles.join(", "))))
         .collect()
 }
 
@@ -30,25 +30,12 @@ pub(super) fn style_indices(corpus: &Corpus, names: &[String]) -> Result<Vec<usi
 /// train on, and the test clips that do not teach them to validate on.
 pub(super) fn style_corpus(corpus: &Corpus, styles: &[usize]) -> Result<Corpus> {
     let of_styles = |t: &&Track| t.style.is_some_and(|s| styles.contains(&s));
-    let copy = |t: &Track| Track { class: t.class, file: t.file.clone(), tag: t.tag.clone(), style: t.style, teaches_style: t.teaches_style, motion: t.motion.clone() };
-    let train: Vec<Track> = corpus.style_training().filter(of_styles).map(copy).collect();
+    let train: Vec<Track> = corpus.style_training().filter(of_styles).cloned().collect();
     if train.is_empty() {
         bail!("--only-styles: the data has no clip of {} to learn from", styles.iter().map(|&s| corpus.styles[s].as_str()).collect::<Vec<_>>().join(", "));
     }
-    let test = corpus.test.iter().filter(of_styles).filter(|t| !t.teaches_style).map(copy).collect();
-    Ok(Corpus {
-        dataset: corpus.dataset,
-        classes: corpus.classes.clone(),
-        class_sources: corpus.class_sources.clone(),
-        styles: corpus.styles.clone(),
-        source_skeleton: corpus.source_skeleton.clone(),
-        source_joints: corpus.source_joints.clone(),
-        layout: corpus.layout.clone(),
-        fps: corpus.fps,
-        stride: corpus.stride,
-        train,
-        test,
-    })
+    let test = corpus.test.iter().filter(of_styles).filter(|t| !t.teaches_style).cloned().collect();
+    Ok(corpus.with_tracks(train, test))
 }
 
 /// The tensors that read the styles' inputs, each with the values of its other columns
