@@ -94,3 +94,24 @@ fn a_walk_at_its_own_pace_walks_whatever_the_global_pace() {
         assert!(speed > 0.6 * walk_speed, "at global pace {pace} the walk moves at {speed:.2} m/s (a walk alone: {walk_speed:.2})");
     }
 }
+
+/// `glocal calibrate --contrast` that is not CLASS=OTHER of two of the model's classes is one
+/// line naming what is wrong, and the model folder is left as it was.
+#[test]
+fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("all");
+    std::fs::create_dir(&model).unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/all");
+    for entry in std::fs::read_dir(&shipped).unwrap() {
+        let entry = entry.unwrap();
+        std::fs::copy(entry.path(), model.join(entry.file_name())).unwrap();
+    }
+    let before = std::fs::read(model.join("model.json")).unwrap();
+    for (contrast, says) in [("walk-left", "is not CLASS=OTHER"), ("walk-left=tango", "class_contrasts.walk-left"), ("walking=walking", "two different ones")] {
+        let out = glocal_in(dir.path(), &["calibrate", "--model", model.to_str().unwrap(), "--contrast", contrast]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(says) && err.lines().filter(|l| !l.trim().is_empty()).count() <= 2, "--contrast {contrast}: {err}");
+    }
+    assert_eq!(std::fs::read(model.join("model.json")).unwrap(), before, "model.json changed");
+}

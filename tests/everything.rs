@@ -147,3 +147,40 @@ fn a_walk_keeps_its_course() {
         }
     }
 }
+
+/// `all`'s sidesteps steered away from `walking` (`glocal calibrate --contrast
+/// walk-left=walking,walk-right=walking`, model.json's `class_contrasts`; not shipped, see
+/// docs/RESULTS.md): made plainly they walk forwards, a third to a half as far sideways as
+/// their data, and read as walking. Steered, each travels further to its own side for every
+/// metre forwards; a class that steers away from nothing (walking) is made exactly as without.
+#[test]
+fn a_steered_sidestep_travels_further_to_its_side() {
+    let plain = GlocalModel::load(&shipped("all")).unwrap_or_else(|e| panic!("{e:#}"));
+    let pairs = [("walk-left", "walking"), ("walk-right", "walking")].map(|(a, b)| (a.to_string(), b.to_string()));
+    let steered = GlocalModel::load(&shipped("all")).unwrap().with_class_contrasts(pairs.into_iter().collect()).unwrap();
+    let skeleton = &plain.spec.layout.skeleton;
+    let (left, right) = (skeleton.index_of("LeftUpLeg").unwrap(), skeleton.index_of("RightUpLeg").unwrap());
+    let take = |model: &GlocalModel, class: &str| {
+        let opts = GenerateOptions { timeline: format!("{class}:8").parse().unwrap(), init: InitPose::SeedClass { class: class.into(), variant: 0 }, ..Default::default() };
+        generate(model, &opts, &mut |_| true).unwrap().motion
+    };
+    // Leftwards travel over forwards travel after 2.5 s, in the frame of the hip sockets.
+    let flat = glam::Vec3::new(1.0, 0.0, 1.0);
+    let sideways_share = |m: &glocal::motion::Motion| {
+        let (mut sideways, mut forwards) = (0.0, 0.0);
+        for t in (m.fps * 2.5) as usize + 1..m.frames() {
+            let (before, now) = (m.frame(t - 1), m.frame(t));
+            let to_left = ((now[left] - now[right]) * flat).normalize();
+            let step = (now[0] - before[0]) * flat;
+            sideways += step.dot(to_left);
+            forwards += step.dot(to_left.cross(glam::Vec3::Y));
+        }
+        sideways / forwards.abs()
+    };
+    for (side, sign) in [("walk-left", 1.0), ("walk-right", -1.0)] {
+        let (pushed, made_plainly) = (sign * sideways_share(&take(&steered, side)), sign * sideways_share(&take(&plain, side)));
+        println!("{side}: {pushed:.2} of the forward distance to its side; made plainly {made_plainly:.2}");
+        assert!(pushed > made_plainly + 0.03 && pushed > 0.15, "{side}: {pushed:.2} to its side, {made_plainly:.2} made plainly");
+    }
+    assert_eq!(mean_distance(&take(&steered, "walking"), &take(&plain, "walking")), 0.0, "walking steers away from nothing");
+}

@@ -22,11 +22,26 @@ pub struct CalibrateArgs {
     /// Print the readings without writing model.json.
     #[arg(long)]
     dry_run: bool,
+    /// CLASS=OTHER pairs: CLASS's guidance steers away from OTHER, which it is mistaken for
+    /// (model.json's `class_contrasts`; calibrated with them). Without it the model keeps its
+    /// own.
+    #[arg(long, value_delimiter = ',', value_parser = parse_contrast)]
+    contrast: Vec<(String, String)>,
+}
+
+fn parse_contrast(pair: &str) -> Result<(String, String), String> {
+    match pair.split_once('=') {
+        Some((class, away)) if !class.trim().is_empty() && !away.trim().is_empty() => Ok((class.trim().to_string(), away.trim().to_string())),
+        _ => Err(format!("'{pair}' is not CLASS=OTHER (e.g. walk-left=walking)")),
+    }
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
     let data = DataRoot::resolve(args.data.as_deref());
-    let model = GlocalModel::load(&args.model)?;
+    let mut model = GlocalModel::load(&args.model)?;
+    if !args.contrast.is_empty() {
+        model = model.with_class_contrasts(args.contrast.into_iter().collect())?;
+    }
     let classes = calibrate(&model, &data, &args.strengths, &mut |m| eprintln!("{m}"))?;
     let mut spec = model.spec.clone();
     say!("| class | training clips' jerk (m/s^3) | at each strength: generated jerk over the training clips', travel (m/s) | chosen |\n|---|---|---|---|");

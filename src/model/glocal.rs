@@ -1,6 +1,7 @@
 //! A trained GlocalNet loaded for generation: GloGen and LocGen frozen to plain f32, the
 //! model description and the seed bank.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
@@ -55,6 +56,18 @@ impl GlocalModel {
         };
         let seeds = read_seed_bank(&dir.join(SEEDS_FILE), &spec)?;
         Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen, inbetween })
+    }
+
+    /// The model with its guidance steering each class named away from its pair
+    /// ([`ModelSpec::class_contrasts`]); an unknown class or a model without guidance is
+    /// refused, the model unchanged.
+    pub fn with_class_contrasts(mut self, contrasts: BTreeMap<String, String>) -> Result<Self, Error> {
+        let mut spec = self.spec.clone();
+        spec.class_contrasts = contrasts;
+        spec.validate().map_err(|problem| Error::SpecInvalid { name: self.dir.join("model.json").display().to_string(), problem })?;
+        self.glogen.set_contrasts(&spec);
+        self.spec = spec;
+        Ok(self)
     }
 
     pub fn has_locgen(&self) -> bool {

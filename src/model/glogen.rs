@@ -21,12 +21,30 @@ pub struct GloGen {
     class_len: usize,
     /// The sparse poses' normalisation, which the straight way to a target reads.
     norm: Normalizer,
+    /// Per class, the label of the class its guidance steers away from
+    /// ([`ModelSpec::class_contrasts`]), and how far.
+    contrasts: Vec<Option<Vec<f32>>>,
+    contrast_strength: f32,
 }
 
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
         let class_len = spec.label_len();
-        Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone() }
+        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0 };
+        glogen.set_contrasts(spec);
+        glogen
+    }
+
+    /// The same GloGen steering its guidance away from other classes as `spec` says
+    /// ([`ModelSpec::class_contrasts`]).
+    pub fn set_contrasts(&mut self, spec: &ModelSpec) {
+        let label = |pair: usize| {
+            let mut row = vec![0.0; self.class_len];
+            spec.set_labels(&mut row, pair, spec.usual_styles.get(pair).copied());
+            row
+        };
+        self.contrasts = if self.class_len > 0 { spec.contrast_indices().into_iter().map(|pair| pair.map(label)).collect() } else { Vec::new() };
+        self.contrast_strength = spec.contrast_strength;
     }
 
     pub fn block_len(&self) -> usize {
@@ -46,9 +64,11 @@ impl GloGen {
     /// One block: `input` is `block_len` normalised sparse poses, `cond` the conditioning: a
     /// class vector (may be a blend of two), then the target for a target-conditioned GloGen.
     /// `strength` > 1 applies classifier-free guidance to the class (`uncond + strength *
-    /// (cond - uncond)`, the unconditioned pass without the class but with the target),
-    /// available when the model was trained with class dropout. Returns the block's embedding
-    /// (as [`Self::embed`]), which the encoder computed on the way.
+    /// (cond - uncond)`, the unconditioned pass without the label but with the target),
+    /// available when the model was trained with class dropout; a class that steers away from
+    /// another ([`ModelSpec::class_contrasts`]) is also pushed away from that class
+    /// (`+ contrast_strength * (cond - contrasted)`, [`Self::contrasted`]). Returns the block's embedding (as [`Self::embed`]), which the
+    /// encoder computed on the way.
     pub fn block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
         let (t, hidden) = (self.block_len, self.spec.block.hidden);
         let cond = (self.spec.block.cond_dim > 0).then_some(class);
@@ -58,20 +78,48 @@ impl GloGen {
             self.add_base(input, class, out);
             return ws.last_encoding(1, t, hidden).to_vec();
         }
-        // The conditioned and unconditioned passes as one batch of two: the weights stream
-        // from memory once for both.
-        let inputs = [input, input].concat();
+        // The conditioned and the other passes as one batch: the weights stream from memory
+        // once for all of them.
         let mut unconditioned = class.to_vec();
         unconditioned[..self.class_len].fill(0.0);
-        let conds = [class, &unconditioned].concat();
-        let mut both = vec![0.0; 2 * out.len()];
-        self.block.infer(ws, &inputs, Some(&conds), 2, t, &mut both);
-        let (conditioned, unconditioned) = both.split_at(out.len());
-        for ((o, c), u) in out.iter_mut().zip(conditioned).zip(unconditioned) {
-            *o = u + strength * (c - u);
+        let mut conds = [class, &unconditioned].concat();
+        let contrasted = self.contrasted(class);
+        conds.extend(contrasted.iter().flatten());
+        let passes = conds.len() / class.len();
+        let inputs = input.repeat(passes);
+        let mut all = vec![0.0; passes * out.len()];
+        self.block.infer(ws, &inputs, Some(&conds), passes, t, &mut all);
+        let (conditioned, others) = all.split_at(out.len());
+        let (unconditioned, contrasted) = others.split_at(out.len());
+        for (k, ((o, c), u)) in out.iter_mut().zip(conditioned).zip(unconditioned).enumerate() {
+            let away = contrasted.get(k).map_or(0.0, |a| c - a);
+            *o = u + strength * (c - u) + self.contrast_strength * away;
         }
         self.add_base(input, class, out);
-        ws.last_encoding(2, t, hidden)[..t * 2 * hidden].to_vec()
+        ws.last_encoding(passes, t, hidden)[..t * 2 * hidden].to_vec()
+    }
+
+    /// The conditioning a class vector's classes that steer away from another are pushed away
+    /// from: each such class's weight given to its pair's label as the model makes that class
+    /// by default (its usual style: `all`'s `walking` is Human3.6M's and CMU's, "neutral"),
+    /// the take's style keeping what is left and every other class kept, so the push is what
+    /// tells the class and its style from the plain pair; none where the vector holds no such
+    /// class.
+    fn contrasted(&self, class: &[f32]) -> Option<Vec<f32>> {
+        let classes = self.contrasts.len();
+        let pushed: f32 = self.contrasts.iter().zip(class).filter(|(pair, _)| pair.is_some()).map(|(_, &w)| w).sum();
+        if pushed <= 0.0 {
+            return None;
+        }
+        let mut away = class.to_vec();
+        away[classes..self.class_len].iter_mut().for_each(|s| *s *= 1.0 - pushed);
+        for (k, pair) in self.contrasts.iter().enumerate() {
+            if let Some(pair) = pair {
+                away[k] -= class[k];
+                away[..self.class_len].iter_mut().zip(pair).for_each(|(a, p)| *a += class[k] * p);
+            }
+        }
+        Some(away)
     }
 
     /// Whether a block with conditioning `cond` is on its way to a target.

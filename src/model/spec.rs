@@ -273,6 +273,17 @@ pub struct ModelSpec {
     /// [`Self::class_strength`].
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub class_strengths: BTreeMap<String, f32>,
+    /// Per class, the class its guidance steers away from (written by `glocal calibrate
+    /// --contrast`): its unconditioned pass is given that class (and the take's style)
+    /// instead of no label, so guidance strengthens what tells the two apart. `all`'s
+    /// sidesteps walked forwards at any plain guidance (a fifth as far sideways as their
+    /// data), their difference from `walking` being a small share of what the label moves.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub class_contrasts: BTreeMap<String, String>,
+    /// How far guidance pushes a contrasted class from its pair, on top of its own guidance
+    /// (docs/DESIGN.md, "Sidesteps steered away from walking").
+    #[serde(default = "default_contrast_strength")]
+    pub contrast_strength: f32,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
     /// The in-betweener, for models trained with one.
@@ -421,6 +432,14 @@ fn default_class_strength() -> f32 {
     DEFAULT_CLASS_STRENGTH
 }
 
+/// The push away from a contrasted class's pair: at 1.5 `all`'s sidesteps travel 0.39 of
+/// their forward distance sideways, their data about 0.45 (0.27-0.33 at 1, 0.12 without).
+pub const DEFAULT_CONTRAST_STRENGTH: f32 = 1.5;
+
+fn default_contrast_strength() -> f32 {
+    DEFAULT_CONTRAST_STRENGTH
+}
+
 impl ModelSpec {
     /// Reads and validates `dir/model.json` (see [`ModelSpec::validate`]). A missing folder, a
     /// file given as the folder and an unreadable file are each named as such.
@@ -498,6 +517,15 @@ impl ModelSpec {
                 return Err(E::field("class_strengths", format!("names '{}', which is not one of the model's classes", clipped(class))));
             }
             in_range(&format!("class_strengths.{class}"), strength, 0.0, MAX_CLASS_STRENGTH)?;
+        }
+        in_range("contrast_strength", self.contrast_strength, 0.0, MAX_CLASS_STRENGTH)?;
+        for (class, away) in &self.class_contrasts {
+            if !self.classes.contains(class) || !self.classes.contains(away) || class == away {
+                return Err(E::field(&format!("class_contrasts.{}", clipped(class)), format!("pairs '{}' with '{}'; both must be the model's classes, and two different ones", clipped(class), clipped(away))));
+            }
+        }
+        if !self.class_contrasts.is_empty() && (self.glogen.class_dropout <= 0.0 || !self.glogen.use_class) {
+            return Err(E::field("class_contrasts", "are given, but the GloGen was trained without classes or class dropout, so it has no guidance to steer".into()));
         }
         whole_in_range("glogen.rollout_blocks", self.glogen.rollout_blocks, 1, MAX_ROLLOUT)?;
         validate_block("locgen.block", &self.locgen.block, dim, dim, 0)?;
@@ -617,6 +645,12 @@ impl ModelSpec {
         self.class_strengths.get(&self.classes[class]).copied().unwrap_or(self.class_strength)
     }
 
+    /// Per class, the index of the class its guidance steers away from
+    /// ([`Self::class_contrasts`]).
+    pub fn contrast_indices(&self) -> Vec<Option<usize>> {
+        self.classes.iter().map(|c| self.class_contrasts.get(c).and_then(|away| self.classes.iter().position(|k| k == away))).collect()
+    }
+
     pub fn class_index(&self, name: &str) -> Result<usize> {
         self.classes
             .iter()
@@ -683,6 +717,31 @@ mod tests {
         assert!(unknown.contains("class_strengths") && unknown.contains("'salsa'"), "{unknown}");
         let strong = with(&mut model, serde_json::json!({"walking": 11.0})).unwrap_err().to_string();
         assert!(strong.contains("class_strengths.walking") && strong.contains("between 0 and 10"), "{strong}");
+    }
+
+    /// A contrast pairs two of the model's classes, different ones, on a GloGen with guidance;
+    /// anything else is one line naming the field.
+    #[test]
+    fn class_contrasts_pair_two_classes_of_a_guided_model() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join("h36m");
+        let mut model: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
+        let with = |model: &mut Value, contrasts: Value| {
+            model["class_contrasts"] = contrasts;
+            ModelSpec::from_json(&model.to_string(), "model.json")
+        };
+        let spec = with(&mut model, serde_json::json!({"sitting": "sittingdown"})).unwrap();
+        let sittingdown = spec.class_index("sittingdown").unwrap();
+        let pairs = spec.contrast_indices();
+        assert_eq!(pairs[spec.class_index("sitting").unwrap()], Some(sittingdown));
+        assert_eq!(pairs.iter().flatten().count(), 1);
+        assert_eq!(spec.contrast_strength, DEFAULT_CONTRAST_STRENGTH);
+        for (bad, field) in [(serde_json::json!({"salsa": "walking"}), "class_contrasts.salsa"), (serde_json::json!({"walking": "salsa"}), "class_contrasts.walking"), (serde_json::json!({"walking": "walking"}), "class_contrasts.walking")] {
+            let e = with(&mut model, bad).unwrap_err().to_string();
+            assert!(e.contains(field) && e.contains("two different ones"), "{e}");
+        }
+        model["glogen"]["class_dropout"] = serde_json::json!(0.0);
+        let unguided = with(&mut model, serde_json::json!({"sitting": "sittingdown"})).unwrap_err().to_string();
+        assert!(unguided.contains("class_contrasts") && unguided.contains("no guidance"), "{unguided}");
     }
 
     /// model.json's two flags read as the three pose bases and are written back as they were

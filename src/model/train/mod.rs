@@ -32,7 +32,7 @@ use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
 use super::corpus::{Corpus, Track};
 use super::glocal::SEEDS_FILE;
 use super::inbetween::GAP_CHANNELS;
-use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, PoseBase, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
+use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, DEFAULT_CONTRAST_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, PoseBase, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
 use crate::data::archive::DataRoot;
 use crate::data::features::{Interpolation, Normalizer};
 use crate::data::registry::Dataset;
@@ -484,9 +484,10 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
             opts.stage.set_shape(&mut spec, shapes);
         }
         // A GloGen trained again is calibrated again (`glocal calibrate`): its classes' own
-        // guidance was tuned to the weights it replaces (new styles leave them as they were).
+        // guidance (strengths and contrasts) was tuned to the weights it replaces (new styles leave them as they were).
         if opts.stage == Stage::Glogen && opts.only_styles.is_empty() {
             spec.class_strengths.clear();
+            spec.class_contrasts.clear();
         }
         spec.write(&opts.out)?;
         return Ok(spec);
@@ -515,6 +516,8 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         hold_course: holds_course(opts.dataset),
         class_strength: DEFAULT_CLASS_STRENGTH,
         class_strengths: BTreeMap::new(),
+        class_contrasts: BTreeMap::new(),
+        contrast_strength: DEFAULT_CONTRAST_STRENGTH,
         glogen: shapes.glogen,
         locgen: shapes.locgen,
         inbetween: (opts.stage == Stage::Inbetween).then_some(shapes.inbetween),
