@@ -118,6 +118,9 @@ pub(super) struct Steering {
     keep_alive: bool,
     /// Per class, the guidance its blocks are made with.
     class_strengths: Vec<f32>,
+    /// Per class, whether its guidance steers it away from another
+    /// ([`crate::model::spec::ModelSpec::class_contrasts`]).
+    steered_apart: Vec<bool>,
     dim: usize,
     block_len: usize,
 }
@@ -143,6 +146,7 @@ impl Steering {
             anchors: anchor_draws(opts.seed),
             keep_alive: opts.keep_alive,
             class_strengths: (0..spec.classes.len()).map(|c| opts.class_strength_of(spec, c)).collect(),
+            steered_apart: spec.contrast_indices().iter().map(Option::is_some).collect(),
             dim: spec.layout.dim(),
             block_len: spec.block_len,
         }
@@ -217,9 +221,12 @@ impl Steering {
             }
         }
         // A class change is where the prior must beat the context's momentum most: its blocks
-        // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`].
+        // get at least the stronger guidance of [`CHANGE_CLASS_STRENGTH`]. A class steered
+        // away from another keeps its own: the push away from its pair does that work, and
+        // with both `all`'s sidesteps skipped, both feet up for 4-5 frames a stride.
         let own = self.class_strengths[plan.target];
-        let strength = if changing || settling { own.max(CHANGE_CLASS_STRENGTH) } else { own };
+        let boosted = (changing || settling) && !self.steered_apart[plan.target];
+        let strength = if boosted { own.max(CHANGE_CLASS_STRENGTH) } else { own };
         // A stalled block's class is urged on too: guidance scaled by how far it fell short.
         if !self.keep_alive || changing {
             strength
@@ -394,5 +401,26 @@ mod tests {
         let (held, own) = (CHANGE_CLASS_STRENGTH.max(spec.class_strength), spec.class_strength);
         assert!(held > own, "the change's guidance {held} is no stronger than the model's {own}");
         assert_eq!(strengths, [held, held, held, held, own, own], "two easing blocks, two settling, then the take's own");
+    }
+
+    /// A change into a class steered away from another (`all`'s sidesteps) keeps the class's
+    /// own guidance; a change into any other class of the same model gets the change's.
+    #[test]
+    fn a_class_steered_apart_keeps_its_own_guidance_through_a_change() {
+        let model = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/all")).unwrap();
+        let spec = &model.spec;
+        let sitting = spec.class_index("sitting").unwrap();
+        let opts = GenerateOptions { init: InitPose::SeedClass { class: "sitting".into(), variant: 0 }, keep_alive: false, ..Default::default() };
+        let first_strength = |target: &str| {
+            let target = spec.class_index(target).unwrap();
+            let mut steering = Steering::new(&model, &opts);
+            let mut context = model.seed_of_class(sitting, 0).unwrap().features.clone();
+            spec.sparse_norm.normalize(&mut context);
+            let plan = BlockPlan { class: model.class_vector(target), target, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true };
+            steering.block(&plan, &mut context.clone(), &context)
+        };
+        assert!(spec.class_contrasts.contains_key("walk-left"), "models/all/model.json steers walk-left apart");
+        assert_eq!(first_strength("walk-left"), spec.class_strength_of(spec.class_index("walk-left").unwrap()));
+        assert_eq!(first_strength("walk-back"), CHANGE_CLASS_STRENGTH.max(spec.class_strength));
     }
 }
