@@ -218,7 +218,10 @@ impl StudioApp {
         // A calibrated model's classes with their own strength, which the slider overrides.
         let per_class = self.engine.model.as_ref().map_or(String::new(), |m| {
             let own: Vec<String> = m.spec.class_strengths.iter().map(|(class, w)| format!("{class} {w}")).collect();
-            if own.is_empty() { String::new() } else { format!(" ({} have their own until the slider is moved)", own.join(", ")) }
+            let apart: Vec<String> = m.spec.class_contrasts.iter().map(|(class, pair)| format!("{class} from {pair}")).collect();
+            let own = if own.is_empty() { String::new() } else { format!(" ({} have their own until the slider is moved)", own.join(", ")) };
+            let apart = if apart.is_empty() { String::new() } else { format!("; steered away from the activity each is mistaken for: {}", apart.join(", ")) };
+            own + &apart
         });
         let mut strength = self.editing.doc.options.class_strength.unwrap_or(own);
         let slider = ui
