@@ -529,7 +529,7 @@ fn largest_eigenvector(n: [[f64; 4]; 4]) -> [f64; 4] {
     let best = (0..4).map(|i| (i, cofactor(&shifted, i, i))).fold((0, f64::MIN), |b, (i, d)| if d.abs() > b.1.abs() { (i, d) } else { b }).0;
     let v: [f64; 4] = std::array::from_fn(|k| cofactor(&shifted, k, best));
     let length = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if !(length > 1e-6 * norm * norm * norm) {
+    if length.is_nan() || length <= 1e-6 * norm * norm * norm {
         return jacobi_largest_eigenvector(n);
     }
     v.map(|x| x / length)
@@ -545,7 +545,7 @@ fn cofactor(m: &[[f64; 4]; 4], row: usize, col: usize) -> f64 {
     let cols: [usize; 3] = std::array::from_fn(|k| if k < col { k } else { k + 1 });
     let e = |r: usize, c: usize| m[rows[r]][cols[c]];
     let minor = e(0, 0) * (e(1, 1) * e(2, 2) - e(1, 2) * e(2, 1)) - e(0, 1) * (e(1, 0) * e(2, 2) - e(1, 2) * e(2, 0)) + e(0, 2) * (e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0));
-    if (row + col) % 2 == 0 { minor } else { -minor }
+    if (row + col).is_multiple_of(2) { minor } else { -minor }
 }
 
 fn det4(m: &[[f64; 4]; 4]) -> f64 {

@@ -24,7 +24,7 @@ use rand::{Rng, SeedableRng};
 use self::checkpoint::{checkpoint, publish, Checkpoint, Legacy};
 pub use self::checkpoint::save_weights;
 use self::inbetween::inbetween_residual_scale;
-use self::stage::{locgen_residual_scale, stage_training, TrainingData};
+use self::stage::{locgen_residual_scale, stage_training, StageTraining, TrainingData};
 use self::styles::{style_corpus, style_indices, StyleInputs};
 use self::widen::load_fine_tuned;
 use super::adamw::AdamW;
@@ -84,6 +84,16 @@ impl Stage {
     }
 
     /// Gives `spec` this run's shape of the stage.
+    /// Puts a LocGen's or an in-betweener's residual scale ([`residual_scale`]) in `spec`.
+    fn set_residual_scale(self, spec: &mut ModelSpec, scale: Option<Vec<f32>>) {
+        let Some(scale) = scale else { return };
+        match self {
+            Stage::Glogen => {}
+            Stage::Locgen => spec.locgen.residual_scale = scale,
+            Stage::Inbetween => spec.inbetween.as_mut().expect("set by prepare_spec").residual_scale = scale,
+        }
+    }
+
     fn set_shape(self, spec: &mut ModelSpec, shapes: StageShapes) {
         match self {
             Stage::Glogen => spec.glogen = shapes.glogen,
@@ -282,6 +292,58 @@ const TRAIN_STATE_SUFFIX: &str = ".train.safetensors";
 
 /// Trains one stage into `opts.out`, creating `model.json` and the seed bank when absent.
 pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel: &AtomicBool) -> Result<ModelSpec> {
+    let Inputs { corpus, from, only_styles, style_clips } = read_inputs(opts)?;
+    std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
+    let _lock = FolderLock::acquire(&opts.out)?;
+    let mut spec = prepare_spec(opts, &corpus, from.as_ref())?;
+    let (cfg, norm) = opts.stage.block_and_norm(&spec);
+    if !opts.resume {
+        let scale = residual_scale(TrainingData { opts, corpus: &corpus, spec: &spec, norm: &norm }, from.as_ref())?;
+        opts.stage.set_residual_scale(&mut spec, scale);
+        spec.write(&opts.out)?;
+    }
+    let varmap = VarMap::new();
+    let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
+    seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
+    if let (Some(dir), Some(from)) = (&opts.init_from, &from) {
+        load_fine_tuned(dir, opts.stage, from, &spec, &varmap)?;
+    }
+    // `--only-styles` trains its styles' inputs alone.
+    let (style_inputs, named) = if only_styles.is_empty() {
+        (None, varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
+    } else {
+        let (inputs, trained) = StyleInputs::new(&varmap, &cfg, &spec, &only_styles, !opts.resume)?;
+        (Some(inputs), trained)
+    };
+    let mut run = Run {
+        opts,
+        opt: AdamW::named(named, ParamsAdamW { lr: opts.optimiser.lr as f64, ..Default::default() })?,
+        record: StageRecord { seed: opts.seed, ..Default::default() },
+        varmap: &varmap,
+        style_inputs,
+        weights_path: opts.weights_path(),
+        state_path: opts.state_path(),
+    };
+    if opts.resume {
+        run.resume(&mut spec)?;
+    }
+    let frozen_spec = spec.clone();
+    let corpus = style_clips.as_ref().unwrap_or(&corpus);
+    let trainer = stage_training(TrainingData { opts, corpus, spec: &frozen_spec, norm: &norm });
+    run.steps(&block, trainer.as_ref(), &mut spec, on_progress, cancel)?;
+    Ok(spec)
+}
+
+/// What a run reads before it writes anything: the data, the model fine-tuned from, the
+/// styles taught alone and their clips, each checked.
+struct Inputs {
+    corpus: Corpus,
+    from: Option<ModelSpec>,
+    only_styles: Vec<usize>,
+    style_clips: Option<Corpus>,
+}
+
+fn read_inputs(opts: &TrainOptions) -> Result<Inputs> {
     opts.validate()?;
     super::memory::retain_freed_memory();
     let (weights_path, state_path) = (opts.weights_path(), opts.state_path());
@@ -302,104 +364,103 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     if let (Some(from), Some(dir)) = (&from, &opts.init_from) {
         check_labels(from, &corpus, opts.stage).with_context(|| format!("cannot fine-tune from {}", dir.display()))?;
     }
-    // Styles taught alone train on their own clips; both checked before anything is written.
     let only_styles = style_indices(&corpus, &opts.only_styles)?;
     let style_clips = (!only_styles.is_empty()).then(|| style_corpus(&corpus, &only_styles)).transpose()?;
-    std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create {}", opts.out.display()))?;
-    let _lock = FolderLock::acquire(&opts.out)?;
-    let mut spec = prepare_spec(opts, &corpus, from.as_ref())?;
-    let (cfg, norm) = opts.stage.block_and_norm(&spec);
-    if !opts.resume {
-        // Fine-tuned weights keep the scale they were trained with.
-        let data = TrainingData { opts, corpus: &corpus, spec: &spec, norm: &norm };
-        match opts.stage {
-            Stage::Glogen => {}
-            Stage::Locgen => {
-                spec.locgen.residual_scale = match &from {
-                    Some(from) => from.locgen.residual_scale.clone(),
-                    None => locgen_residual_scale(data)?,
-                };
+    Ok(Inputs { corpus, from, only_styles, style_clips })
+}
+
+/// A LocGen's or an in-betweener's residual scale: a fine-tuned one keeps the scale its weights
+/// were trained with, a new one measures its training windows; none for a GloGen.
+fn residual_scale(data: TrainingData, from: Option<&ModelSpec>) -> Result<Option<Vec<f32>>> {
+    Ok(match data.opts.stage {
+        Stage::Glogen => None,
+        Stage::Locgen => Some(match from {
+            Some(from) => from.locgen.residual_scale.clone(),
+            None => locgen_residual_scale(data)?,
+        }),
+        Stage::Inbetween => Some(match from.and_then(|f| f.inbetween.as_ref()) {
+            Some(from) => from.residual_scale.clone(),
+            None => inbetween_residual_scale(data)?,
+        }),
+    })
+}
+
+/// A run's optimiser, record and where it writes, from its first step to its last.
+struct Run<'a> {
+    opts: &'a TrainOptions,
+    opt: AdamW,
+    record: StageRecord,
+    varmap: &'a VarMap,
+    style_inputs: Option<StyleInputs>,
+    weights_path: PathBuf,
+    state_path: PathBuf,
+}
+
+impl Run<'_> {
+    /// Picks the run up where its checkpoint left it.
+    fn resume(&mut self, spec: &mut ModelSpec) -> Result<()> {
+        if !self.state_path.exists() {
+            return Ok(());
+        }
+        let previous = self.opts.record(spec).cloned();
+        let checkpoint = Checkpoint::read(&self.state_path, self.varmap, Legacy { weights: &self.weights_path, record: previous })?;
+        self.opt.load_state(&checkpoint.optimiser, checkpoint.step)?;
+        self.record = checkpoint.record;
+        // A run killed between the checkpoint and its published copies left them a step
+        // behind; publish them again from the one consistent file.
+        publish(self.varmap, spec, self.opts, &self.record, &self.weights_path)
+    }
+
+    /// The steps up to `opts.steps` or until `cancel`, validated and checkpointed as asked, and
+    /// once more where a cancel stops between checkpoints.
+    fn steps(&mut self, block: &Seq2SeqBlock, trainer: &dyn StageTraining, spec: &mut ModelSpec, on_progress: &mut dyn FnMut(&Progress), cancel: &AtomicBool) -> Result<()> {
+        let opts = self.opts;
+        let validation = trainer.validation_windows();
+        let start = Instant::now();
+        let seconds_before = self.record.seconds;
+        let first = self.opt.step;
+        while self.opt.step < opts.steps && !cancel.load(Ordering::Relaxed) {
+            let step_seed = opts.seed ^ (self.opt.step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            let mut rng = StdRng::seed_from_u64(step_seed);
+            seed_dropout(step_seed.rotate_left(17));
+            let loss = trainer.loss(block, &mut rng)?;
+            let last_loss = loss.to_scalar::<f32>()?;
+            if !last_loss.is_finite() {
+                bail!("training diverged at step {} (loss {last_loss})", self.opt.step);
             }
-            Stage::Inbetween => {
-                let scale = match from.as_ref().and_then(|f| f.inbetween.as_ref()) {
-                    Some(from) => from.residual_scale.clone(),
-                    None => inbetween_residual_scale(data)?,
-                };
-                spec.inbetween.as_mut().expect("set by prepare_spec").residual_scale = scale;
+            self.opt.backward_step(&loss)?;
+            if let Some(inputs) = &self.style_inputs {
+                inputs.restore()?;
+            }
+            let step = self.opt.step;
+            let done = step == opts.steps;
+            let mut val_error = None;
+            if step % opts.eval_every == 0 || done {
+                let (err, base) = trainer.validate(block, &validation)?;
+                self.record.curve.push((step, last_loss, err));
+                self.record.val_error = err;
+                self.record.baseline_error = base;
+                val_error = Some(err);
+            }
+            let rate = (step - first) as f32 / start.elapsed().as_secs_f32().max(1e-3);
+            on_progress(&Progress { step, steps: opts.steps, loss: last_loss, val_error, steps_per_s: rate });
+            if step % opts.checkpoint_every == 0 || done {
+                self.record.steps = step;
+                self.record.seconds = seconds_before + start.elapsed().as_secs_f64();
+                self.checkpoint(spec)?;
             }
         }
-        spec.write(&opts.out)?;
-    }
-    let varmap = VarMap::new();
-    let block = Seq2SeqBlock::new(cfg.clone(), VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
-    seeded_init(&varmap, opts.seed.wrapping_add(0x5EED), 4)?;
-    if let (Some(dir), Some(from)) = (&opts.init_from, &from) {
-        load_fine_tuned(dir, opts.stage, from, &spec, &varmap)?;
-    }
-    // `--only-styles` trains its styles' inputs alone.
-    let (style_inputs, named) = if only_styles.is_empty() {
-        (None, varmap.data().lock().map_err(|_| anyhow::anyhow!("poisoned"))?.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
-    } else {
-        let (inputs, trained) = StyleInputs::new(&varmap, &cfg, &spec, &only_styles, !opts.resume)?;
-        (Some(inputs), trained)
-    };
-    let mut opt = AdamW::named(named, ParamsAdamW { lr: opts.optimiser.lr as f64, ..Default::default() })?;
-    let mut record = StageRecord { seed: opts.seed, ..Default::default() };
-    if opts.resume {
-        if state_path.exists() {
-            let previous = opts.record(&spec).cloned();
-            let checkpoint = Checkpoint::read(&state_path, &varmap, Legacy { weights: &weights_path, record: previous })?;
-            opt.load_state(&checkpoint.optimiser, checkpoint.step)?;
-            record = checkpoint.record;
-            // A run killed between the checkpoint and its published copies left them a step
-            // behind; publish them again from the one consistent file.
-            publish(&varmap, &mut spec, opts, &record, &weights_path)?;
+        if cancel.load(Ordering::Relaxed) && self.opt.step > self.record.steps {
+            self.record.steps = self.opt.step;
+            self.record.seconds = seconds_before + start.elapsed().as_secs_f64();
+            self.checkpoint(spec)?;
         }
+        Ok(())
     }
-    let frozen_spec = spec.clone();
-    let corpus = style_clips.as_ref().unwrap_or(&corpus);
-    let trainer = stage_training(TrainingData { opts, corpus, spec: &frozen_spec, norm: &norm });
-    let validation = trainer.validation_windows();
-    let start = Instant::now();
-    let seconds_before = record.seconds;
-    let first = opt.step;
-    while opt.step < opts.steps && !cancel.load(Ordering::Relaxed) {
-        let step_seed = opts.seed ^ (opt.step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        let mut rng = StdRng::seed_from_u64(step_seed);
-        seed_dropout(step_seed.rotate_left(17));
-        let loss = trainer.loss(&block, &mut rng)?;
-        let last_loss = loss.to_scalar::<f32>()?;
-        if !last_loss.is_finite() {
-            bail!("training diverged at step {} (loss {last_loss})", opt.step);
-        }
-        opt.backward_step(&loss)?;
-        if let Some(inputs) = &style_inputs {
-            inputs.restore()?;
-        }
-        let step = opt.step;
-        let done = step == opts.steps;
-        let mut val_error = None;
-        if step % opts.eval_every == 0 || done {
-            let (err, base) = trainer.validate(&block, &validation)?;
-            record.curve.push((step, last_loss, err));
-            record.val_error = err;
-            record.baseline_error = base;
-            val_error = Some(err);
-        }
-        let rate = (step - first) as f32 / start.elapsed().as_secs_f32().max(1e-3);
-        on_progress(&Progress { step, steps: opts.steps, loss: last_loss, val_error, steps_per_s: rate });
-        if step % opts.checkpoint_every == 0 || done {
-            record.steps = step;
-            record.seconds = seconds_before + start.elapsed().as_secs_f64();
-            checkpoint(&varmap, &opt, &mut spec, opts, &record, &weights_path, &state_path)?;
-        }
+
+    fn checkpoint(&self, spec: &mut ModelSpec) -> Result<()> {
+        checkpoint(self.varmap, &self.opt, spec, self.opts, &self.record, &self.weights_path, &self.state_path)
     }
-    if cancel.load(Ordering::Relaxed) && opt.step > record.steps {
-        record.steps = opt.step;
-        record.seconds = seconds_before + start.elapsed().as_secs_f64();
-        checkpoint(&varmap, &opt, &mut spec, opts, &record, &weights_path, &state_path)?;
-    }
-    Ok(spec)
 }
 
 /// Whether a stage trained on `from`'s labels can be fine-tuned on the data of `corpus`: the
