@@ -67,8 +67,8 @@ impl GloGen {
     /// (cond - uncond)`, the unconditioned pass without the label but with the target),
     /// available when the model was trained with class dropout; a class that steers away from
     /// another ([`ModelSpec::class_contrasts`]) is also pushed away from that class
-    /// (`+ contrast_strength * (cond - contrasted)`, [`Self::contrasted`]). Returns the block's embedding (as [`Self::embed`]), which the
-    /// encoder computed on the way.
+    /// (`+ contrast_strength * (cond - contrasted)`, [`Self::contrasted`]). Returns the
+    /// block's embedding (as [`Self::embed`]), which the encoder computed on the way.
     pub fn block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, out: &mut [f32]) -> Vec<f32> {
         let (t, hidden) = (self.block_len, self.spec.block.hidden);
         let cond = (self.spec.block.cond_dim > 0).then_some(class);
