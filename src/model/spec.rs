@@ -700,16 +700,23 @@ mod tests {
         }
     }
 
+    fn shipped_h36m_json() -> Value {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m/model.json");
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    }
+
+    /// `model` with `field` set to `value`, read as a model.json.
+    fn with_field(model: &mut Value, field: &str, value: Value) -> Result<ModelSpec, Error> {
+        model[field] = value;
+        ModelSpec::from_json(&model.to_string(), "model.json")
+    }
+
     /// A class's own guidance names one of the model's classes and is a strength a take may
     /// ask for; a class without one takes the model's.
     #[test]
     fn class_strengths_name_a_class_and_a_strength_in_range() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join("h36m");
-        let mut model: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
-        let with = |model: &mut Value, strengths: Value| {
-            model["class_strengths"] = strengths;
-            ModelSpec::from_json(&model.to_string(), "model.json")
-        };
+        let mut model = shipped_h36m_json();
+        let with = |model: &mut Value, strengths: Value| with_field(model, "class_strengths", strengths);
         let spec = with(&mut model, serde_json::json!({"walking": 3.5})).unwrap();
         assert_eq!(spec.class_strength_of(spec.class_index("walking").unwrap()), 3.5);
         assert_eq!(spec.class_strength_of(spec.class_index("eating").unwrap()), spec.class_strength);
@@ -723,12 +730,8 @@ mod tests {
     /// anything else is one line naming the field.
     #[test]
     fn class_contrasts_pair_two_classes_of_a_guided_model() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join("h36m");
-        let mut model: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
-        let with = |model: &mut Value, contrasts: Value| {
-            model["class_contrasts"] = contrasts;
-            ModelSpec::from_json(&model.to_string(), "model.json")
-        };
+        let mut model = shipped_h36m_json();
+        let with = |model: &mut Value, contrasts: Value| with_field(model, "class_contrasts", contrasts);
         let spec = with(&mut model, serde_json::json!({"sitting": "sittingdown"})).unwrap();
         let sittingdown = spec.class_index("sittingdown").unwrap();
         let pairs = spec.contrast_indices();
@@ -748,8 +751,7 @@ mod tests {
     /// (`residual_fade` only when set; a GloGen saved before either flag is absolute).
     #[test]
     fn pose_base_reads_and_writes_model_json_flags() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join("h36m");
-        let model: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("model.json")).unwrap()).unwrap();
+        let model = shipped_h36m_json();
         for (flags, base) in [(None, PoseBase::Absolute), (Some((false, false)), PoseBase::Absolute), (Some((true, false)), PoseBase::Residual), (Some((false, true)), PoseBase::ResidualFade)] {
             let mut glogen = model["glogen"].clone();
             let fields = glogen.as_object_mut().unwrap();
