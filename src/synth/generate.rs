@@ -173,8 +173,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
 }
 
 /// The take's constraints in the order they apply: a file start's floor carries the take, a
-/// travelling class holds its course or the root path lays it out, the keys pin it, the file start's given frames are put back as
-/// given, and held frames as held.
+/// travelling class holds its course or the root path lays it out, the keys pin it, the file
+/// start's given frames are put back as given, and held frames as held.
 /// `held` is the request's held frames as a constraint, kept by the caller (the rollout and
 /// the finishing read them too); the keys come with the gaps before them the in-betweener
 /// fills.
@@ -189,7 +189,7 @@ fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline
         constraints.push(Box::new(GivenFloor { frames: frames.clone() }));
     }
     // A travelling class keeps its course unless a path lays out another.
-    if let Some(course) = HoldCourse::new(model, timeline, &opts.init).filter(|_| opts.hold_course && opts.path.is_none()) {
+    if let Some(course) = (opts.hold_course && opts.path.is_none()).then(|| HoldCourse::new(model, timeline, &opts.init)).flatten() {
         constraints.push(Box::new(course));
     }
     if let Some(path) = &opts.path {

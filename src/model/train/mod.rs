@@ -321,8 +321,6 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
         record: StageRecord { seed: opts.seed, ..Default::default() },
         varmap: &varmap,
         style_inputs,
-        weights_path: opts.weights_path(),
-        state_path: opts.state_path(),
     };
     if opts.resume {
         run.resume(&mut spec)?;
@@ -392,23 +390,22 @@ struct Run<'a> {
     record: StageRecord,
     varmap: &'a VarMap,
     style_inputs: Option<StyleInputs>,
-    weights_path: PathBuf,
-    state_path: PathBuf,
 }
 
 impl Run<'_> {
     /// Picks the run up where its checkpoint left it.
     fn resume(&mut self, spec: &mut ModelSpec) -> Result<()> {
-        if !self.state_path.exists() {
+        let (weights_path, state_path) = (self.opts.weights_path(), self.opts.state_path());
+        if !state_path.exists() {
             return Ok(());
         }
         let previous = self.opts.record(spec).cloned();
-        let checkpoint = Checkpoint::read(&self.state_path, self.varmap, Legacy { weights: &self.weights_path, record: previous })?;
+        let checkpoint = Checkpoint::read(&state_path, self.varmap, Legacy { weights: &weights_path, record: previous })?;
         self.opt.load_state(&checkpoint.optimiser, checkpoint.step)?;
         self.record = checkpoint.record;
         // A run killed between the checkpoint and its published copies left them a step
         // behind; publish them again from the one consistent file.
-        publish(self.varmap, spec, self.opts, &self.record, &self.weights_path)
+        publish(self.varmap, spec, self.opts, &self.record, &weights_path)
     }
 
     /// The steps up to `opts.steps` or until `cancel`, validated and checkpointed as asked, and
@@ -459,7 +456,7 @@ impl Run<'_> {
     }
 
     fn checkpoint(&self, spec: &mut ModelSpec) -> Result<()> {
-        checkpoint(self.varmap, &self.opt, spec, self.opts, &self.record, &self.weights_path, &self.state_path)
+        checkpoint(self.varmap, &self.opt, spec, self.opts, &self.record, &self.opts.weights_path(), &self.opts.state_path())
     }
 }
 
