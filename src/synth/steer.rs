@@ -119,7 +119,8 @@ pub(super) struct Steering {
     /// Per class, the guidance its blocks are made with.
     class_strengths: Vec<f32>,
     /// Per class, whether its guidance steers it away from another
-    /// ([`crate::model::spec::ModelSpec::class_contrasts`]).
+    /// ([`crate::model::spec::ModelSpec::class_contrasts`]): not where the take asks for plain
+    /// conditioning (strength 1), which has no push to do a change's work.
     steered_apart: Vec<bool>,
     dim: usize,
     block_len: usize,
@@ -146,7 +147,8 @@ impl Steering {
             anchors: anchor_draws(opts.seed),
             keep_alive: opts.keep_alive,
             class_strengths: (0..spec.classes.len()).map(|c| opts.class_strength_of(spec, c)).collect(),
-            steered_apart: spec.contrast_indices().iter().map(Option::is_some).collect(),
+            // Guidance only pushes a class from its pair when it guides at all (not at 1).
+            steered_apart: spec.contrast_indices().iter().enumerate().map(|(c, pair)| pair.is_some() && opts.class_strength_of(spec, c) != 1.0).collect(),
             dim: spec.layout.dim(),
             block_len: spec.block_len,
         }
@@ -404,23 +406,27 @@ mod tests {
     }
 
     /// A change into a class steered away from another (`all`'s sidesteps) keeps the class's
-    /// own guidance; a change into any other class of the same model gets the change's.
+    /// own guidance; a change into any other class of the same model, or into a steered one
+    /// in a take made with plain conditioning, gets the change's.
     #[test]
     fn a_class_steered_apart_keeps_its_own_guidance_through_a_change() {
         let model = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/all")).unwrap();
         let spec = &model.spec;
         let sitting = spec.class_index("sitting").unwrap();
-        let opts = GenerateOptions { init: InitPose::SeedClass { class: "sitting".into(), variant: 0 }, keep_alive: false, ..Default::default() };
-        let first_strength = |target: &str| {
+        let guided = GenerateOptions { init: InitPose::SeedClass { class: "sitting".into(), variant: 0 }, keep_alive: false, ..Default::default() };
+        let plain = GenerateOptions { class_strength: Some(1.0), ..guided.clone() };
+        let first_strength = |opts: &GenerateOptions, target: &str| {
             let target = spec.class_index(target).unwrap();
-            let mut steering = Steering::new(&model, &opts);
+            let mut steering = Steering::new(&model, opts);
             let mut context = model.seed_of_class(sitting, 0).unwrap().features.clone();
             spec.sparse_norm.normalize(&mut context);
             let plan = BlockPlan { class: model.class_vector(target), target, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true };
             steering.block(&plan, &mut context.clone(), &context)
         };
         assert!(spec.class_contrasts.contains_key("walk-left"), "models/all/model.json steers walk-left apart");
-        assert_eq!(first_strength("walk-left"), spec.class_strength_of(spec.class_index("walk-left").unwrap()));
-        assert_eq!(first_strength("walk-back"), CHANGE_CLASS_STRENGTH.max(spec.class_strength));
+        assert_eq!(first_strength(&guided, "walk-left"), spec.class_strength_of(spec.class_index("walk-left").unwrap()));
+        assert_eq!(first_strength(&guided, "walk-back"), CHANGE_CLASS_STRENGTH.max(spec.class_strength));
+        // Asked for plain conditioning, no push is made: the change's guidance as for any class.
+        assert_eq!(first_strength(&plain, "walk-left"), CHANGE_CLASS_STRENGTH);
     }
 }
