@@ -454,6 +454,22 @@ fn l11_a_seed_bank_with_a_non_finite_or_huge_value_is_refused_by_name() {
     }
 }
 
+/// A motion texture cut short, or of another model's skeleton, is refused at load naming the
+/// file (it would otherwise index past a class's bank while finishing a take).
+#[test]
+fn l11_a_damaged_or_foreign_texture_is_refused_by_name() {
+    let (t, model) = model_copy("all");
+    let texture = model.join("texture.safetensors");
+    let good = std::fs::read(&texture).unwrap();
+    let out = t.path().join("out.bvh");
+    std::fs::write(&texture, &good[..good.len() / 2]).unwrap();
+    refused(&["generate", "--model", s(&model), "--timeline", "salsa:3", "--out", s(&out)], &["texture.safetensors", "not a safetensors file"]);
+    let (_bandai_dir, bandai) = model_copy("bandai");
+    std::fs::write(bandai.join("texture.safetensors"), &good).unwrap();
+    refused(&["generate", "--model", s(&bandai), "--timeline", "walk:3", "--out", s(&out)], &["texture.safetensors", "the model's are"]);
+    assert!(!out.exists());
+}
+
 /// A project file of a newer format is called that, whichever name its version field has
 /// (`format_version`, as model.json spells it, was called a file with no version).
 #[test]

@@ -25,21 +25,27 @@ impl From<TransitionArg> for Transition {
     }
 }
 
-/// Which network `glocal train` trains (see [`Stage`]).
+/// What `glocal train` makes of a model folder: one of its networks (see [`Stage`]) or
+/// its motion texture.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum StageArg {
     Glogen,
     Locgen,
     /// The in-betweener that fills the gap before a key.
     Inbetween,
+    /// The motion texture of each class's training clips (no network: gathered in seconds;
+    /// `crate::model::texture`).
+    Texture,
 }
 
-impl From<StageArg> for Stage {
-    fn from(s: StageArg) -> Self {
-        match s {
-            StageArg::Glogen => Stage::Glogen,
-            StageArg::Locgen => Stage::Locgen,
-            StageArg::Inbetween => Stage::Inbetween,
+impl StageArg {
+    /// The network this stage trains (none for the texture).
+    pub fn network(self) -> Option<Stage> {
+        match self {
+            StageArg::Glogen => Some(Stage::Glogen),
+            StageArg::Locgen => Some(Stage::Locgen),
+            StageArg::Inbetween => Some(Stage::Inbetween),
+            StageArg::Texture => None,
         }
     }
 }

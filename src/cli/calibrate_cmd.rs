@@ -1,5 +1,6 @@
 //! `glocal calibrate`: per-class guidance for a trained model ([`crate::eval::calibrate`]).
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -42,6 +43,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     if !args.contrast.is_empty() {
         model = model.with_class_contrasts(args.contrast.into_iter().collect())?;
     }
+    // The texture is calibrated from all of it.
+    let model = model.with_texture_gains(BTreeMap::new())?;
     let classes = calibrate(&model, &data, &args.strengths, &mut |m| eprintln!("{m}"))?;
     let mut spec = model.spec.clone();
     say!("| class | training clips' jerk (m/s^3) | at each strength: generated jerk over the training clips', travel (m/s) | chosen |\n|---|---|---|---|");
@@ -50,6 +53,15 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         say!("| {} | {:.1} | {} | {} |", c.class, c.real_jerk, readings.join(", "), c.chosen);
     }
     spec.class_strengths = classes.iter().filter(|c| c.chosen != spec.class_strength).map(|c| (c.class.clone(), c.chosen)).collect();
+    spec.texture_gains = classes.iter().filter_map(|c| Some((c.class.clone(), c.texture?.1))).filter(|(_, gain)| *gain != 1.0).collect();
+    if model.texture().is_some() {
+        say!("\n| class | training clips' jerk (m/s^3) | chosen strength, generated jerk over the training clips' | with all of the texture | texture share chosen |\n|---|---|---|---|---|");
+        for c in &classes {
+            let plain = c.readings.iter().find(|r| r.strength == c.chosen).map_or(f64::NAN, |r| r.jerk);
+            let (textured, gain) = c.texture.unwrap_or((f64::NAN, f32::NAN));
+            say!("| {} | {:.1} | {}: {:.2} | {:.2} | {:.2} |", c.class, c.real_jerk, c.chosen, plain / c.real_jerk, textured / c.real_jerk, gain);
+        }
+    }
     say!("{} of {} classes need more than the model's guidance ({}) to reach {LIVELY_SHARE} of their training clips' jerk", spec.class_strengths.len(), classes.len(), spec.class_strength);
     if !args.dry_run {
         spec.write(&args.model)?;

@@ -47,7 +47,10 @@ pub struct EvalArgs {
     /// The suites' takes and forecasts with GloGen's blocks unjoined at their seams.
     #[arg(long)]
     no_seam_join: bool,
-    /// The paper's GlocalNet (`synth::Preset::Paper`, as `glocal generate --paper`): cut transitions, class strength 1, no keep-alive, no seam join, no foot lock.
+    /// The suites' takes without the models' motion texture (`glocal generate --no-texture`).
+    #[arg(long)]
+    no_texture: bool,
+    /// The paper's GlocalNet (`synth::Preset::Paper`, as `glocal generate --paper`): cut transitions, class strength 1, no keep-alive, no seam join, no foot lock, no texture.
     #[arg(long)]
     paper: bool,
     /// Fewer and shorter takes (the motion suite), for a quick look.
@@ -78,6 +81,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         class_strength: args.class_strength,
         keep_alive: !args.no_keep_alive,
         join_seams: !args.no_seam_join,
+        texture: !args.no_texture,
         preset: Preset::from_paper_flag(args.paper),
         quick: args.quick,
         class_control_takes: args.class_control_takes as usize,

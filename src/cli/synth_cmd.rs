@@ -84,6 +84,10 @@ pub struct GenerateArgs {
     /// keeping a straight course where no --path is given.
     #[arg(long)]
     pub no_hold_course: bool,
+    /// The frames between GloGen's poses as LocGen leaves them, without the motion texture of
+    /// the classes' training clips (on models that ship one: `all`).
+    #[arg(long)]
+    pub no_texture: bool,
     /// Cut the take (one activity) to a cycle of about its duration whose end joins its
     /// start in pose and velocity, for a game engine's loop; the travel per cycle is printed.
     #[arg(long = "loop")]
@@ -245,6 +249,7 @@ fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOpti
         join_seams: !args.no_seam_join,
         foot_lock: !args.no_foot_lock,
         hold_course: !args.no_hold_course,
+        texture: !args.no_texture,
         keys: args.keys.iter().map(|k| Key::parse(k, parse_init)).collect::<Result<_>>()?,
         path: args.path.as_deref().map(RootPath::read).transpose()?,
         cycle: args.cycle,

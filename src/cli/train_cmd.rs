@@ -10,7 +10,11 @@ use crate::data::archive::DataRoot;
 use crate::data::features::Interpolation;
 use super::args::{LossArg, StageArg};
 use crate::model::spec::{PoseBase, SeamJoin};
-use crate::model::train::{train, ModelShape, Stage, TrainOptions};
+use crate::data::registry::Dataset;
+use crate::model::corpus::Corpus;
+use crate::model::glocal::GlocalModel;
+use crate::model::texture::{Texture, TEXTURE_FILE};
+use crate::model::train::{train, ModelShape, TrainOptions};
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -140,8 +144,20 @@ fn stop_on_interrupt(cancel: Arc<AtomicBool>) -> Result<()> {
     .context("cannot install the Ctrl-C handler")
 }
 
+/// `--stage texture`: the bank of the trained model in `--out`, from its training clips.
+fn gather_texture(args: &TrainArgs) -> Result<()> {
+    let dataset: Dataset = args.dataset.parse()?;
+    let model = GlocalModel::load(&args.out)?;
+    let corpus = Corpus::for_model(dataset, &DataRoot::resolve(args.data.as_deref()), &model.spec, &args.out)?;
+    let texture = Texture::build(&corpus, &model.spec);
+    let path = args.out.join(TEXTURE_FILE);
+    texture.save(&path, &model.spec)?;
+    say!("wrote {} ({} classes)", path.display(), model.spec.classes.len());
+    Ok(())
+}
+
 pub fn run(args: TrainArgs) -> Result<()> {
-    let stage: Stage = args.stage.into();
+    let Some(stage) = args.stage.network() else { return gather_texture(&args) };
     let mut opts = TrainOptions::new(args.dataset.parse()?, stage, args.out);
     opts.data = DataRoot::resolve(args.data.as_deref());
     opts.steps = args.steps;

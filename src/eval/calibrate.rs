@@ -3,6 +3,10 @@
 //! 26 activities left some of them damped: at 1.5, `all`'s CMU dances and sports moved at
 //! 0.42x / 0.45x their real jerk, while its Human3.6M and Bandai classes were within 0.8-0.9x;
 //! guidance raised for every class at once took those past 1.3x (docs/RESULTS.md).
+//!
+//! Guidance is calibrated on takes without motion texture; a model with a texture then gets
+//! each class's share of it ([`texture_gain`]): what its guided takes still lack of their
+//! training clips' jerk.
 
 use anyhow::{bail, Result};
 use glam::Vec3;
@@ -27,6 +31,8 @@ pub const LIVELY_SHARE: f64 = 0.7;
 const KEPT_TRAVEL: f64 = 0.8;
 const TRAVEL_SLACK: f64 = 0.05;
 const TRAVEL_HOP_SECONDS: f32 = 0.5;
+/// A textured class is as lively as this share of its training clips' mean jerk.
+pub const TEXTURED_SHARE: f64 = 1.0;
 /// Seed-bank windows per class and strength, and seconds scored after each seed block; each
 /// take without variation noise, as a take is made by default.
 const TAKES: usize = 8;
@@ -39,6 +45,9 @@ pub struct ClassCalibration {
     pub real_jerk: f64,
     pub readings: Vec<Reading>,
     pub chosen: f32,
+    /// With the model's texture: the jerk of the chosen strength's takes with all of the
+    /// texture laid, and the share of it chosen.
+    pub texture: Option<(f64, f32)>,
 }
 
 /// A class's takes at one strength: their mean jerk (m/s^3) and how fast the body travels in
@@ -76,7 +85,7 @@ pub fn calibrate(model: &GlocalModel, data: &DataRoot, strengths: &[f32], log: &
         let mut readings: Vec<Reading> = Vec::new();
         for &strength in strengths {
             log(&format!("calibrate: {name} at {strength}"));
-            let reading = read_class(model, &roles, class, strength)?;
+            let reading = read_class(model, &roles, class, strength, false)?;
             let done = reading.jerk >= LIVELY_SHARE * real_jerk || readings.first().is_some_and(|own| !keeps_travel(own, &reading));
             readings.push(reading);
             if done {
@@ -84,7 +93,16 @@ pub fn calibrate(model: &GlocalModel, data: &DataRoot, strengths: &[f32], log: &
             }
         }
         let chosen = choose(&readings, real_jerk);
-        out.push(ClassCalibration { class: name.clone(), real_jerk, readings, chosen });
+        let texture = match model.texture() {
+            Some(_) => {
+                log(&format!("calibrate: {name} textured"));
+                let plain = readings.iter().find(|r| r.strength == chosen).map_or(f64::NAN, |r| r.jerk);
+                let textured = read_class(model, &roles, class, chosen, true)?.jerk;
+                Some((textured, texture_gain(plain, textured, TEXTURED_SHARE * real_jerk)))
+            }
+            None => None,
+        };
+        out.push(ClassCalibration { class: name.clone(), real_jerk, readings, chosen, texture });
     }
     Ok(out)
 }
@@ -101,11 +119,26 @@ fn training_jerks(corpus: &Corpus, roles: &JointRoles) -> Vec<f64> {
     pools.iter().map(|p| p.summary()[Measure::JerkMean]).collect()
 }
 
-/// The class's [`TAKES`] takes at guidance `strength`, measured.
-fn read_class(model: &GlocalModel, roles: &JointRoles, class: usize, strength: f32) -> Result<Reading> {
+/// The share of its texture a class gets for its jerk to reach `target`, from its takes'
+/// jerk without texture (`plain`) and with all of it (`textured`). The texture's detail is
+/// unrelated to the motion under it, so their jerks add roughly as the squares do.
+fn texture_gain(plain: f64, textured: f64, target: f64) -> f32 {
+    let (lacking, added) = (target * target - plain * plain, textured * textured - plain * plain);
+    if lacking <= 0.0 || !lacking.is_finite() {
+        return 0.0;
+    }
+    if added <= lacking {
+        return 1.0;
+    }
+    (lacking / added).sqrt() as f32
+}
+
+/// The class's [`TAKES`] takes at guidance `strength`, measured, with or without the
+/// model's texture.
+fn read_class(model: &GlocalModel, roles: &JointRoles, class: usize, strength: f32, texture: bool) -> Result<Reading> {
     let spec = &model.spec;
     let seed_s = (spec.block_len * spec.stride) as f32 / spec.fps;
-    let base = GenerateOptions { class_strength: Some(strength), ..Default::default() };
+    let base = GenerateOptions { class_strength: Some(strength), texture, ..Default::default() };
     let mut pool = Pool::default();
     let mut travels = Vec::new();
     for variant in 0..TAKES {
@@ -154,6 +187,15 @@ mod tests {
         assert_eq!(choose(&readings(&[(1.5, 60.0, 0.0), (2.5, 95.0, 0.0), (3.5, 120.0, 0.0)]), 100.0), 2.5);
         assert_eq!(choose(&readings(&[(1.5, 90.0, 0.0)]), 100.0), 1.5);
         assert_eq!(choose(&readings(&[(1.5, 30.0, 0.0), (2.5, 50.0, 0.0), (3.5, 45.0, 0.0)]), 100.0), 2.5);
+    }
+
+    #[test]
+    fn a_class_gets_the_texture_it_lacks() {
+        assert_eq!(texture_gain(100.0, 150.0, 90.0), 0.0);
+        assert_eq!(texture_gain(60.0, 90.0, 120.0), 1.0);
+        // 60 lacks 80 (100^2 - 60^2 = 80^2); all of the texture adds 160 (200^2 - 120^2 ... ).
+        let gain = texture_gain(60.0, 60.0f64.hypot(160.0), 100.0);
+        assert!((gain - 0.5).abs() < 1e-6, "{gain}");
     }
 
     /// A strength at which one of the class's takes travels much less is not taken, even

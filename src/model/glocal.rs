@@ -15,6 +15,7 @@ use super::glogen::GloGen;
 use super::rollout::{rollout, OneClass};
 use super::inbetween::{fill_frames, gap_gain, gap_window, GAP_CHANNELS};
 use super::spec::{InbetweenSpec, ModelSpec, Seed, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE};
+use super::texture::{Texture, TEXTURE_FILE};
 use super::Error;
 use crate::data::features::{interpolate, Placement};
 use crate::data::input::read_text;
@@ -39,6 +40,7 @@ pub struct GlocalModel {
     glogen: GloGen,
     locgen: Option<FrozenBlock>,
     inbetween: Option<FrozenBlock>,
+    texture: Option<Texture>,
 }
 
 impl GlocalModel {
@@ -55,7 +57,9 @@ impl GlocalModel {
             _ => None,
         };
         let seeds = read_seed_bank(&dir.join(SEEDS_FILE), &spec)?;
-        Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen, inbetween })
+        let texture_path = dir.join(TEXTURE_FILE);
+        let texture = if texture_path.exists() { Some(Texture::load(&texture_path, &spec)?) } else { None };
+        Ok(Self { dir: dir.to_path_buf(), spec, seeds, glogen, locgen, inbetween, texture })
     }
 
     /// The model with its guidance steering each class named away from its pair
@@ -66,6 +70,21 @@ impl GlocalModel {
         spec.class_contrasts = contrasts;
         spec.validate().map_err(|problem| Error::SpecInvalid { name: self.dir.join("model.json").display().to_string(), problem })?;
         self.glogen.set_contrasts(&spec);
+        self.spec = spec;
+        Ok(self)
+    }
+
+    /// The motion texture of the model's classes, if its folder has one.
+    pub fn texture(&self) -> Option<&Texture> {
+        self.texture.as_ref()
+    }
+
+    /// The model with each class's share of its texture as `gains` gives it
+    /// ([`ModelSpec::texture_gains`]); a gain out of range or of an unknown class is refused.
+    pub fn with_texture_gains(mut self, gains: BTreeMap<String, f32>) -> Result<Self, Error> {
+        let mut spec = self.spec.clone();
+        spec.texture_gains = gains;
+        spec.validate().map_err(|problem| Error::SpecInvalid { name: self.dir.join("model.json").display().to_string(), problem })?;
         self.spec = spec;
         Ok(self)
     }

@@ -13,6 +13,7 @@ pub mod rollout;
 pub mod seam;
 pub mod spec;
 pub mod target;
+pub mod texture;
 pub mod train;
 
 use std::path::{Path, PathBuf};

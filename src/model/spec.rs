@@ -284,6 +284,11 @@ pub struct ModelSpec {
     /// (docs/DESIGN.md, "Sidesteps steered away from walking").
     #[serde(default = "default_contrast_strength")]
     pub contrast_strength: f32,
+    /// Per class, the share of its motion texture a take lays over its frames (the model's
+    /// `texture.safetensors`, [`crate::model::texture`]), tuned by `glocal calibrate` so the
+    /// class is as lively as its training clips: a class not named gets all of it.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub texture_gains: BTreeMap<String, f32>,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
     /// The in-betweener, for models trained with one.
@@ -519,6 +524,12 @@ impl ModelSpec {
             in_range(&format!("class_strengths.{class}"), strength, 0.0, MAX_CLASS_STRENGTH)?;
         }
         in_range("contrast_strength", self.contrast_strength, 0.0, MAX_CLASS_STRENGTH)?;
+        for (class, &gain) in &self.texture_gains {
+            if !self.classes.contains(class) {
+                return Err(E::field("texture_gains", format!("names '{}', which is not one of the model's classes", clipped(class))));
+            }
+            in_range(&format!("texture_gains.{class}"), gain, 0.0, 1.0)?;
+        }
         for (class, away) in &self.class_contrasts {
             if !self.classes.contains(class) || !self.classes.contains(away) || class == away {
                 return Err(E::field(&format!("class_contrasts.{}", clipped(class)), format!("pairs '{}' with '{}'; both must be the model's classes, and two different ones", clipped(class), clipped(away))));
@@ -645,6 +656,11 @@ impl ModelSpec {
         self.class_strengths.get(&self.classes[class]).copied().unwrap_or(self.class_strength)
     }
 
+    /// Per class, the share of its texture a take gets ([`Self::texture_gains`]).
+    pub fn texture_gain_per_class(&self) -> Vec<f32> {
+        self.classes.iter().map(|c| self.texture_gains.get(c).copied().unwrap_or(1.0)).collect()
+    }
+
     /// Per class, the index of the class its guidance steers away from
     /// ([`Self::class_contrasts`]).
     pub fn contrast_indices(&self) -> Vec<Option<usize>> {
@@ -724,6 +740,21 @@ mod tests {
         assert!(unknown.contains("class_strengths") && unknown.contains("'salsa'"), "{unknown}");
         let strong = with(&mut model, serde_json::json!({"walking": 11.0})).unwrap_err().to_string();
         assert!(strong.contains("class_strengths.walking") && strong.contains("between 0 and 10"), "{strong}");
+    }
+
+    /// A class's texture gain names one of the model's classes and is a share of its texture;
+    /// a class without one gets all of it.
+    #[test]
+    fn texture_gains_name_a_class_and_a_share() {
+        let mut model = shipped_h36m_json();
+        let with = |model: &mut Value, gains: Value| with_field(model, "texture_gains", gains);
+        let spec = with(&mut model, serde_json::json!({"walking": 0.25})).unwrap();
+        let gains = spec.texture_gain_per_class();
+        assert_eq!((gains[spec.class_index("walking").unwrap()], gains[spec.class_index("eating").unwrap()]), (0.25, 1.0));
+        let unknown = with(&mut model, serde_json::json!({"salsa": 0.5})).unwrap_err().to_string();
+        assert!(unknown.contains("texture_gains") && unknown.contains("'salsa'"), "{unknown}");
+        let over = with(&mut model, serde_json::json!({"walking": 1.5})).unwrap_err().to_string();
+        assert!(over.contains("texture_gains.walking") && over.contains("between 0 and 1"), "{over}");
     }
 
     /// A contrast pairs two of the model's classes, different ones, on a GloGen with guidance;

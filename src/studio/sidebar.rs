@@ -242,6 +242,10 @@ impl StudioApp {
             ui.add_enabled(holds_course, egui::Checkbox::new(&mut self.editing.doc.options.hold_course, "Hold course"))
                 .on_hover_text("Walks, runs and sidesteps keep a straight course where no root path is drawn. Off: they turn as the network makes them (this model's walk goes round in circles)")
                 .on_disabled_hover_text("This model's walks keep the course the network gives them (its model.json does not hold it)");
+            let has_texture = self.engine.model.as_ref().is_some_and(|m| m.has_texture);
+            ui.add_enabled(has_texture, egui::Checkbox::new(&mut self.editing.doc.options.texture, "Motion texture"))
+                .on_hover_text("Lays the fine detail of each activity's capture (the small shakes and snaps a spline between key poses smooths away) over the frames between them. Off: the smooth in-betweens, for comparison")
+                .on_disabled_hover_text("This model ships no motion texture");
         });
         ui.horizontal(|ui| {
             let mut seed = self.editing.doc.options.seed;

@@ -38,6 +38,7 @@ pub struct ModelInfo {
     /// most typical of the class to the least (see [`typical_order`]).
     pub typical: Vec<Vec<usize>>,
     pub has_locgen: bool,
+    pub has_texture: bool,
 }
 
 impl ModelInfo {
@@ -382,6 +383,7 @@ impl WorkerState {
                     seeds: model.seeds.iter().map(|s| SeedInfo { class: s.class, clip: s.clip.clone(), frame: s.frame }).collect(),
                     typical: typical_order(&model),
                     has_locgen: model.has_locgen(),
+                    has_texture: model.texture().is_some(),
                 };
                 self.model = Some(model);
                 self.cache.clear();

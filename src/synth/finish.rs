@@ -24,6 +24,7 @@ use super::plan::{paced_frames, TakeConstraint};
 use super::smoothstep;
 use crate::data::features::{wrap, FeatureLayout, Placement};
 use crate::model::glocal::GlocalModel;
+use crate::model::texture::Texture;
 use crate::motion::contacts::FootContacts;
 use crate::motion::{solve_local_poses, LocalPose, Motion};
 
@@ -65,6 +66,18 @@ pub(super) struct Finishing<'a> {
     pub times: &'a [f64],
     /// Applied to the stretch that starts the take (all of them finish a take made whole).
     pub constraints: &'a [Box<dyn TakeConstraint + 'a>],
+    pub texture: Option<Textured<'a>>,
+}
+
+/// The motion texture a take's frames get between its sparse poses.
+pub(super) struct Textured<'a> {
+    pub bank: &'a Texture,
+    /// The class of each of the take's sparse poses (that of the block it belongs to).
+    pub pose_classes: Vec<usize>,
+    /// The take's variation seed: where it reads each class's bank.
+    pub seed: u64,
+    /// Per class, the share of its texture laid ([`crate::model::spec::ModelSpec::texture_gains`]).
+    pub gains: Vec<f32>,
 }
 
 /// A finished stretch: frames `first..first + motion.frames()` of the take.
@@ -99,7 +112,8 @@ impl Finishing<'_> {
     pub fn stretch(&self, sparse: &[Vec3], window: Range<usize>) -> Result<Stretch> {
         let spec = &self.model.spec;
         let layout = &spec.layout;
-        let dense = self.model.densify(sparse, self.locgen);
+        let mut dense = self.model.densify(sparse, self.locgen);
+        self.lay_texture(&mut dense, &window);
         let frames = self.frames_of(&window);
         let mut positions = apply_pace(&dense, layout.joints(), spec.stride, &self.times[window.clone()], frames.clone());
         let starts_take = window.start == 0;
@@ -109,6 +123,13 @@ impl Finishing<'_> {
         let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
         constraints.iter().for_each(|c| c.on_contacts(&motion, &mut contacts));
         Ok(Stretch { first: frames.start, motion, contacts, warnings })
+    }
+
+    /// The texture laid over the dense frames of sparse poses `window`, when the take has one.
+    fn lay_texture(&self, dense: &mut [Vec3], window: &Range<usize>) {
+        if let Some(t) = &self.texture {
+            t.bank.lay_over(dense, &self.model.spec, &t.gains, window.start, &t.pose_classes, t.seed);
+        }
     }
 
     /// Frames of the paced take (model units) with the bones projected, when asked, and the
@@ -141,7 +162,8 @@ impl Finishing<'_> {
         }
         let windows = self.free_windows(held.free_frames());
         for window in &windows {
-            let dense = self.model.densify(&sparse[window.start * j..window.end * j], self.locgen);
+            let mut dense = self.model.densify(&sparse[window.start * j..window.end * j], self.locgen);
+            self.lay_texture(&mut dense, window);
             let frames = self.frames_of(window);
             let paced = apply_pace(&dense, j, spec.stride, &self.times[window.clone()], frames.clone());
             positions[frames.start * j..frames.end * j].copy_from_slice(&paced);

@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::finish::{chunks, ChunkFinish, Finishing, Stretch};
+use super::finish::{chunks, ChunkFinish, Finishing, Stretch, Textured};
 use super::course::HoldCourse;
 use super::foot_lock::Travel;
 use super::given::{GivenFloor, GivenStart};
@@ -111,9 +111,10 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     // A root path has laid out where the body goes; without one, the feet of a model whose
     // network slides them say how far.
     let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet { kept: learnt } } else { Travel::Kept };
-    let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints };
-    let segments = timeline.planned_spans(&spec.classes);
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
+    let texture = model.texture().filter(|_| opts.texture).map(|bank| Textured { bank, pose_classes: pose_classes(&block_classes, t, total), seed: opts.seed, gains: spec.texture_gain_per_class() });
+    let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints, texture };
+    let segments = timeline.planned_spans(&spec.classes);
 
     // Only a resumable take is printed: the print of a request's held frames would cost
     // more than the blocks it could spare.
@@ -170,6 +171,13 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
         chunks: chunked.map(ChunkFinish::into_record),
     });
     Ok(generated)
+}
+
+/// The class of each of a take's `total` sparse poses: the seed's `block_len` poses take
+/// the first block's, then each block's its own.
+fn pose_classes(block_classes: &[usize], block_len: usize, total: usize) -> Vec<usize> {
+    let Some(last) = block_classes.len().checked_sub(1) else { return Vec::new() };
+    (0..total).map(|i| block_classes[(i.saturating_sub(block_len) / block_len).min(last)]).collect()
 }
 
 /// The take's constraints in the order they apply: a file start's floor carries the take, a

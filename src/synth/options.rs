@@ -83,6 +83,9 @@ pub struct GenerateOptions {
     /// [`super::course`]), on models whose walking would go round in circles
     /// ([`crate::model::spec::ModelSpec::hold_course`]).
     pub hold_course: bool,
+    /// Lay the motion texture of each class's training clips over the frames between
+    /// GloGen's sparse poses (see [`crate::model::texture`]), on models that ship one.
+    pub texture: bool,
     /// Full-body poses the take passes through (see [`super::constraints`]).
     pub keys: Vec<Key>,
     /// A path on the ground the take's locomotion follows.
@@ -114,6 +117,7 @@ impl Default for GenerateOptions {
             join_seams: true,
             foot_lock: true,
             hold_course: true,
+            texture: true,
             keys: Vec::new(),
             path: None,
             key_method: KeyMethod::default(),

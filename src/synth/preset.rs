@@ -11,7 +11,7 @@ pub enum Preset {
     #[default]
     Shipped,
     /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks that
-    /// pop at their seams, feet as the network made them.
+    /// pop at their seams, feet as the network made them, frames splined between its poses.
     Paper,
 }
 
@@ -27,6 +27,7 @@ impl Preset {
             opts.join_seams = false;
             opts.foot_lock = false;
             opts.hold_course = false;
+            opts.texture = false;
         }
         opts
     }
@@ -51,6 +52,6 @@ mod tests {
         assert_eq!(Preset::Shipped.apply(shipped.clone()), shipped);
         let paper = Preset::Paper.apply(shipped);
         assert_eq!((paper.transition, paper.transition_seconds, paper.class_strength), (Transition::Cut, 0.0, Some(1.0)));
-        assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock || paper.hold_course));
+        assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock || paper.hold_course || paper.texture));
     }
 }

@@ -1,6 +1,7 @@
 //! `glocal eval --suite locgen`: LocGen against its interpolation alone, rebuilding the dense
 //! frames of each shipped model's real test split from its true sparse keyframes.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
@@ -9,7 +10,10 @@ use serde_json::{json, Value};
 
 use super::context::SuiteContext;
 use crate::data::registry::Dataset;
+use crate::data::features::{interpolate, Interpolation};
 use crate::eval::metrics;
+use crate::eval::motion::{Measure, Pool, COMMON_FPS};
+use crate::motion::{JointRoles, Motion};
 use crate::eval::table::{fixed as f, Markdown, Table};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
@@ -22,6 +26,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     let mut md = Markdown::new("Dense frames rebuilt from the true sparse keyframes of each model's real test split: the model's interpolation alone against LocGen on it. Windows start on a keyframe, one in every two LocGen windows of each test clip; mean joint distance over all frames of each window and over the frames between keyframes only, in mm.\n\n");
     let mut table = Table::new(["model", "windows", "interpolation (all)", "LocGen (all)", "interpolation (between keys)", "LocGen (between keys)", "LocGen / interpolation (between keys)"]);
     let mut rows = Vec::new();
+    let mut spline_jerk = Vec::new();
     let mut models: Vec<(Dataset, PathBuf)> = ctx.datasets.iter().map(|&d| (d, ctx.model_dir(d))).collect();
     if opts.model.is_none() {
         models.push((Dataset::Combined, ctx.model_dir(Dataset::Combined)));
@@ -41,11 +46,38 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         let r = rebuild_test_split(&model, &corpus);
         let ratio = r.locgen_between / r.interp_between;
         table.row([dir.display().to_string(), r.windows.to_string(), f(r.interp_all, 2), f(r.locgen_all, 2), f(r.interp_between, 2), f(r.locgen_between, 2), f(ratio, 3)]);
-        rows.push(json!({"model": dir, "windows": r.windows, "interp_all_mm": r.interp_all, "locgen_all_mm": r.locgen_all, "interp_between_mm": r.interp_between, "locgen_between_mm": r.locgen_between}));
+        let shares = spline_jerk_shares(&corpus);
+        spline_jerk.push(format!("{} {}", dir.display(), shares.iter().map(|(source, share)| format!("{source} {share:.2}x")).collect::<Vec<_>>().join(", ")));
+        rows.push(json!({"model": dir, "windows": r.windows, "interp_all_mm": r.interp_all, "locgen_all_mm": r.locgen_all, "interp_between_mm": r.interp_between, "locgen_between_mm": r.locgen_between, "spline_jerk_share": shares}));
     }
     md.table(table);
+    md.text(&format!("\nHow much of real motion's jerk a spline between sparse poses can hold, even through the true ones: the natural spline through each test clip's own sparse poses, whole clips, its mean jerk over the clip's (the motion suite's jerk): {}. What it misses is millimetre detail between the poses that no LocGen predicts from them; `all` lays it back from its data as motion texture (docs/DESIGN.md, \"Motion texture\").\n", spline_jerk.join("; ")));
     md.text("\n*Paper (NTU RGB+D 3D, GloGen outputs, its own units): LocGen 0.172 vs interpolation 0.177; not comparable.*\n");
     Ok((md, json!({"rows": rows})))
+}
+
+/// Per source dataset of `corpus`'s test clips, the mean jerk of the natural spline through
+/// each clip's own sparse poses over the clip's.
+fn spline_jerk_shares(corpus: &Corpus) -> Vec<(String, f64)> {
+    let roles = JointRoles::new(&corpus.layout.skeleton).expect("a corpus's skeleton has its roles");
+    let (s, j) = (corpus.stride, corpus.layout.joints());
+    let mut pools: BTreeMap<String, (Pool, Pool)> = BTreeMap::new();
+    for t in &corpus.test {
+        let m = &t.motion;
+        let frames = (m.frames().saturating_sub(1) / s) * s + 1;
+        if frames < 4 * s {
+            continue;
+        }
+        let real = &m.positions()[..frames * j];
+        let sparse: Vec<Vec3> = real.chunks_exact(j).step_by(s).flatten().copied().collect();
+        let spline = interpolate(&sparse, j, s, Interpolation::NaturalCubic);
+        let source = t.file.split('/').next().unwrap_or_default().to_string();
+        let (real_pool, spline_pool) = pools.entry(source).or_default();
+        let at_common = |p: Vec<Vec3>| Motion::from_positions(m.skeleton.clone(), m.fps, p).resample(COMMON_FPS);
+        real_pool.add_take(&at_common(real.to_vec()), &roles, None);
+        spline_pool.add_take(&at_common(spline), &roles, None);
+    }
+    pools.into_iter().map(|(source, (real, spline))| (source, spline.summary()[Measure::JerkMean] / real.summary()[Measure::JerkMean])).collect()
 }
 
 /// Mean joint distances (mm) to the real dense frames.

@@ -547,6 +547,10 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
             spec.class_strengths.clear();
             spec.class_contrasts.clear();
         }
+        // The texture's shares make up what the dense frames lack, which either network moves.
+        if opts.stage != Stage::Inbetween && opts.only_styles.is_empty() {
+            spec.texture_gains.clear();
+        }
         spec.write(&opts.out)?;
         return Ok(spec);
     }
@@ -576,6 +580,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         class_strengths: BTreeMap::new(),
         class_contrasts: BTreeMap::new(),
         contrast_strength: DEFAULT_CONTRAST_STRENGTH,
+        texture_gains: BTreeMap::new(),
         glogen: shapes.glogen,
         locgen: shapes.locgen,
         inbetween: (opts.stage == Stage::Inbetween).then_some(shapes.inbetween),

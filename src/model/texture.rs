@@ -1,0 +1,262 @@
+//! Motion texture: the detail of real motion that a spline through its own sparse poses
+//! misses, taken from each class's training clips and laid over a take's dense frames.
+//!
+//! The natural spline through a real clip's sparse poses (`stride` frames apart, as GloGen
+//! makes them) keeps 0.30-0.48x the clip's jerk, and that detail is not predictable from the
+//! poses around it (no LocGen beats the spline by more than a few percent), so a take that
+//! is splined between its sparse poses is smoother than capture however good the poses are.
+//! The texture bank holds, per class, stretches of `real - spline(real's sparse poses)` from
+//! its training clips, in the body's heading frame; it is zero at every sparse pose (the
+//! spline passes through them), so laying it over a take keeps GloGen's poses and adds
+//! the missing detail between them, turned to the take's heading (Pullen and Bregler's
+//! "motion texture", 2002, with the spline as the keyframed motion).
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use glam::{Quat, Vec3};
+
+use super::corpus::Corpus;
+use super::spec::ModelSpec;
+use super::Error;
+use crate::data::features::{interpolate, FeatureLayout, Interpolation};
+use crate::data::write::write_atomic;
+use crate::motion::JointRoles;
+
+/// The texture bank of a model folder, beside its weights.
+pub const TEXTURE_FILE: &str = "texture.safetensors";
+/// Texture kept per class (at pace 1): long enough not to repeat within a take's
+/// segment of one class, small enough to ship (about 40 kB a class).
+const SECONDS_PER_CLASS: f32 = 10.0;
+/// A change of class fades the texture of one into the other's over this much either side.
+const BLEND_SECONDS: f32 = 0.5;
+/// The shortest stretch taken from one clip (a clip's texture is continuous only within it).
+const MIN_STRETCH_SECONDS: f32 = 2.0;
+/// A foot slower than this (m/s) may be planted: it gets no texture.
+const PLANTED_SPEED: f32 = 0.15;
+/// A foot this fast (m/s) is stepping: it gets all of its texture.
+const SWING_SPEED: f32 = 0.6;
+/// Largest texture file read.
+const MAX_TEXTURE_BYTES: u64 = 16 << 20;
+
+/// Per class, whole sparse intervals (`stride` frames each, the first of each a sparse pose)
+/// of texture in the heading frame of the pose it was taken from.
+pub struct Texture {
+    stride: usize,
+    joints: usize,
+    classes: Vec<Vec<Vec3>>,
+    /// Each leg's ankle and the joints under it, whose texture fades as the foot slows.
+    feet: [(usize, Vec<usize>); 2],
+}
+
+impl Texture {
+    /// The bank of `corpus`'s training clips for a model of `spec`.
+    pub fn build(corpus: &Corpus, spec: &ModelSpec) -> Self {
+        let (stride, layout) = (spec.stride, &spec.layout);
+        let budget = (SECONDS_PER_CLASS * spec.fps / stride as f32).round() as usize;
+        let min_stretch = (MIN_STRETCH_SECONDS * spec.fps / stride as f32).round() as usize;
+        let classes = (0..spec.classes.len())
+            .map(|class| {
+                let clips: Vec<_> = corpus.train.iter().filter(|t| t.class == class).collect();
+                // An even share of the class's budget from each clip, at least a stretch long.
+                let share = (budget / clips.len().max(1)).max(min_stretch);
+                let mut bank = Vec::new();
+                for clip in clips {
+                    let left = budget.saturating_sub(bank.len() / (stride * layout.joints()));
+                    if left == 0 {
+                        break;
+                    }
+                    bank.extend(clip_texture(layout, &clip.motion.positions()[..], stride, share.min(left)));
+                }
+                bank
+            })
+            .collect();
+        Self::with_classes(stride, layout, classes)
+    }
+
+    fn with_classes(stride: usize, layout: &FeatureLayout, classes: Vec<Vec<Vec3>>) -> Self {
+        // The layout's skeleton was checked for its roles when the layout was made.
+        let roles = JointRoles::new(&layout.skeleton).expect("a feature layout's skeleton has its roles");
+        let feet = [&roles.left, &roles.right].map(|leg| (leg.ankle, leg.foot_joints(&layout.skeleton)));
+        Self { stride, joints: layout.joints(), classes, feet }
+    }
+
+    /// Sparse intervals of texture class `class` holds.
+    fn intervals(&self, class: usize) -> usize {
+        self.classes.get(class).map_or(0, |c| c.len() / (self.stride * self.joints))
+    }
+
+    /// Lays the texture over `dense`: the frames from sparse pose `first` of a take onwards,
+    /// `stride` per interval, the interval starting at each pose textured from the class of
+    /// that pose in `pose_classes` (the whole take's). Each class's texture is scaled by its
+    /// share in `gains`, a change of class fades one class's texture into the next's over
+    /// [`BLEND_SECONDS`] either side of it, and a foot's fades out as it slows to a stand
+    /// ([`swing_weights`]). Which stretch of a class's bank a take reads is chosen by `seed`;
+    /// the interval at the take's sparse pose `k` reads the bank's interval `offset + k`, so a
+    /// class's texture runs on unbroken through its segment and any stretch of the take gets
+    /// the same texture whether it is finished alone or with the rest.
+    pub fn lay_over(&self, dense: &mut [Vec3], spec: &ModelSpec, gains: &[f32], first: usize, pose_classes: &[usize], seed: u64) {
+        let (s, j, layout) = (self.stride, self.joints, &spec.layout);
+        let reach = (BLEND_SECONDS * spec.fps / s as f32).round() as usize;
+        let swing = self.feet.clone().map(|(ankle, _)| swing_weights(dense, j, ankle, spec.fps * layout.skeleton.meters_per_unit()));
+        let (mut mix, mut texture, mut weights) = (Vec::new(), vec![Vec3::ZERO; j], vec![1.0; j]);
+        for (f, frame) in dense.chunks_exact_mut(j).enumerate() {
+            let (k, phase) = (first + f / s, f % s);
+            if phase == 0 || k >= pose_classes.len() {
+                continue;
+            }
+            shares_around(pose_classes, k, reach, gains, &mut mix);
+            texture.fill(Vec3::ZERO);
+            for &(class, share) in &mix {
+                let n = self.intervals(class);
+                if n == 0 || share == 0.0 {
+                    continue;
+                }
+                let at = (bank_offset(seed, class) + k) % n;
+                let bank = &self.classes[class][(at * s + phase) * j..(at * s + phase + 1) * j];
+                texture.iter_mut().zip(bank).for_each(|(t, b)| *t += *b * share);
+            }
+            weights.fill(1.0);
+            for ((_, joints), swings) in self.feet.iter().zip(&swing) {
+                joints.iter().for_each(|&joint| weights[joint] = swings[f]);
+            }
+            let turn = Quat::from_rotation_y(layout.heading(frame));
+            frame.iter_mut().zip(&texture).zip(&weights).for_each(|((p, t), w)| *p += turn * *t * *w);
+        }
+    }
+
+    /// Writes the bank to `path` atomically: one i16 tensor per class (frames, joints, 3),
+    /// its scale in the metadata.
+    pub fn save(&self, path: &Path, spec: &ModelSpec) -> Result<()> {
+        let mut metadata = HashMap::from([("stride".to_string(), self.stride.to_string()), ("joints".to_string(), self.joints.to_string())]);
+        let mut data = Vec::new();
+        for (class, bank) in spec.classes.iter().zip(&self.classes) {
+            let peak = bank.iter().map(|v| v.abs().max_element()).fold(0.0f32, f32::max);
+            let scale = if peak > 0.0 { peak / i16::MAX as f32 } else { 1.0 };
+            metadata.insert(format!("scale.{class}"), scale.to_string());
+            let bytes: Vec<u8> = bank.iter().flat_map(|v| v.to_array()).flat_map(|x| ((x / scale).round() as i16).to_le_bytes()).collect();
+            data.push((class.clone(), vec![bank.len() / self.joints, self.joints, 3], bytes));
+        }
+        let views = data
+            .iter()
+            .map(|(name, shape, bytes)| Ok((name.as_str(), safetensors::tensor::TensorView::new(safetensors::Dtype::I16, shape.clone(), bytes)?)))
+            .collect::<Result<Vec<_>, safetensors::SafeTensorError>>()
+            .with_context(|| format!("cannot encode {}", path.display()))?;
+        let bytes = safetensors::serialize(views, Some(metadata)).with_context(|| format!("cannot encode {}", path.display()))?;
+        write_atomic(path, &bytes)
+    }
+
+    /// Reads the bank at `path` for a model of `spec`: every class's tensor there, of the
+    /// model's stride and joints.
+    pub fn load(path: &Path, spec: &ModelSpec) -> Result<Self, Error> {
+        let mismatch = |problem: String| Error::Mismatch { path: path.to_path_buf(), problem };
+        let bytes = crate::data::input::read_bytes(path, MAX_TEXTURE_BYTES).map_err(|cause| Error::File { what: format!("cannot read {}", path.display()), cause })?;
+        let (_, header) = safetensors::SafeTensors::read_metadata(&bytes).map_err(|e| mismatch(format!("not a safetensors file: {e}")))?;
+        let file = safetensors::SafeTensors::deserialize(&bytes).map_err(|e| mismatch(format!("not a safetensors file: {e}")))?;
+        let meta = header.metadata().clone().unwrap_or_default();
+        let number = |key: &str| meta.get(key).and_then(|v| v.parse::<f32>().ok()).ok_or_else(|| mismatch(format!("has no number '{key}' in its metadata")));
+        let (stride, joints) = (number("stride")? as usize, number("joints")? as usize);
+        if stride != spec.stride || joints != spec.layout.joints() {
+            return Err(mismatch(format!("is of stride {stride} and {joints} joints; the model's are {} and {}", spec.stride, spec.layout.joints())));
+        }
+        let classes = spec
+            .classes
+            .iter()
+            .map(|class| {
+                let view = file.tensor(class).map_err(|_| mismatch(format!("has no texture of class '{class}'")))?;
+                let scale = number(&format!("scale.{class}"))?;
+                let shape = view.shape();
+                if view.dtype() != safetensors::Dtype::I16 || shape.len() != 3 || shape[1] != joints || shape[2] != 3 || shape[0] % stride != 0 || !scale.is_finite() {
+                    return Err(mismatch(format!("class '{class}': a {:?} tensor of shape {shape:?} with scale {scale}; expected i16 (a whole number of {stride}-frame intervals, {joints}, 3)", view.dtype())));
+                }
+                let values: Vec<f32> = view.data().chunks_exact(2).map(|b| i16::from_le_bytes([b[0], b[1]]) as f32 * scale).collect();
+                Ok(values.chunks_exact(3).map(|v| Vec3::new(v[0], v[1], v[2])).collect())
+            })
+            .collect::<Result<_, Error>>()?;
+        Ok(Self::with_classes(stride, &spec.layout, classes))
+    }
+}
+
+/// Per frame, how far a foot (its `ankle`, in `dense` frames of `joints`) swings: 0 while
+/// it moves slower than a planted foot can (so a planted foot stays where the foot lock
+/// finds it), 1 once it moves as a stepping foot does. `metres_per_frame` turns a step
+/// between frames into metres a second.
+fn swing_weights(dense: &[Vec3], joints: usize, ankle: usize, metres_per_frame: f32) -> Vec<f32> {
+    let frames = dense.len() / joints;
+    let at = |f: usize| dense[f.min(frames - 1) * joints + ankle];
+    (0..frames)
+        .map(|f| {
+            let speed = (at(f + 1) - at(f.saturating_sub(1))).length() / 2.0 * metres_per_frame;
+            ((speed - PLANTED_SPEED) / (SWING_SPEED - PLANTED_SPEED)).clamp(0.0, 1.0)
+        })
+        .collect()
+}
+
+/// Each class's share of the texture at sparse pose `k` of a take whose poses are of
+/// `pose_classes`: its share of the poses within `reach` of `k`, times its gain.
+fn shares_around(pose_classes: &[usize], k: usize, reach: usize, gains: &[f32], mix: &mut Vec<(usize, f32)>) {
+    mix.clear();
+    let around = &pose_classes[k.saturating_sub(reach)..(k + reach + 1).min(pose_classes.len())];
+    for &class in around {
+        match mix.iter_mut().find(|(c, _)| *c == class) {
+            Some((_, count)) => *count += 1.0,
+            None => mix.push((class, 1.0)),
+        }
+    }
+    let total = around.len() as f32;
+    mix.iter_mut().for_each(|(class, share)| *share *= gains.get(*class).copied().unwrap_or(1.0) / total);
+}
+
+/// Where a take of variation `seed` starts reading class `class`'s bank.
+fn bank_offset(seed: u64, class: usize) -> usize {
+    // SplitMix64's finaliser: neighbouring seeds and classes land far apart.
+    let mut z = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (class as u64).wrapping_add(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    (z ^ (z >> 31)) as usize
+}
+
+/// Up to `intervals` sparse intervals of one clip's texture (`positions`, `joints` a frame),
+/// from its middle (a clip's start and end are often a standing pose), each frame's in the
+/// heading frame of its pose.
+fn clip_texture(layout: &FeatureLayout, positions: &[Vec3], stride: usize, intervals: usize) -> Vec<Vec3> {
+    let j = layout.joints();
+    let frames = positions.len() / j;
+    let available = frames.saturating_sub(1) / stride;
+    let take = intervals.min(available);
+    if take == 0 {
+        return Vec::new();
+    }
+    let start = (available - take) / 2 * stride;
+    let real = &positions[start * j..(start + take * stride + 1) * j];
+    let sparse: Vec<Vec3> = real.chunks_exact(j).step_by(stride).flatten().copied().collect();
+    let spline = interpolate(&sparse, j, stride, Interpolation::NaturalCubic);
+    let mut out = Vec::with_capacity(take * stride * j);
+    for (pose, smooth) in real.chunks_exact(j).zip(spline.chunks_exact(j)).take(take * stride) {
+        let unturn = Quat::from_rotation_y(-layout.heading(pose));
+        out.extend(pose.iter().zip(smooth).map(|(p, q)| unturn * (*p - *q)));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_change_of_class_shares_the_texture_around_it() {
+        let mut mix = Vec::new();
+        shares_around(&[0, 0, 0, 1, 1, 1], 2, 1, &[1.0, 0.5], &mut mix);
+        assert_eq!(mix, vec![(0, 2.0 / 3.0), (1, 0.5 / 3.0)]);
+        shares_around(&[0, 0, 0, 1, 1, 1], 0, 1, &[1.0, 0.5], &mut mix);
+        assert_eq!(mix, vec![(0, 1.0)]);
+    }
+
+    #[test]
+    fn bank_offsets_differ_by_seed_and_class() {
+        assert_ne!(bank_offset(0, 0), bank_offset(1, 0));
+        assert_ne!(bank_offset(0, 0), bank_offset(0, 1));
+        assert_eq!(bank_offset(7, 3), bank_offset(7, 3));
+    }
+}
