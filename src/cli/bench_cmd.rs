@@ -75,6 +75,9 @@ pub enum BenchCommand {
         /// Without the foot lock (its cost is the difference).
         #[arg(long)]
         no_foot_lock: bool,
+        /// Without the model's motion texture (its cost is the difference).
+        #[arg(long)]
+        no_texture: bool,
         #[arg(long)]
         json: bool,
     },
@@ -168,8 +171,9 @@ pub fn run(command: BenchCommand) -> Result<()> {
             let r = super::bench_edit::bench_edit(&model, repeats.max(1))?;
             print(&r, json, || r.text())
         }
-        BenchCommand::Generate { model, repeats, class_strength, no_foot_lock, json } => {
-            let r = bench_generate(&model, repeats, class_strength, !no_foot_lock)?;
+        BenchCommand::Generate { model, repeats, class_strength, no_foot_lock, no_texture, json } => {
+            let stages = GenerateOptions { foot_lock: !no_foot_lock, texture: !no_texture, ..Default::default() };
+            let r = bench_generate(&model, repeats, class_strength, &stages)?;
             print(&r, json, || {
                 r.runs
                     .iter()
@@ -210,12 +214,14 @@ pub struct GenerateBench {
     pub locgen: bool,
     pub class_strength: f32,
     pub foot_lock: bool,
+    pub texture: bool,
     pub runs: Vec<GenerateRun>,
 }
 
 /// Best-of-`repeats` wall time of whole takes (GloGen + LocGen + pace + bone projection)
-/// cycling through the model's classes in 10 s segments.
-pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, foot_lock: bool) -> Result<GenerateBench> {
+/// cycling through the model's classes in 10 s segments, with the stages `stages` turns on
+/// (its foot lock and texture).
+pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, stages: &GenerateOptions) -> Result<GenerateBench> {
     let model = GlocalModel::load(dir)?;
     let class_strength = class_strength.unwrap_or(model.spec.class_strength);
     let classes = model.spec.classes.clone();
@@ -224,7 +230,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, f
         let segments = (0..(seconds / 10.0) as usize)
             .map(|k| Segment::new(classes[k % classes.len()].clone(), 10.0))
             .collect();
-        let mut opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength: Some(class_strength), foot_lock, ..Default::default() };
+        let mut opts = GenerateOptions { timeline: Timeline { segments }, init: InitPose::SeedIndex(0), class_strength: Some(class_strength), foot_lock: stages.foot_lock, texture: stages.texture, ..Default::default() };
         if constrained {
             // A seed pose of each of four classes, 12 s apart, and a 40 m zigzag.
             let key = |k: usize| Key { seconds: 12.0 * (k + 1) as f32, source: KeySource::Init(InitPose::SeedClass { class: classes[k % classes.len()].clone(), variant: 0 }), fix_root: false };
@@ -242,7 +248,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, f
         }
         runs.push(GenerateRun { seconds, constrained, frames, ms: best });
     }
-    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, foot_lock, runs })
+    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, foot_lock: stages.foot_lock, texture: stages.texture && model.texture().is_some(), runs })
 }
 
 /// The 60 s take's time with keys and a path over its time without, measured in one run.
