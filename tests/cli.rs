@@ -115,3 +115,31 @@ fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
     }
     assert_eq!(std::fs::read(model.join("model.json")).unwrap(), before, "model.json changed");
 }
+
+/// `--no-texture` is a setting a project saves: a project on `all` asking no texture makes the
+/// take the flag makes, and both differ from the textured take (a studio user who turned the
+/// "Motion texture" box off and copied the command line gets the take they saw).
+#[test]
+fn a_project_without_texture_makes_the_no_texture_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut document = glocal::synth::project::Document::new(crate_dir.join("models/all"));
+    document.options.timeline = "salsa:3".parse().unwrap();
+    document.options.init = glocal::synth::InitPose::SeedClass { class: "salsa".into(), variant: 0 };
+    document.options.texture = false;
+    let project = dir.path().join("plain.glocal");
+    std::fs::write(&project, serde_json::to_string(&document).unwrap()).unwrap();
+    let take = |args: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        let mut all = args.to_vec();
+        all.extend(["--out", out.to_str().unwrap()]);
+        ok(glocal_in(crate_dir, &all), name);
+        std::fs::read(out).unwrap()
+    };
+    let from_project = take(&["generate", "--project", project.to_str().unwrap()], "project.npy");
+    let flags = ["generate", "--model", "models/all", "--timeline", "salsa:3", "--init", "seed:salsa"];
+    let plain = take(&[&flags[..], &["--no-texture"]].concat(), "plain.npy");
+    let textured = take(&flags, "textured.npy");
+    assert!(from_project == plain, "the project's take differs from --no-texture's");
+    assert!(plain != textured, "--no-texture made the textured take");
+}
