@@ -37,6 +37,9 @@ const MIN_STRETCH_SECONDS: f32 = 2.0;
 const PLANTED_SPEED: f32 = 0.15;
 /// A foot this fast (m/s) is stepping: it gets all of its texture.
 const SWING_SPEED: f32 = 0.6;
+/// A foot slow enough to be planted this long before or after gets none either: a running
+/// foot touches down for a few frames, between frames of swing.
+const SWING_MARGIN_SECONDS: f32 = 0.07;
 /// Largest texture file read.
 const MAX_TEXTURE_BYTES: u64 = 16 << 20;
 
@@ -99,7 +102,7 @@ impl Texture {
     pub fn lay_over(&self, dense: &mut [Vec3], spec: &ModelSpec, gains: &[f32], first: usize, pose_classes: &[usize], seed: u64) {
         let (s, j, layout) = (self.stride, self.joints, &spec.layout);
         let reach = (BLEND_SECONDS * spec.fps / s as f32).round() as usize;
-        let swing = self.feet.clone().map(|(ankle, _)| swing_weights(dense, j, ankle, spec.fps * layout.skeleton.meters_per_unit()));
+        let swing = self.feet.clone().map(|(ankle, _)| swing_weights(dense, j, ankle, spec.fps, layout.skeleton.meters_per_unit()));
         let (mut mix, mut texture, mut weights) = (Vec::new(), vec![Vec3::ZERO; j], vec![1.0; j]);
         for (f, frame) in dense.chunks_exact_mut(j).enumerate() {
             let (k, phase) = (first + f / s, f % s);
@@ -179,18 +182,21 @@ impl Texture {
 }
 
 /// Per frame, how far a foot (its `ankle`, in `dense` frames of `joints`) swings: 0 while
-/// it moves slower than a planted foot can (so a planted foot stays where the foot lock
-/// finds it), 1 once it moves as a stepping foot does. `metres_per_frame` turns a step
-/// between frames into metres a second.
-fn swing_weights(dense: &[Vec3], joints: usize, ankle: usize, metres_per_frame: f32) -> Vec<f32> {
+/// it moves slower than a planted foot can and for [`SWING_MARGIN_SECONDS`] either side (so a
+/// foot about to land or just lifting is as still as the foot lock finds it), 1 once it
+/// moves as a stepping foot does. `fps` and `metres_per_unit` turn a step between frames into
+/// metres a second.
+fn swing_weights(dense: &[Vec3], joints: usize, ankle: usize, fps: f32, metres_per_unit: f32) -> Vec<f32> {
     let frames = dense.len() / joints;
     let at = |f: usize| dense[f.min(frames - 1) * joints + ankle];
-    (0..frames)
+    let moving: Vec<f32> = (0..frames)
         .map(|f| {
-            let speed = (at(f + 1) - at(f.saturating_sub(1))).length() / 2.0 * metres_per_frame;
+            let speed = (at(f + 1) - at(f.saturating_sub(1))).length() / 2.0 * fps * metres_per_unit;
             ((speed - PLANTED_SPEED) / (SWING_SPEED - PLANTED_SPEED)).clamp(0.0, 1.0)
         })
-        .collect()
+        .collect();
+    let margin = (SWING_MARGIN_SECONDS * fps).round() as usize;
+    (0..frames).map(|f| moving[f.saturating_sub(margin)..(f + margin + 1).min(frames)].iter().copied().fold(1.0, f32::min)).collect()
 }
 
 /// Each class's share of the texture at sparse pose `k` of a take whose poses are of
@@ -251,6 +257,16 @@ mod tests {
         assert_eq!(mix, vec![(0, 2.0 / 3.0), (1, 0.5 / 3.0)]);
         shares_around(&[0, 0, 0, 1, 1, 1], 0, 1, &[1.0, 0.5], &mut mix);
         assert_eq!(mix, vec![(0, 1.0)]);
+    }
+
+    /// A foot planted for 10 frames and then stepping at 1 m/s (30 fps, metres) gets no texture
+    /// while planted and for the two frames after, then all of it.
+    #[test]
+    fn a_planted_foot_gets_no_texture() {
+        let dense: Vec<Vec3> = (0..20).map(|f| Vec3::new(f.saturating_sub(10) as f32 / 30.0, 0.0, 0.0)).collect();
+        let weights = swing_weights(&dense, 1, 0, 30.0, 1.0);
+        assert!(weights[..12].iter().all(|&w| w == 0.0), "{weights:?}");
+        assert!(weights[13..17].iter().all(|&w| w == 1.0), "{weights:?}");
     }
 
     #[test]
