@@ -263,7 +263,7 @@ mod tests {
     /// while planted and for the two frames after, then all of it.
     #[test]
     fn a_planted_foot_gets_no_texture() {
-        let dense: Vec<Vec3> = (0..20).map(|f| Vec3::new(f.saturating_sub(10) as f32 / 30.0, 0.0, 0.0)).collect();
+        let dense: Vec<Vec3> = (0..20usize).map(|f| Vec3::new(f.saturating_sub(10) as f32 / 30.0, 0.0, 0.0)).collect();
         let weights = swing_weights(&dense, 1, 0, 30.0, 1.0);
         assert!(weights[..12].iter().all(|&w| w == 0.0), "{weights:?}");
         assert!(weights[13..17].iter().all(|&w| w == 1.0), "{weights:?}");
