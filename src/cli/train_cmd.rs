@@ -149,7 +149,7 @@ fn gather_texture(args: &TrainArgs) -> Result<()> {
     let dataset: Dataset = args.dataset.parse()?;
     let model = GlocalModel::load(&args.out)?;
     let corpus = Corpus::for_model(dataset, &DataRoot::resolve(args.data.as_deref()), &model.spec, &args.out)?;
-    let texture = Texture::build(&corpus, &model.spec);
+    let texture = Texture::build(&corpus, &model.spec)?;
     let path = args.out.join(TEXTURE_FILE);
     texture.save(&path, &model.spec)?;
     say!("wrote {} ({} classes)", path.display(), model.spec.classes.len());

@@ -2,7 +2,7 @@
 //! misses, taken from each class's training clips and laid over a take's dense frames.
 //!
 //! The natural spline through a real clip's sparse poses (`stride` frames apart, as GloGen
-//! makes them) keeps 0.30-0.48x the clip's jerk, and that detail is not predictable from the
+//! makes them) keeps 0.33-0.47x the clip's jerk (`glocal eval --suite locgen`), and that detail is not predictable from the
 //! poses around it (no LocGen beats the spline by more than a few percent), so a take that
 //! is splined between its sparse poses is smoother than capture however good the poses are.
 //! The texture bank holds, per class, stretches of `real - spline(real's sparse poses)` from
@@ -22,7 +22,7 @@ use super::spec::ModelSpec;
 use super::Error;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation};
 use crate::data::write::write_atomic;
-use crate::motion::JointRoles;
+use crate::motion::{JointRoles, RolesError};
 
 /// The texture bank of a model folder, beside its weights.
 pub const TEXTURE_FILE: &str = "texture.safetensors";
@@ -55,7 +55,7 @@ pub struct Texture {
 
 impl Texture {
     /// The bank of `corpus`'s training clips for a model of `spec`.
-    pub fn build(corpus: &Corpus, spec: &ModelSpec) -> Self {
+    pub fn build(corpus: &Corpus, spec: &ModelSpec) -> Result<Self, RolesError> {
         let (stride, layout) = (spec.stride, &spec.layout);
         let budget = (SECONDS_PER_CLASS * spec.fps / stride as f32).round() as usize;
         let min_stretch = (MIN_STRETCH_SECONDS * spec.fps / stride as f32).round() as usize;
@@ -78,11 +78,10 @@ impl Texture {
         Self::with_classes(stride, layout, classes)
     }
 
-    fn with_classes(stride: usize, layout: &FeatureLayout, classes: Vec<Vec<Vec3>>) -> Self {
-        // The layout's skeleton was checked for its roles when the layout was made.
-        let roles = JointRoles::new(&layout.skeleton).expect("a feature layout's skeleton has its roles");
+    fn with_classes(stride: usize, layout: &FeatureLayout, classes: Vec<Vec<Vec3>>) -> Result<Self, RolesError> {
+        let roles = JointRoles::new(&layout.skeleton)?;
         let feet = [&roles.left, &roles.right].map(|leg| (leg.ankle, leg.foot_joints(&layout.skeleton)));
-        Self { stride, joints: layout.joints(), classes, feet }
+        Ok(Self { stride, joints: layout.joints(), classes, feet })
     }
 
     /// Sparse intervals of texture class `class` holds.
@@ -177,7 +176,7 @@ impl Texture {
                 Ok(values.chunks_exact(3).map(|v| Vec3::new(v[0], v[1], v[2])).collect())
             })
             .collect::<Result<_, Error>>()?;
-        Ok(Self::with_classes(stride, &spec.layout, classes))
+        Self::with_classes(stride, &spec.layout, classes).map_err(|e| mismatch(e.to_string()))
     }
 }
 
