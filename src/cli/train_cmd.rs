@@ -9,10 +9,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::data::archive::DataRoot;
 use crate::data::features::Interpolation;
 use super::args::{LossArg, StageArg};
-use crate::model::spec::{PoseBase, SeamJoin};
+use crate::model::spec::{ModelSpec, PoseBase, SeamJoin};
 use crate::data::registry::Dataset;
 use crate::model::corpus::Corpus;
-use crate::model::glocal::GlocalModel;
 use crate::model::texture::{Texture, TEXTURE_FILE};
 use crate::model::train::{train, ModelShape, TrainOptions};
 
@@ -147,12 +146,13 @@ fn stop_on_interrupt(cancel: Arc<AtomicBool>) -> Result<()> {
 /// `--stage texture`: the bank of the trained model in `--out`, from its training clips.
 fn gather_texture(args: &TrainArgs) -> Result<()> {
     let dataset: Dataset = args.dataset.parse()?;
-    let model = GlocalModel::load(&args.out)?;
-    let corpus = Corpus::for_model(dataset, &DataRoot::resolve(args.data.as_deref()), &model.spec, &args.out)?;
-    let texture = Texture::build(&corpus, &model.spec)?;
+    // The spec alone: a texture there before is replaced, not read.
+    let spec = ModelSpec::read_verified(&args.out)?;
+    let corpus = Corpus::for_model(dataset, &DataRoot::resolve(args.data.as_deref()), &spec, &args.out)?;
+    let texture = Texture::build(&corpus, &spec)?;
     let path = args.out.join(TEXTURE_FILE);
-    texture.save(&path, &model.spec)?;
-    say!("wrote {} ({} classes)", path.display(), model.spec.classes.len());
+    texture.save(&path, &spec)?;
+    say!("wrote {} ({} classes)", path.display(), spec.classes.len());
     Ok(())
 }
 

@@ -11,11 +11,12 @@
 //! the missing detail between them, turned to the take's heading (Pullen and Bregler's
 //! "motion texture", 2002, with the spline as the keyframed motion).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use anyhow::{Context, Result};
 use glam::{Quat, Vec3};
+use serde::{Deserialize, Serialize};
 
 use super::corpus::Corpus;
 use super::spec::ModelSpec;
@@ -129,14 +130,15 @@ impl Texture {
     }
 
     /// Writes the bank to `path` atomically: one i16 tensor per class (frames, joints, 3),
-    /// its scale in the metadata.
+    /// and a [`Header`] as the one metadata entry (one, so the file is the same byte for byte
+    /// each time it is gathered).
     pub fn save(&self, path: &Path, spec: &ModelSpec) -> Result<()> {
-        let mut metadata = HashMap::from([("stride".to_string(), self.stride.to_string()), ("joints".to_string(), self.joints.to_string())]);
+        let mut header = Header { stride: self.stride, joints: self.joints, scales: BTreeMap::new() };
         let mut data = Vec::new();
         for (class, bank) in spec.classes.iter().zip(&self.classes) {
             let peak = bank.iter().map(|v| v.abs().max_element()).fold(0.0f32, f32::max);
             let scale = if peak > 0.0 { peak / i16::MAX as f32 } else { 1.0 };
-            metadata.insert(format!("scale.{class}"), scale.to_string());
+            header.scales.insert(class.clone(), scale);
             let bytes: Vec<u8> = bank.iter().flat_map(|v| v.to_array()).flat_map(|x| ((x / scale).round() as i16).to_le_bytes()).collect();
             data.push((class.clone(), vec![bank.len() / self.joints, self.joints, 3], bytes));
         }
@@ -145,6 +147,7 @@ impl Texture {
             .map(|(name, shape, bytes)| Ok((name.as_str(), safetensors::tensor::TensorView::new(safetensors::Dtype::I16, shape.clone(), bytes)?)))
             .collect::<Result<Vec<_>, safetensors::SafeTensorError>>()
             .with_context(|| format!("cannot encode {}", path.display()))?;
+        let metadata = HashMap::from([(HEADER_KEY.to_string(), serde_json::to_string(&header)?)]);
         let bytes = safetensors::serialize(views, Some(metadata)).with_context(|| format!("cannot encode {}", path.display()))?;
         write_atomic(path, &bytes)
     }
@@ -156,9 +159,8 @@ impl Texture {
         let bytes = crate::data::input::read_bytes(path, MAX_TEXTURE_BYTES).map_err(|cause| Error::File { what: format!("cannot read {}", path.display()), cause })?;
         let (_, header) = safetensors::SafeTensors::read_metadata(&bytes).map_err(|e| mismatch(format!("not a safetensors file: {e}")))?;
         let file = safetensors::SafeTensors::deserialize(&bytes).map_err(|e| mismatch(format!("not a safetensors file: {e}")))?;
-        let meta = header.metadata().clone().unwrap_or_default();
-        let number = |key: &str| meta.get(key).and_then(|v| v.parse::<f32>().ok()).ok_or_else(|| mismatch(format!("has no number '{key}' in its metadata")));
-        let (stride, joints) = (number("stride")? as usize, number("joints")? as usize);
+        let text = header.metadata().as_ref().and_then(|m| m.get(HEADER_KEY)).ok_or_else(|| mismatch(format!("has no '{HEADER_KEY}' entry in its metadata")))?;
+        let Header { stride, joints, scales } = serde_json::from_str(text).map_err(|e| mismatch(format!("its '{HEADER_KEY}' metadata is not a texture header: {e}")))?;
         if stride != spec.stride || joints != spec.layout.joints() {
             return Err(mismatch(format!("is of stride {stride} and {joints} joints; the model's are {} and {}", spec.stride, spec.layout.joints())));
         }
@@ -167,7 +169,7 @@ impl Texture {
             .iter()
             .map(|class| {
                 let view = file.tensor(class).map_err(|_| mismatch(format!("has no texture of class '{class}'")))?;
-                let scale = number(&format!("scale.{class}"))?;
+                let scale = *scales.get(class).ok_or_else(|| mismatch(format!("has no scale for class '{class}'")))?;
                 let shape = view.shape();
                 if view.dtype() != safetensors::Dtype::I16 || shape.len() != 3 || shape[1] != joints || shape[2] != 3 || shape[0] % stride != 0 || !scale.is_finite() {
                     return Err(mismatch(format!("class '{class}': a {:?} tensor of shape {shape:?} with scale {scale}; expected i16 (a whole number of {stride}-frame intervals, {joints}, 3)", view.dtype())));
@@ -178,6 +180,18 @@ impl Texture {
             .collect::<Result<_, Error>>()?;
         Self::with_classes(stride, &spec.layout, classes).map_err(|e| mismatch(e.to_string()))
     }
+}
+
+/// The metadata entry that holds a texture file's [`Header`].
+const HEADER_KEY: &str = "texture";
+
+/// What a texture file says of its tensors: the stride and joints they were gathered at, and
+/// each class's i16 step (in the skeleton's units).
+#[derive(Serialize, Deserialize)]
+struct Header {
+    stride: usize,
+    joints: usize,
+    scales: BTreeMap<String, f32>,
 }
 
 /// Per frame, how far a foot (its `ankle`, in `dense` frames of `joints`) swings: 0 while
