@@ -71,7 +71,7 @@ impl Texture {
                     if left == 0 {
                         break;
                     }
-                    bank.extend(clip_texture(layout, &clip.motion.positions()[..], stride, share.min(left)));
+                    bank.extend(clip_texture(layout, clip.motion.positions(), stride, share.min(left)));
                 }
                 bank
             })
