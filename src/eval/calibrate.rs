@@ -32,7 +32,7 @@ const KEPT_TRAVEL: f64 = 0.8;
 const TRAVEL_SLACK: f64 = 0.05;
 const TRAVEL_HOP_SECONDS: f32 = 0.5;
 /// A textured class is as lively as this share of its training clips' mean jerk.
-pub const TEXTURED_SHARE: f64 = 1.0;
+const TEXTURED_SHARE: f64 = 1.0;
 /// Seed-bank windows per class and strength, and seconds scored after each seed block; each
 /// take without variation noise, as a take is made by default.
 const TAKES: usize = 8;
@@ -193,7 +193,8 @@ mod tests {
     fn a_class_gets_the_texture_it_lacks() {
         assert_eq!(texture_gain(100.0, 150.0, 90.0), 0.0);
         assert_eq!(texture_gain(60.0, 90.0, 120.0), 1.0);
-        // 60 lacks 80 (100^2 - 60^2 = 80^2); all of the texture adds 160 (200^2 - 120^2 ... ).
+        // Jerk 60 lacks 80 of 100 in squares (100^2 - 60^2 = 80^2); all of the texture adds 160
+        // in squares, so half of it is laid.
         let gain = texture_gain(60.0, 60.0f64.hypot(160.0), 100.0);
         assert!((gain - 0.5).abs() < 1e-6, "{gain}");
     }
