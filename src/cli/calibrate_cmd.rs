@@ -57,9 +57,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     if model.texture().is_some() {
         say!("\n| class | training clips' jerk (m/s^3) | chosen strength, generated jerk over the training clips' | with all of the texture | texture share chosen |\n|---|---|---|---|---|");
         for c in &classes {
-            let plain = c.readings.iter().find(|r| r.strength == c.chosen).map_or(f64::NAN, |r| r.jerk);
             let (textured, gain) = c.texture.unwrap_or((f64::NAN, f32::NAN));
-            say!("| {} | {:.1} | {}: {:.2} | {:.2} | {:.2} |", c.class, c.real_jerk, c.chosen, plain / c.real_jerk, textured / c.real_jerk, gain);
+            say!("| {} | {:.1} | {}: {:.2} | {:.2} | {:.2} |", c.class, c.real_jerk, c.chosen, c.chosen_jerk() / c.real_jerk, textured / c.real_jerk, gain);
         }
     }
     say!("{} of {} classes need more than the model's guidance ({}) to reach {LIVELY_SHARE} of their training clips' jerk", spec.class_strengths.len(), classes.len(), spec.class_strength);

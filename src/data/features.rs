@@ -238,6 +238,14 @@ pub fn interpolate(sparse: &[Vec3], joints: usize, stride: usize, kind: Interpol
     out
 }
 
+/// The natural spline through every `stride`-th frame of `frames` (`joints` a frame, whole
+/// strides of them and one frame more): what a take splined between GloGen's sparse poses
+/// would be, were its poses these frames'.
+pub fn spline_through_own_poses(frames: &[Vec3], joints: usize, stride: usize) -> Vec<Vec3> {
+    let sparse: Vec<Vec3> = frames.chunks_exact(joints).step_by(stride).flatten().copied().collect();
+    interpolate(&sparse, joints, stride, Interpolation::NaturalCubic)
+}
+
 /// Catmull-Rom tangents per sparse pose and joint: half the step from the pose before to the
 /// pose after, one-sided at the ends.
 fn catmull_rom_tangents(sparse: &[Vec3], joints: usize) -> Vec<Vec3> {

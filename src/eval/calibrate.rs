@@ -96,15 +96,26 @@ pub fn calibrate(model: &GlocalModel, data: &DataRoot, strengths: &[f32], log: &
         let texture = match model.texture() {
             Some(_) => {
                 log(&format!("calibrate: {name} textured"));
-                let plain = readings.iter().find(|r| r.strength == chosen).map_or(f64::NAN, |r| r.jerk);
                 let textured = read_class(model, &roles, class, chosen, true)?.jerk;
-                Some((textured, texture_gain(plain, textured, TEXTURED_SHARE * real_jerk)))
+                Some((textured, texture_gain(jerk_at(&readings, chosen), textured, TEXTURED_SHARE * real_jerk)))
             }
             None => None,
         };
         out.push(ClassCalibration { class: name.clone(), real_jerk, readings, chosen, texture });
     }
     Ok(out)
+}
+
+impl ClassCalibration {
+    /// The mean jerk of the class's takes at the strength chosen, without texture.
+    pub fn chosen_jerk(&self) -> f64 {
+        jerk_at(&self.readings, self.chosen)
+    }
+}
+
+/// The mean jerk of `readings` at guidance `strength` (NaN where none was read there).
+fn jerk_at(readings: &[Reading], strength: f32) -> f64 {
+    readings.iter().find(|r| r.strength == strength).map_or(f64::NAN, |r| r.jerk)
 }
 
 /// Per class, the mean jerk (m/s^3) of its training clips in pieces as long as the takes.

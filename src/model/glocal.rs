@@ -65,11 +65,18 @@ impl GlocalModel {
     /// The model with its guidance steering each class named away from its pair
     /// ([`ModelSpec::class_contrasts`]); an unknown class or a model without guidance is
     /// refused, the model unchanged.
-    pub fn with_class_contrasts(mut self, contrasts: BTreeMap<String, String>) -> Result<Self, Error> {
+    pub fn with_class_contrasts(self, contrasts: BTreeMap<String, String>) -> Result<Self, Error> {
+        let mut model = self.with_spec(|spec| spec.class_contrasts = contrasts)?;
+        model.glogen.set_contrasts(&model.spec);
+        Ok(model)
+    }
+
+    /// The model with `edit` made to its spec; an edit that leaves the spec invalid is refused
+    /// naming the field, the model unchanged.
+    fn with_spec(mut self, edit: impl FnOnce(&mut ModelSpec)) -> Result<Self, Error> {
         let mut spec = self.spec.clone();
-        spec.class_contrasts = contrasts;
+        edit(&mut spec);
         spec.validate().map_err(|problem| Error::SpecInvalid { name: self.dir.join("model.json").display().to_string(), problem })?;
-        self.glogen.set_contrasts(&spec);
         self.spec = spec;
         Ok(self)
     }
@@ -81,12 +88,8 @@ impl GlocalModel {
 
     /// The model with each class's share of its texture as `gains` gives it
     /// ([`ModelSpec::texture_gains`]); a gain out of range or of an unknown class is refused.
-    pub fn with_texture_gains(mut self, gains: BTreeMap<String, f32>) -> Result<Self, Error> {
-        let mut spec = self.spec.clone();
-        spec.texture_gains = gains;
-        spec.validate().map_err(|problem| Error::SpecInvalid { name: self.dir.join("model.json").display().to_string(), problem })?;
-        self.spec = spec;
-        Ok(self)
+    pub fn with_texture_gains(self, gains: BTreeMap<String, f32>) -> Result<Self, Error> {
+        self.with_spec(|spec| spec.texture_gains = gains)
     }
 
     pub fn has_locgen(&self) -> bool {

@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 use super::corpus::Corpus;
 use super::spec::ModelSpec;
 use super::Error;
-use crate::data::features::{interpolate, FeatureLayout, Interpolation};
+use crate::data::features::{spline_through_own_poses, FeatureLayout};
 use crate::data::write::write_atomic;
 use crate::motion::{JointRoles, RolesError};
 
@@ -93,39 +93,43 @@ impl Texture {
     /// Lays the texture over `dense`: the frames from sparse pose `first` of a take onwards,
     /// `stride` per interval, the interval starting at each pose textured from the class of
     /// that pose in `pose_classes` (the whole take's). Each class's texture is scaled by its
-    /// share in `gains`, a change of class fades one class's texture into the next's over
-    /// [`BLEND_SECONDS`] either side of it, and a foot's fades out as it slows to a stand
-    /// ([`swing_weights`]). Which stretch of a class's bank a take reads is chosen by `seed`;
+    /// share in `spec`'s `texture_gains`, a change of class fades one class's texture into
+    /// the next's over [`BLEND_SECONDS`] either side of it, and a foot's fades out as it slows
+    /// to a stand ([`swing_weights`]). Which stretch of a class's bank a take reads is chosen by `seed`;
     /// the interval at the take's sparse pose `k` reads the bank's interval `offset + k`, so a
     /// class's texture runs on unbroken through its segment and any stretch of the take gets
     /// the same texture whether it is finished alone or with the rest.
-    pub fn lay_over(&self, dense: &mut [Vec3], spec: &ModelSpec, gains: &[f32], first: usize, pose_classes: &[usize], seed: u64) {
+    pub fn lay_over(&self, dense: &mut [Vec3], spec: &ModelSpec, first: usize, pose_classes: &[usize], seed: u64) {
         let (s, j, layout) = (self.stride, self.joints, &spec.layout);
+        let gains = spec.texture_gain_per_class();
         let reach = (BLEND_SECONDS * spec.fps / s as f32).round() as usize;
-        let swing = self.feet.clone().map(|(ankle, _)| swing_weights(dense, j, ankle, spec.fps, layout.skeleton.meters_per_unit()));
-        let (mut mix, mut texture, mut weights) = (Vec::new(), vec![Vec3::ZERO; j], vec![1.0; j]);
-        for (f, frame) in dense.chunks_exact_mut(j).enumerate() {
-            let (k, phase) = (first + f / s, f % s);
-            if phase == 0 || k >= pose_classes.len() {
-                continue;
+        let swing = self.feet.each_ref().map(|(ankle, _)| swing_weights(dense, j, *ankle, spec.fps, layout.skeleton.meters_per_unit()));
+        let (mut mix, mut reads, mut texture, mut weights) = (Vec::new(), Vec::new(), vec![Vec3::ZERO; j], vec![1.0; j]);
+        for (i, interval) in dense.chunks_mut(s * j).enumerate() {
+            let k = first + i;
+            if k >= pose_classes.len() {
+                break;
             }
-            shares_around(pose_classes, k, reach, gains, &mut mix);
-            texture.fill(Vec3::ZERO);
-            for &(class, share) in &mix {
+            // Each class's share of the interval and the bank interval it reads, once for its frames.
+            shares_around(pose_classes, k, reach, &gains, &mut mix);
+            reads.clear();
+            reads.extend(mix.iter().filter_map(|&(class, share)| {
                 let n = self.intervals(class);
-                if n == 0 || share == 0.0 {
-                    continue;
+                (n > 0 && share != 0.0).then(|| (&self.classes[class][(bank_offset(seed, class) + k) % n * s * j..], share))
+            }));
+            // The interval's first frame is its sparse pose, where the texture is zero.
+            for (phase, frame) in interval.chunks_exact_mut(j).enumerate().skip(1) {
+                texture.fill(Vec3::ZERO);
+                for (bank, share) in &reads {
+                    texture.iter_mut().zip(&bank[phase * j..(phase + 1) * j]).for_each(|(t, b)| *t += *b * *share);
                 }
-                let at = (bank_offset(seed, class) + k) % n;
-                let bank = &self.classes[class][(at * s + phase) * j..(at * s + phase + 1) * j];
-                texture.iter_mut().zip(bank).for_each(|(t, b)| *t += *b * share);
+                weights.fill(1.0);
+                for ((_, joints), swings) in self.feet.iter().zip(&swing) {
+                    joints.iter().for_each(|&joint| weights[joint] = swings[i * s + phase]);
+                }
+                let turn = Quat::from_rotation_y(layout.heading(frame));
+                frame.iter_mut().zip(&texture).zip(&weights).for_each(|((p, t), w)| *p += turn * *t * *w);
             }
-            weights.fill(1.0);
-            for ((_, joints), swings) in self.feet.iter().zip(&swing) {
-                joints.iter().for_each(|&joint| weights[joint] = swings[f]);
-            }
-            let turn = Quat::from_rotation_y(layout.heading(frame));
-            frame.iter_mut().zip(&texture).zip(&weights).for_each(|((p, t), w)| *p += turn * *t * *w);
         }
     }
 
@@ -249,8 +253,7 @@ fn clip_texture(layout: &FeatureLayout, positions: &[Vec3], stride: usize, inter
     }
     let start = (available - take) / 2 * stride;
     let real = &positions[start * j..(start + take * stride + 1) * j];
-    let sparse: Vec<Vec3> = real.chunks_exact(j).step_by(stride).flatten().copied().collect();
-    let spline = interpolate(&sparse, j, stride, Interpolation::NaturalCubic);
+    let spline = spline_through_own_poses(real, j, stride);
     let mut out = Vec::with_capacity(take * stride * j);
     for (pose, smooth) in real.chunks_exact(j).zip(spline.chunks_exact(j)).take(take * stride) {
         let unturn = Quat::from_rotation_y(-layout.heading(pose));

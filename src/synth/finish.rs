@@ -76,8 +76,6 @@ pub(super) struct Textured<'a> {
     pub pose_classes: Vec<usize>,
     /// The take's variation seed: where it reads each class's bank.
     pub seed: u64,
-    /// Per class, the share of its texture laid ([`crate::model::spec::ModelSpec::texture_gains`]).
-    pub gains: Vec<f32>,
 }
 
 /// A finished stretch: frames `first..first + motion.frames()` of the take.
@@ -128,7 +126,7 @@ impl Finishing<'_> {
     /// The texture laid over the dense frames of sparse poses `window`, when the take has one.
     fn lay_texture(&self, dense: &mut [Vec3], window: &Range<usize>) {
         if let Some(t) = &self.texture {
-            t.bank.lay_over(dense, &self.model.spec, &t.gains, window.start, &t.pose_classes, t.seed);
+            t.bank.lay_over(dense, &self.model.spec, window.start, &t.pose_classes, t.seed);
         }
     }
 

@@ -112,7 +112,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     // network slides them say how far.
     let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet { kept: learnt } } else { Travel::Kept };
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
-    let texture = model.texture().filter(|_| opts.texture).map(|bank| Textured { bank, pose_classes: pose_classes(&block_classes, t, total), seed: opts.seed, gains: spec.texture_gain_per_class() });
+    let texture = model.texture().filter(|_| opts.texture).map(|bank| Textured { bank, pose_classes: pose_classes(&block_classes, t, total), seed: opts.seed });
     let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints, texture };
     let segments = timeline.planned_spans(&spec.classes);
 

@@ -10,7 +10,7 @@ use serde_json::{json, Value};
 
 use super::context::SuiteContext;
 use crate::data::registry::Dataset;
-use crate::data::features::{interpolate, Interpolation};
+use crate::data::features::spline_through_own_poses;
 use crate::eval::metrics;
 use crate::eval::motion::{Measure, Pool, COMMON_FPS};
 use crate::motion::{JointRoles, Motion};
@@ -46,7 +46,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         let r = rebuild_test_split(&model, &corpus);
         let ratio = r.locgen_between / r.interp_between;
         table.row([dir.display().to_string(), r.windows.to_string(), f(r.interp_all, 2), f(r.locgen_all, 2), f(r.interp_between, 2), f(r.locgen_between, 2), f(ratio, 3)]);
-        let shares = spline_jerk_shares(&corpus);
+        let shares = spline_jerk_shares(&corpus)?;
         spline_jerk.push(format!("{} {}", dir.display(), shares.iter().map(|(source, share)| format!("{source} {share:.2}x")).collect::<Vec<_>>().join(", ")));
         rows.push(json!({"model": dir, "windows": r.windows, "interp_all_mm": r.interp_all, "locgen_all_mm": r.locgen_all, "interp_between_mm": r.interp_between, "locgen_between_mm": r.locgen_between, "spline_jerk_share": shares}));
     }
@@ -58,8 +58,8 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
 
 /// Per source dataset of `corpus`'s test clips, the mean jerk of the natural spline through
 /// each clip's own sparse poses over the clip's.
-fn spline_jerk_shares(corpus: &Corpus) -> Vec<(String, f64)> {
-    let roles = JointRoles::new(&corpus.layout.skeleton).expect("a corpus's skeleton has its roles");
+fn spline_jerk_shares(corpus: &Corpus) -> Result<Vec<(String, f64)>> {
+    let roles = JointRoles::new(&corpus.layout.skeleton)?;
     let (s, j) = (corpus.stride, corpus.layout.joints());
     let mut pools: BTreeMap<String, (Pool, Pool)> = BTreeMap::new();
     for t in &corpus.test {
@@ -69,15 +69,14 @@ fn spline_jerk_shares(corpus: &Corpus) -> Vec<(String, f64)> {
             continue;
         }
         let real = &m.positions()[..frames * j];
-        let sparse: Vec<Vec3> = real.chunks_exact(j).step_by(s).flatten().copied().collect();
-        let spline = interpolate(&sparse, j, s, Interpolation::NaturalCubic);
+        let spline = spline_through_own_poses(real, j, s);
         let source = t.file.split('/').next().unwrap_or_default().to_string();
         let (real_pool, spline_pool) = pools.entry(source).or_default();
         let at_common = |p: Vec<Vec3>| Motion::from_positions(m.skeleton.clone(), m.fps, p).resample(COMMON_FPS);
         real_pool.add_take(&at_common(real.to_vec()), &roles, None);
         spline_pool.add_take(&at_common(spline), &roles, None);
     }
-    pools.into_iter().map(|(source, (real, spline))| (source, spline.summary()[Measure::JerkMean] / real.summary()[Measure::JerkMean])).collect()
+    Ok(pools.into_iter().map(|(source, (real, spline))| (source, spline.summary()[Measure::JerkMean] / real.summary()[Measure::JerkMean])).collect())
 }
 
 /// Mean joint distances (mm) to the real dense frames.

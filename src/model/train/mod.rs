@@ -83,7 +83,6 @@ impl Stage {
         }
     }
 
-    /// Gives `spec` this run's shape of the stage.
     /// Puts a LocGen's or an in-betweener's residual scale ([`residual_scale`]) in `spec`.
     fn set_residual_scale(self, spec: &mut ModelSpec, scale: Option<Vec<f32>>) {
         let Some(scale) = scale else { return };
@@ -94,6 +93,7 @@ impl Stage {
         }
     }
 
+    /// Gives `spec` this run's shape of the stage.
     fn set_shape(self, spec: &mut ModelSpec, shapes: StageShapes) {
         match self {
             Stage::Glogen => spec.glogen = shapes.glogen,
