@@ -101,10 +101,6 @@ struct ShapeArgs {
     /// this many intervals of the interpolation.
     #[arg(long, default_value_t = 4)]
     locgen_keys: usize,
-    /// The training clips are doubled by their mirror images (done with the other hand and
-    /// foot; `walk-left` becomes `walk-right`).
-    #[arg(long)]
-    mirror: bool,
 }
 
 impl ShapeArgs {
@@ -121,7 +117,6 @@ impl ShapeArgs {
         shape.target = self.target;
         shape.stride = self.stride;
         shape.locgen_keys = self.locgen_keys;
-        shape.mirror = self.mirror;
         if self.paper {
             if self.residual || self.residual_fade || self.joined || self.two_sided_join || self.target {
                 bail!("--paper trains the paper's GloGen, which has neither --residual, --residual-fade, --joined, --two-sided-join nor --target");

@@ -94,23 +94,6 @@ impl Corpus {
         Ok(Self { dataset, classes, class_sources, styles, source_skeleton: skeleton, source_joints, layout, fps, stride, train, test })
     }
 
-    /// The training clips doubled by their mirror images (the motion done with the other hand
-    /// and foot); a sided class (`walk-left`) mirrors into its counterpart (`walk-right`).
-    /// Refused when the skeleton's sides cannot be paired by name.
-    pub fn with_mirrored_training(mut self) -> Result<Corpus> {
-        let names = self.layout.skeleton.names();
-        let Some(counterparts) = crate::motion::mirror_counterparts(names) else {
-            bail!("{}: the skeleton's left and right joints cannot be paired by name, so its clips cannot be mirrored", self.dataset);
-        };
-        let mirrored: Vec<Track> = self
-            .train
-            .iter()
-            .map(|t| Track { class: mirrored_class(&self.classes, t.class), motion: t.motion.mirrored(&counterparts), ..t.clone() })
-            .collect();
-        self.train.extend(mirrored);
-        Ok(self)
-    }
-
     /// The same data with other clips: `train` and `test` in place of its own.
     pub fn with_tracks(&self, train: Vec<Track>, test: Vec<Track>) -> Corpus {
         Corpus {
@@ -192,21 +175,6 @@ impl Corpus {
 /// limb bone are duplicates or collapsed end sites. Joints above the body root (Bandai's
 /// `joint_Root`, a placement handle above `Hips`) are dropped too, so the model's root is the
 /// joint where the body branches, the one that carries the pelvis.
-/// The class a mirrored clip of `class` shows: the one named with the other side
-/// (`walk-left` -> `walk-right`), else itself.
-fn mirrored_class(classes: &[String], class: usize) -> usize {
-    let swapped: Vec<&str> = classes[class]
-        .split('-')
-        .map(|w| match w {
-            "left" => "right",
-            "right" => "left",
-            w => w,
-        })
-        .collect();
-    let swapped = swapped.join("-");
-    classes.iter().position(|c| *c == swapped).unwrap_or(class)
-}
-
 fn model_joints(skeleton: &Skeleton, body_root: usize) -> Vec<usize> {
     let longest_limb = (0..skeleton.len())
         .filter(|&j| skeleton.parents()[j].is_some_and(|p| p != 0))

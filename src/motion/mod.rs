@@ -24,7 +24,7 @@ pub use hands::keep_hands_above_floor;
 pub use kinematics::{forward_kinematics, LocalPose};
 pub use keys::{guess_key_joints, Key, KeyJoints};
 pub use knees::keep_knees_above_floor;
-pub use names::{mirror_counterparts, Side};
+pub use names::Side;
 pub use posing::{Effector, PoseRig};
 pub use retarget::{mapped_bones, mean_bone_angle, RestPose, Retarget, RetargetError};
 pub use roles::{JointRoles, Leg, RolesError};

@@ -119,21 +119,6 @@ fn is_limb_word(word: &str) -> bool {
     [UPPER_ARM, FOREARM, HAND, THIGH, SHIN, ANKLE, TOES].iter().any(|list| list.contains(&word))
 }
 
-/// Each joint's counterpart on the body's other side, found by name (`LeftArm` <->
-/// `RightArm`, `lfemur` <-> `rfemur`); a joint of the trunk is its own. None when a sided
-/// joint has no counterpart, so the skeleton cannot be mirrored.
-pub fn mirror_counterparts(names: &[String]) -> Option<Vec<usize>> {
-    let parsed: Vec<JointName> = names.iter().map(|n| JointName::parse(n)).collect();
-    parsed
-        .iter()
-        .enumerate()
-        .map(|(k, name)| match name.side {
-            None => Some(k),
-            Some(side) => parsed.iter().position(|o| o.part == name.part && o.side.is_some_and(|s| s != side)),
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -168,4 +153,3 @@ mod tests {
         }
     }
 }
-

@@ -110,15 +110,6 @@ impl Motion {
         Motion::from_positions(skeleton, self.fps, positions)
     }
 
-    /// The take reflected through the vertical plane x = 0, each joint taking its
-    /// counterpart's path (`counterparts` from [`super::names::mirror_counterparts`]): the
-    /// same motion done with the other hand and foot. Local poses are dropped.
-    pub fn mirrored(&self, counterparts: &[usize]) -> Motion {
-        let flip = |p: Vec3| Vec3::new(-p.x, p.y, p.z);
-        let positions = (0..self.frames()).flat_map(|t| counterparts.iter().map(move |&k| flip(self.frame(t)[k]))).collect();
-        Motion::from_positions(self.skeleton.clone(), self.fps, positions)
-    }
-
     /// Resampled to `fps` by linear interpolation of positions (and slerp of local rotations).
     /// An integer ratio (50 -> 25) picks existing frames exactly.
     pub fn resample(&self, fps: f32) -> Motion {

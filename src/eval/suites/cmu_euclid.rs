@@ -37,24 +37,20 @@ struct CmuGlogen {
     /// The variant (its suffix) this one fine-tunes on its blocks joined two-sided at their
     /// seams ([`crate::model::spec::GloGenSpec::joined`]), as the shipped models are.
     joins: Option<&'static str>,
-    /// Trained on the clips and their mirror images (`glocal train --mirror`).
-    mirror: bool,
 }
 
 /// The paper's GloGen and its three ablations, then the design the shipped models use (a
 /// joined one fine-tunes the one it names, so it comes after it).
-const GLOGEN_VARIANTS: [CmuGlogen; 11] = [
-    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, base: PoseBase::Absolute, joins: None, mirror: false },
-    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, base: PoseBase::Absolute, joins: None, mirror: false },
-    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, base: PoseBase::Absolute, joins: None, mirror: false },
-    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, base: PoseBase::Absolute, joins: None, mirror: false },
-    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: None, mirror: false },
-    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: Some("-shipped"), mirror: false },
-    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Residual, joins: None, mirror: false },
-    CmuGlogen { suffix: "-residual-joined", label: "GloGen, shipped design, residual poses, then on two-sided joined blocks", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Residual, joins: Some("-residual"), mirror: false },
-    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::ResidualFade, joins: None, mirror: false },
-    CmuGlogen { suffix: "-shipped-mirror", label: "GloGen, shipped design, mirrored clips too", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: None, mirror: true },
-    CmuGlogen { suffix: "-shipped-mirror-joined", label: "GloGen, shipped design, mirrored clips too, then on two-sided joined blocks", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: Some("-shipped-mirror"), mirror: true },
+const GLOGEN_VARIANTS: [CmuGlogen; 9] = [
+    CmuGlogen { suffix: "", label: "GloGen (L_J + L_MF)", loss: LossKind::JointFlow, use_class: true, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-lj", label: "GloGen, L_J only", loss: LossKind::Joint, use_class: true, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-lmf", label: "GloGen, L_MF only", loss: LossKind::Flow, use_class: true, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-noclass", label: "GloGen, no class prior", loss: LossKind::JointFlow, use_class: false, paper: true, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-shipped", label: "GloGen, shipped design (class in the decoder, class dropout, two-block rollout)", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: None },
+    CmuGlogen { suffix: "-shipped-joined", label: "GloGen, shipped design, then on two-sided joined blocks (as the shipped models)", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Absolute, joins: Some("-shipped") },
+    CmuGlogen { suffix: "-residual", label: "GloGen, shipped design, residual poses", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Residual, joins: None },
+    CmuGlogen { suffix: "-residual-joined", label: "GloGen, shipped design, residual poses, then on two-sided joined blocks", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::Residual, joins: Some("-residual") },
+    CmuGlogen { suffix: "-residual-fade", label: "GloGen, shipped design, residual fading over the block", loss: LossKind::JointFlow, use_class: true, paper: false, base: PoseBase::ResidualFade, joins: None },
 ];
 const CMU_STRIDE: usize = 2;
 /// Validation error was still falling at 1200 steps (the budget when GloGen trained at a
@@ -92,7 +88,6 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
     t.shape.loss = variant.loss;
     t.shape.use_class = variant.use_class;
     t.shape.base = variant.base;
-    t.shape.mirror = variant.mirror;
     if let Some(base) = variant.joins {
         t.init_from = Some(variant_dir(opts, dataset, base));
         t.shape.joined = true;

@@ -171,8 +171,6 @@ pub struct ModelShape {
     pub locgen_keys: usize,
     /// Classes with fewer training clips are left out.
     pub min_clips: usize,
-    /// The training clips are doubled by their mirror images ([`Corpus::with_mirrored_training`]).
-    pub mirror: bool,
     /// The interpolation a new LocGen refines.
     pub interpolation: Interpolation,
 }
@@ -207,7 +205,6 @@ impl TrainOptions {
                 block_len: 10,
                 locgen_keys: 4,
                 min_clips: 3,
-                mirror: false,
                 interpolation: Interpolation::NaturalCubic,
             },
         }
@@ -356,10 +353,7 @@ fn read_inputs(opts: &TrainOptions) -> Result<Inputs> {
             state_path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
         );
     }
-    let mut corpus = Corpus::load(opts.dataset, &opts.data, opts.shape.stride, opts.shape.min_clips)?;
-    if opts.shape.mirror {
-        corpus = corpus.with_mirrored_training()?;
-    }
+    let corpus = Corpus::load(opts.dataset, &opts.data, opts.shape.stride, opts.shape.min_clips)?;
     if corpus.classes.is_empty() || corpus.train.is_empty() {
         bail!("{} has no class with at least {} training clips", opts.dataset, opts.shape.min_clips);
     }
