@@ -10,6 +10,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::finish::{chunks, ChunkFinish, Finishing, Stretch, Textured};
+use super::finish_thread::{FinishingThread, Shown};
 use super::course::HoldCourse;
 use super::foot_lock::Travel;
 use super::given::{GivenFloor, GivenStart};
@@ -126,28 +127,32 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     };
     let kept = resume.as_ref().and_then(|r| Some((r.record.chunks.as_ref()?, settled_poses(r.block, t), r.record.times.as_slice())));
     let chunked = layout.map(|layout| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
-    let mut steps = TakeSteps {
-        model,
-        opts,
-        plans: &plans,
-        targets,
-        start,
-        cond: Vec::new(),
-        state,
-        block_segments,
-        constraints: &constraints,
-        held: held.as_ref(),
-        strength: class_strength,
-        checkpoints: resumable.then_some(checkpoints),
-        chunked,
-        shown: Shown { segments: &segments, block_classes: &block_classes },
-        events,
-    };
-    embeddings.extend(rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps)?);
-    let TakeSteps { checkpoints, chunked, events, .. } = steps;
+    let shown = Shown { segments: &segments, block_classes: &block_classes };
+    let (made, checkpoints, chunked) = std::thread::scope(|scope| -> Result<_> {
+        let mut steps = TakeSteps {
+            model,
+            opts,
+            plans: &plans,
+            targets,
+            start,
+            cond: Vec::new(),
+            state,
+            block_segments,
+            constraints: &constraints,
+            held: held.as_ref(),
+            strength: class_strength,
+            checkpoints: resumable.then_some(checkpoints),
+            finishing: chunked.map(|chunked| FinishingThread::spawn(scope, chunked, model, shown)),
+            events: &mut *events,
+        };
+        let made = rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps)?;
+        let TakeSteps { checkpoints, finishing, events, .. } = steps;
+        let chunked = finishing.map(|thread| thread.finish(&sparse, total, dim, events)).transpose()?;
+        Ok((made, checkpoints, chunked))
+    })?;
+    embeddings.extend(made);
     let (motion, contacts, warnings, chunked) = match chunked {
-        Some(mut chunked) => {
-            chunked.advance(&sparse, total)?;
+        Some(chunked) => {
             let motion = chunked.done.motion(model);
             let contacts = chunked.done.contacts().clone();
             (motion, contacts, Vec::new(), Some(chunked))
@@ -261,17 +266,11 @@ fn finish_whole(finishing: &Finishing<'_>, sparse: &[f32], start: Placement, hel
     }
 }
 
-/// What the caller is shown of a take while it is made, besides its frames.
-struct Shown<'a> {
-    segments: &'a [SegmentSpan],
-    block_classes: &'a [usize],
-}
-
 /// How the take's rollout goes block by block: the plan's class, the steering's easing and
 /// guidance, the variation's noise, and the constraints after each block; a resumable take
 /// keeps its state after each block, and a take finished in chunks finishes each chunk as
 /// soon as the rollout has settled its poses.
-struct TakeSteps<'a> {
+struct TakeSteps<'s, 'a: 's> {
     model: &'a GlocalModel,
     opts: &'a GenerateOptions,
     plans: &'a [BlockPlan],
@@ -291,12 +290,12 @@ struct TakeSteps<'a> {
     strength: f32,
     /// The state after each block made, for a take that can be resumed.
     checkpoints: Option<Vec<Checkpoint>>,
-    chunked: Option<ChunkFinish<'a>>,
-    shown: Shown<'a>,
-    events: &'a mut dyn TakeEvents,
+    /// The take's chunks finishing beside the rollout, for a take finished in chunks.
+    finishing: Option<FinishingThread<'s, 'a>>,
+    events: &'s mut dyn TakeEvents,
 }
 
-impl TakeSteps<'_> {
+impl TakeSteps<'_, '_> {
     /// A target-conditioned GloGen's block aims at the next key within the reach it was
     /// trained on: the conditioning's target part, after the class.
     fn aim(&mut self, sparse: &[f32]) {
@@ -357,24 +356,14 @@ impl TakeSteps<'_> {
         if let Some(checkpoints) = self.checkpoints.as_mut() {
             checkpoints.push(Checkpoint { state: self.state.clone(), unsettled: sparse[settled * spec.layout.dim()..].to_vec() });
         }
-        let Some(chunked) = self.chunked.as_mut() else { return Ok(()) };
-        if chunked.advance(sparse, settled)? && self.events.wants_frames() {
-            let so_far = Generated {
-                motion: chunked.done.motion(self.model),
-                segments: self.shown.segments.to_vec(),
-                block_embeddings: Vec::new(),
-                block_classes: self.shown.block_classes.to_vec(),
-                contacts: chunked.done.contacts().clone(),
-                warnings: Vec::new(),
-                cycle: None,
-            };
-            self.events.frames(so_far);
+        if let Some(thread) = self.finishing.as_mut() {
+            thread.send(sparse, settled, spec.layout.dim(), &mut *self.events);
         }
         Ok(())
     }
 }
 
-impl RolloutSteps for TakeSteps<'_> {
+impl RolloutSteps for TakeSteps<'_, '_> {
     fn class(&self, _b: usize) -> &[f32] {
         &self.cond
     }

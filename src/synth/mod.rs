@@ -7,6 +7,7 @@ pub mod export;
 pub mod foot_lock;
 pub mod generate;
 mod finish;
+mod finish_thread;
 mod given;
 pub mod held;
 pub mod held_frames;

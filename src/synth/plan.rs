@@ -209,7 +209,7 @@ pub(super) fn paced_frames(times: &[f64]) -> usize {
 /// positions of the paced take, and on the finished motion after the foot lock. Transitions,
 /// anchoring and keep-alive act on each block's context instead ([`BlockPlan`],
 /// `synth::steer`). Keys and a root path are constraints; features that pin more add theirs.
-pub(super) trait TakeConstraint {
+pub(super) trait TakeConstraint: Sync {
     /// Block `b` of `plans` has just been appended to `sparse` (normalised), made with
     /// `strength`; `glogen` and `ws` roll it on again where the constraint needs it.
     fn on_block(&self, _block: &PlannedBlock<'_>, _rollout: (&GloGen, &mut BlockWorkspace), _sparse: &mut [f32]) {}
