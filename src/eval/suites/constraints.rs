@@ -116,9 +116,10 @@ struct Figures {
     jerk_mean: f64,
 }
 
-/// A take of `class` alone, from its `variant`-th seed-bank window.
-fn one_class(class: &str, variant: usize) -> GenerateOptions {
-    GenerateOptions { timeline: Timeline { segments: vec![Segment::new(class.to_string(), TAKE_SECONDS)] }, init: InitPose::SeedClass { class: class.to_string(), variant }, ..Default::default() }
+/// A take of `class` alone, from its `variant`-th seed-bank window, made as `generation`
+/// (the suite's options) asks.
+fn one_class(generation: &GenerateOptions, class: &str, variant: usize) -> GenerateOptions {
+    GenerateOptions { timeline: Timeline { segments: vec![Segment::new(class.to_string(), TAKE_SECONDS)] }, init: InitPose::SeedClass { class: class.to_string(), variant }, ..generation.clone() }
 }
 
 /// Every model's key rows and path rows, in two tables a model.
@@ -132,9 +133,9 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         let clf = Classifier::load_or_train(&corpus, &ClassifierConfig::default(), &ctx.options.cache, &format!("classifier-{dataset}"), log)?;
         let roles = JointRoles::new(&model.spec.layout.skeleton)?;
         log(&format!("constraints: {dataset} keys"));
-        let keys: Vec<Figures> = key_rows(&model, &clf, &roles)?.iter().map(|(label, row)| row.figures(label)).collect();
+        let keys: Vec<Figures> = key_rows(&model, &ctx.generation, &clf, &roles)?.iter().map(|(label, row)| row.figures(label)).collect();
         log(&format!("constraints: {dataset} paths"));
-        let paths: Vec<(String, [Figures; 2])> = path_rows(&model, &clf, &roles)?.iter().map(|(class, rows)| (class.clone(), rows.each_ref().map(|r| r.figures(class)))).collect();
+        let paths: Vec<(String, [Figures; 2])> = path_rows(&model, &ctx.generation, &clf, &roles)?.iter().map(|(class, rows)| (class.clone(), rows.each_ref().map(|r| r.figures(class)))).collect();
         md.text(&format!("\n**{dataset}**\n\n"));
         md.table(key_table(&keys));
         md.text("\n");
@@ -180,14 +181,14 @@ fn path_table(rows: &[(String, [Figures; 2])]) -> Table {
 
 const DEFINITIONS: &str = "Keys: per class, takes of 12 s from the class's first three seed-bank windows with two keys, a later seed-bank pose of the class at 4 s (the body only) and the free take's frame at 8 s moved 30 cm and turned 20 degrees (the root too). **Body error**: the largest joint distance from the key relative to the root (each in its heading frame), mean over keys and the worst; **root error**: the root's distance on the ground from a root-fixing key; **jerk near keys**: the peak per-frame jerk within 0.5 s of a key over the mean peak of the take's 1 s windows elsewhere; **class accuracy**: the action classifier on the 2.4 s clip that ends at the second key. \"none\" is the free take measured against the same keys. Path: every locomotion class (walking; walk, run, dash, walk-back, walk-left, walk-right) along an L of 6 m then 6 m to the right, against the same takes without the path; **error**: the root's distance from the drawn L until the take has walked its length; **facing**: the mean angle between the body's facing and the path's direction while the take travels (a sideways or backwards walk keeps its angle); the motion suite's skating ratio, support-point speed and jerk on the whole takes at 30 fps.\n";
 
-fn key_rows(model: &GlocalModel, clf: &Classifier, roles: &JointRoles) -> Result<Vec<(&'static str, Row)>> {
+fn key_rows(model: &GlocalModel, generation: &GenerateOptions, clf: &Classifier, roles: &JointRoles) -> Result<Vec<(&'static str, Row)>> {
     let methods = [("none", None), ("dense warp only", Some(KeyMethod::DenseWarp)), ("sparse warp (shipped, keys over 2 s apart)", Some(KeyMethod::SparseWarp)), ("sparse warp + roll-on", Some(KeyMethod::RollOn))];
     let mut rows: Vec<(&str, Row)> = methods.iter().map(|(l, _)| (*l, Row::default())).collect();
     let classes = model.spec.classes.clone();
     let clip = ClassifierConfig::default().frames;
     for (c, class) in classes.iter().enumerate() {
         for variant in 0..VARIANTS {
-            let base = one_class(class, variant);
+            let base = one_class(generation, class, variant);
             let free = generate(model, &base, &mut |_| true)?.motion;
             let keys = two_keys(model, class, variant, &free);
             let frames: Vec<usize> = keys.iter().map(|k| (k.seconds * model.spec.fps).round() as usize).collect();
@@ -213,7 +214,7 @@ fn key_rows(model: &GlocalModel, clf: &Classifier, roles: &JointRoles) -> Result
 }
 
 /// Per locomotion class, the takes without the path and along it.
-fn path_rows(model: &GlocalModel, clf: &Classifier, roles: &JointRoles) -> Result<Vec<(String, [Row; 2])>> {
+fn path_rows(model: &GlocalModel, generation: &GenerateOptions, clf: &Classifier, roles: &JointRoles) -> Result<Vec<(String, [Row; 2])>> {
     let path = l_path();
     let classes = model.spec.classes.clone();
     let clip = ClassifierConfig::default().frames;
@@ -221,7 +222,7 @@ fn path_rows(model: &GlocalModel, clf: &Classifier, roles: &JointRoles) -> Resul
     for (c, class) in classes.iter().enumerate().filter(|(_, c)| c.starts_with("walk") || ["run", "dash"].contains(&c.as_str())) {
         let mut rows = [Row::default(), Row::default()];
         for variant in 0..VARIANTS {
-            let base = one_class(class, variant);
+            let base = one_class(generation, class, variant);
             for (k, row) in rows.iter_mut().enumerate() {
                 let opts = GenerateOptions { path: (k == 1).then(|| path.clone()), ..base.clone() };
                 let take = generate(model, &opts, &mut |_| true)?.motion;
