@@ -9,6 +9,7 @@
 //! (docs/BENCHMARKS.md). Every chunk is finished exactly as in line: the same calls on the
 //! same poses, the same take to the byte.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::thread::{Scope, ScopedJoinHandle};
 
@@ -36,21 +37,27 @@ struct Settled {
 
 /// The rollout's end of the finishing thread.
 pub(super) struct FinishingThread<'scope, 'env> {
-    settled: Option<Sender<Settled>>,
+    settled: Sender<Settled>,
     /// Values of the sparse poses sent so far.
     sent: usize,
     shown: Receiver<Generated>,
+    /// Set when the rollout stops early: the chunks still queued are not finished.
+    stopping: &'env AtomicBool,
     thread: ScopedJoinHandle<'scope, Result<ChunkFinish<'env>>>,
 }
 
 impl<'scope, 'env: 'scope> FinishingThread<'scope, 'env> {
-    /// Starts finishing `chunked`'s chunks on a thread of `scope`.
-    pub fn spawn(scope: &'scope Scope<'scope, 'env>, mut chunked: ChunkFinish<'env>, model: &'env GlocalModel, shown: Shown<'env>) -> Self {
+    /// Starts finishing `chunked`'s chunks on a thread of `scope`; `stopping` is the take's
+    /// own flag, false.
+    pub fn spawn(scope: &'scope Scope<'scope, 'env>, mut chunked: ChunkFinish<'env>, model: &'env GlocalModel, shown: Shown<'env>, stopping: &'env AtomicBool) -> Self {
         let (settled_tx, settled_rx) = channel::<Settled>();
         let (shown_tx, shown_rx) = channel();
         let thread = scope.spawn(move || {
             let mut sparse = Vec::new();
             for Settled { poses, settled, show } in settled_rx {
+                if stopping.load(Ordering::Relaxed) {
+                    break;
+                }
                 sparse.extend(poses);
                 if chunked.advance(&sparse, settled)? && show {
                     // The rollout may have stopped listening (cancelled): nothing to show then.
@@ -59,32 +66,43 @@ impl<'scope, 'env: 'scope> FinishingThread<'scope, 'env> {
             }
             Ok(chunked)
         });
-        Self { settled: Some(settled_tx), sent: 0, shown: shown_rx, thread }
+        Self { settled: settled_tx, sent: 0, shown: shown_rx, stopping, thread }
     }
 
     /// Hands the thread the poses of `sparse` settled since the last call (the first `settled`
-    /// are), and shows `events` the takes finished meanwhile.
-    pub fn send(&mut self, sparse: &[f32], settled: usize, dim: usize, events: &mut dyn TakeEvents) {
+    /// are), and shows `events` the takes finished meanwhile. An error when the thread has
+    /// stopped (its own error is [`Self::stop`]'s).
+    pub fn send(&mut self, sparse: &[f32], settled: usize, dim: usize, events: &mut dyn TakeEvents) -> Result<()> {
         let end = (settled * dim).min(sparse.len()).max(self.sent);
         let message = Settled { poses: sparse[self.sent..end].to_vec(), settled, show: events.wants_frames() };
         self.sent = end;
-        // A thread that stopped has an error to give at `finish`.
-        if let Some(tx) = &self.settled {
-            if tx.send(message).is_err() {
-                self.settled = None;
-            }
-        }
+        self.settled.send(message).map_err(|_| anyhow!("the take's finishing stopped"))?;
         self.shown.try_iter().for_each(|so_far| events.frames(so_far));
+        Ok(())
     }
 
     /// Sends the last poses, waits for the thread and shows `events` what it finished last.
     pub fn finish(mut self, sparse: &[f32], total: usize, dim: usize, events: &mut dyn TakeEvents) -> Result<ChunkFinish<'env>> {
-        self.send(sparse, total, dim, events);
-        drop(self.settled.take());
-        let chunked = self.thread.join().map_err(|_| anyhow!("the thread finishing the take's chunks panicked"))?;
-        self.shown.try_iter().for_each(|so_far| events.frames(so_far));
+        // A thread that stopped has its own error to give.
+        let _ = self.send(sparse, total, dim, events);
+        let Self { settled, shown, thread, .. } = self;
+        drop(settled);
+        let chunked = join(thread);
+        shown.try_iter().for_each(|so_far| events.frames(so_far));
         chunked
     }
+
+    /// The rollout stopped early: the thread stops before its next chunk, and its error, if
+    /// it had one, is returned.
+    pub fn stop(self) -> Result<ChunkFinish<'env>> {
+        self.stopping.store(true, Ordering::Relaxed);
+        drop(self.settled);
+        join(self.thread)
+    }
+}
+
+fn join<'env>(thread: ScopedJoinHandle<'_, Result<ChunkFinish<'env>>>) -> Result<ChunkFinish<'env>> {
+    thread.join().map_err(|_| anyhow!("the thread finishing the take's chunks panicked"))?
 }
 
 /// The take as finished so far.

@@ -4,6 +4,7 @@
 //! its keys and path, and a final projection restores the skeleton's bone lengths.
 
 use std::ops::Range;
+use std::sync::atomic::AtomicBool;
 
 use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
@@ -128,6 +129,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let kept = resume.as_ref().and_then(|r| Some((r.record.chunks.as_ref()?, settled_poses(r.block, t), r.record.times.as_slice())));
     let chunked = layout.map(|layout| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
     let shown = Shown { segments: &segments, block_classes: &block_classes };
+    let stopping = AtomicBool::new(false);
     let (made, checkpoints, chunked) = std::thread::scope(|scope| -> Result<_> {
         let mut steps = TakeSteps {
             model,
@@ -142,11 +144,17 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
             held: held.as_ref(),
             strength: class_strength,
             checkpoints: resumable.then_some(checkpoints),
-            finishing: chunked.map(|chunked| FinishingThread::spawn(scope, chunked, model, shown)),
+            finishing: chunked.map(|chunked| FinishingThread::spawn(scope, chunked, model, shown, &stopping)),
             events: &mut *events,
         };
-        let made = rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps)?;
+        let made = rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps);
         let TakeSteps { checkpoints, finishing, events, .. } = steps;
+        let made = match (made, finishing.as_ref()) {
+            (Ok(made), _) => made,
+            // The finishing's own error, where it stopped first, is what stopped the rollout.
+            (Err(e), Some(_)) => return Err(finishing.map(FinishingThread::stop).and_then(Result::err).unwrap_or(e)),
+            (Err(e), None) => return Err(e),
+        };
         let chunked = finishing.map(|thread| thread.finish(&sparse, total, dim, events)).transpose()?;
         Ok((made, checkpoints, chunked))
     })?;
@@ -356,10 +364,10 @@ impl TakeSteps<'_, '_> {
         if let Some(checkpoints) = self.checkpoints.as_mut() {
             checkpoints.push(Checkpoint { state: self.state.clone(), unsettled: sparse[settled * spec.layout.dim()..].to_vec() });
         }
-        if let Some(thread) = self.finishing.as_mut() {
-            thread.send(sparse, settled, spec.layout.dim(), &mut *self.events);
+        match self.finishing.as_mut() {
+            Some(thread) => thread.send(sparse, settled, spec.layout.dim(), &mut *self.events),
+            None => Ok(()),
         }
-        Ok(())
     }
 }
 
