@@ -149,11 +149,10 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
         };
         let made = rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps);
         let TakeSteps { checkpoints, finishing, events, .. } = steps;
-        let made = match (made, finishing.as_ref()) {
-            (Ok(made), _) => made,
+        let made = match made {
+            Ok(made) => made,
             // The finishing's own error, where it stopped first, is what stopped the rollout.
-            (Err(e), Some(_)) => return Err(finishing.map(FinishingThread::stop).and_then(Result::err).unwrap_or(e)),
-            (Err(e), None) => return Err(e),
+            Err(e) => return Err(finishing.and_then(|thread| thread.stop().err()).unwrap_or(e)),
         };
         let chunked = finishing.map(|thread| thread.finish(&sparse, total, dim, events)).transpose()?;
         Ok((made, checkpoints, chunked))
