@@ -545,7 +545,7 @@ impl ModelSpec {
         if !self.locgen.residual_scale.is_empty() {
             validate_scale("locgen.residual_scale", &self.locgen.residual_scale, dim)?;
         }
-        if self.locgen.keep_sparse_poses && self.locgen.window % self.stride != 0 {
+        if self.locgen.keep_sparse_poses && !self.locgen.window.is_multiple_of(self.stride) {
             return Err(E::field("locgen.window", format!("is {}; a LocGen that keeps the sparse poses needs a whole number of strides ({})", self.locgen.window, self.stride)));
         }
         if let Some(inbetween) = &self.inbetween {
@@ -589,7 +589,7 @@ impl ModelSpec {
     pub fn locgen_gain(&self) -> Vec<f32> {
         let (locgen, dim) = (&self.locgen, self.layout.dim());
         let scale = |i: usize| locgen.residual_scale.get(i).copied().unwrap_or(1.0);
-        let kept = |frame: usize| locgen.keep_sparse_poses && frame % self.stride == 0;
+        let kept = |frame: usize| locgen.keep_sparse_poses && frame.is_multiple_of(self.stride);
         (0..locgen.window).flat_map(|f| (0..dim).map(move |i| if kept(f) { 0.0 } else { scale(i) })).collect()
     }
 

@@ -77,7 +77,7 @@ struct Document {
 impl Document {
     /// Appends `bytes` (4-byte aligned) as a buffer view.
     fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -287,7 +287,7 @@ impl Document {
     }
 
     fn finish(mut self) -> Result<Vec<u8>> {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         self.root.push(json::Buffer { byte_length: USize64::from(self.bin.len()), extensions: None, extras: Default::default(), name: None, uri: None });

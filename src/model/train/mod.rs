@@ -432,7 +432,7 @@ impl Run<'_> {
             let step = self.opt.step;
             let done = step == opts.steps;
             let mut val_error = None;
-            if step % opts.eval_every == 0 || done {
+            if step.is_multiple_of(opts.eval_every) || done {
                 let (err, base) = trainer.validate(block, &validation)?;
                 self.record.curve.push((step, last_loss, err));
                 self.record.val_error = err;
@@ -441,7 +441,7 @@ impl Run<'_> {
             }
             let rate = (step - first) as f32 / start.elapsed().as_secs_f32().max(1e-3);
             on_progress(&Progress { step, steps: opts.steps, loss: last_loss, val_error, steps_per_s: rate });
-            if step % opts.checkpoint_every == 0 || done {
+            if step.is_multiple_of(opts.checkpoint_every) || done {
                 self.record.steps = step;
                 self.record.seconds = seconds_before + start.elapsed().as_secs_f64();
                 self.checkpoint(spec)?;
