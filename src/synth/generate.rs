@@ -275,8 +275,8 @@ fn finish_whole(finishing: &Finishing<'_>, sparse: &[f32], start: Placement, hel
 
 /// How the take's rollout goes block by block: the plan's class, the steering's easing and
 /// guidance, the variation's noise, and the constraints after each block; a resumable take
-/// keeps its state after each block, and a take finished in chunks finishes each chunk as
-/// soon as the rollout has settled its poses.
+/// keeps its state after each block, and a take finished in chunks hands each block's
+/// settled poses to its finishing thread.
 struct TakeSteps<'s, 'a: 's> {
     model: &'a GlocalModel,
     opts: &'a GenerateOptions,
@@ -356,7 +356,7 @@ impl TakeSteps<'_, '_> {
         self.held.is_some_and(|h| h.holds(self.block_poses(b)))
     }
 
-    /// After block `b`: its state kept, and the chunks its poses settle finished and shown.
+    /// After block `b`: its state kept, and the poses it settles handed to the finishing thread.
     fn settle(&mut self, b: usize, sparse: &[f32]) -> Result<()> {
         let spec = &self.model.spec;
         let settled = settled_poses(b + 1, spec.block_len);
