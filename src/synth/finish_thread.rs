@@ -10,6 +10,7 @@
 //! same poses, the same take to the byte.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::thread::{Scope, ScopedJoinHandle};
 
@@ -42,20 +43,21 @@ pub(super) struct FinishingThread<'scope, 'env> {
     sent: usize,
     shown: Receiver<Generated>,
     /// Set when the rollout stops early: the chunks still queued are not finished.
-    stopping: &'env AtomicBool,
+    stopping: Arc<AtomicBool>,
     thread: ScopedJoinHandle<'scope, Result<ChunkFinish<'env>>>,
 }
 
 impl<'scope, 'env: 'scope> FinishingThread<'scope, 'env> {
-    /// Starts finishing `chunked`'s chunks on a thread of `scope`; `stopping` is the take's
-    /// own flag, false.
-    pub fn spawn(scope: &'scope Scope<'scope, 'env>, mut chunked: ChunkFinish<'env>, model: &'env GlocalModel, shown: Shown<'env>, stopping: &'env AtomicBool) -> Self {
+    /// Starts finishing `chunked`'s chunks on a thread of `scope`.
+    pub fn spawn(scope: &'scope Scope<'scope, 'env>, mut chunked: ChunkFinish<'env>, model: &'env GlocalModel, shown: Shown<'env>) -> Self {
         let (settled_tx, settled_rx) = channel::<Settled>();
         let (shown_tx, shown_rx) = channel();
+        let stopping = Arc::new(AtomicBool::new(false));
+        let stop_seen = stopping.clone();
         let thread = scope.spawn(move || {
             let mut sparse = Vec::new();
             for Settled { poses, settled, show } in settled_rx {
-                if stopping.load(Ordering::Relaxed) {
+                if stop_seen.load(Ordering::Relaxed) {
                     break;
                 }
                 sparse.extend(poses);

@@ -4,7 +4,6 @@
 //! its keys and path, and a final projection restores the skeleton's bone lengths.
 
 use std::ops::Range;
-use std::sync::atomic::AtomicBool;
 
 use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
@@ -129,7 +128,6 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let kept = resume.as_ref().and_then(|r| Some((r.record.chunks.as_ref()?, settled_poses(r.block, t), r.record.times.as_slice())));
     let chunked = layout.map(|layout| ChunkFinish::resumed(&finishing, layout, kept, start, &timeline.frames));
     let shown = Shown { segments: &segments, block_classes: &block_classes };
-    let stopping = AtomicBool::new(false);
     let (made, checkpoints, chunked) = std::thread::scope(|scope| -> Result<_> {
         let mut steps = TakeSteps {
             model,
@@ -144,7 +142,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
             held: held.as_ref(),
             strength: class_strength,
             checkpoints: resumable.then_some(checkpoints),
-            finishing: chunked.map(|chunked| FinishingThread::spawn(scope, chunked, model, shown, &stopping)),
+            finishing: chunked.map(|chunked| FinishingThread::spawn(scope, chunked, model, shown)),
             events: &mut *events,
         };
         let made = rollout_blocks(model.glogen(), &mut BlockWorkspace::default(), &mut sparse, first_block..plans.len(), opts.join_seams, &mut steps);
