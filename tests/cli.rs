@@ -143,3 +143,22 @@ fn a_project_without_texture_makes_the_no_texture_take() {
     assert!(from_project == plain, "the project's take differs from --no-texture's");
     assert!(plain != textured, "--no-texture made the textured take");
 }
+
+/// A new user's first slips on `all` are answered in one line that says what was meant:
+/// Bandai's "walk" is `walking` there, and FBX goes through Blender. Nothing is written.
+#[test]
+fn a_mistyped_class_and_an_fbx_say_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (timeline, file, says) in [
+        ("walk:4,sitting down:3", "take.bvh", "unknown class 'walk' (did you mean 'walking'?)"),
+        ("walking:4,sitting down:3", "take.bvh", "unknown class 'sitting down' (did you mean 'sittingdown'?)"),
+        ("walking:4", "take.fbx", "export FBX from Blender"),
+    ] {
+        let out = dir.path().join(file);
+        let run = glocal_in(crate_dir, &["generate", "--model", "models/all", "--timeline", timeline, "--out", out.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success() && err.contains(says) && err.lines().filter(|l| !l.trim().is_empty()).count() == 1, "{timeline} -> {file}: {err}");
+        assert!(!out.exists(), "{file} was written");
+    }
+}

@@ -60,6 +60,10 @@ pub const SHIPPED_TABLE: &[(&str, &str)] = &[
 
 /// Below this similarity (0..1) a name is not taken as a counterpart.
 const MIN_SIMILARITY: f64 = 0.6;
+/// From this similarity a name unknown to a model is taken for a typo of one it knows: a
+/// letter left out or swapped ("bybye", "tird") reads 0.9 and more, an unrelated activity
+/// ("salsa" against "walk-back") 0.6.
+const TYPO_SIMILARITY: f64 = 0.85;
 
 fn normalized(name: &str) -> String {
     name.chars().filter(|c| c.is_alphanumeric()).flat_map(char::to_lowercase).collect()
@@ -76,6 +80,20 @@ fn similarity(a: &str, b: &str) -> f64 {
         return 0.95;
     }
     strsim::jaro_winkler(&a, &b)
+}
+
+/// The one of `names` a mistyped `name` most likely meant: the same name but for case and
+/// punctuation ("sitting down", "sittingdown"), its longer form ("walk", "walking"), or a
+/// name as similar as a typo makes it ([`TYPO_SIMILARITY`]).
+pub fn closest<'n>(name: &str, names: &'n [String]) -> Option<&'n str> {
+    let key = normalized(name);
+    if key.is_empty() {
+        return None;
+    }
+    let same = names.iter().find(|n| normalized(n) == key);
+    let longer = || names.iter().filter(|n| normalized(n).starts_with(&key)).min_by_key(|n| n.len());
+    let similar = || names.iter().map(|n| (similarity(name, n), n)).filter(|(s, _)| *s >= TYPO_SIMILARITY).max_by(|x, y| x.0.total_cmp(&y.0)).map(|(_, n)| n);
+    same.or_else(longer).or_else(similar).map(String::as_str)
 }
 
 impl ClassMap {
@@ -186,6 +204,18 @@ mod tests {
         assert_eq!((map.get("walk"), map.get("run"), map.get("walk-back")), (Some("walking"), Some("running"), Some("walk-back")));
         let back = ClassMap::build(&names(BANDAI), &names(H36M), &ClassMap::shipped_table());
         assert_eq!(back.get("run"), Some("walking"));
+    }
+
+    #[test]
+    fn a_mistyped_name_finds_the_one_meant() {
+        let all = names(&["walking", "walk-back", "sittingdown", "byebye", "basketball_signal"]);
+        assert_eq!(closest("sitting down", &all), Some("sittingdown"));
+        assert_eq!(closest("walk", &all), Some("walking"));
+        assert_eq!(closest("Basketball-Signal", &all), Some("basketball_signal"));
+        assert_eq!(closest("bybye", &all), Some("byebye"));
+        assert_eq!(closest("salsa", &all), None);
+        assert_eq!(closest("tango", &all), None);
+        assert_eq!(closest("-", &all), None);
     }
 
     #[test]

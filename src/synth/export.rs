@@ -35,6 +35,7 @@ impl ExportFormat {
             Some("json") => Ok(Self::Json),
             Some("npy") => Ok(Self::Npy),
             Some("glb") => Ok(Self::Glb),
+            Some("fbx") => bail!("{}: glocal writes no FBX itself; write a .glb or .bvh and export FBX from Blender (the add-on in integrations/blender does both in one step)", path.display()),
             _ => bail!("{}: the file name must end in .bvh, .json or .npy, or .glb for a glTF character", path.display()),
         }
     }

@@ -79,7 +79,7 @@ impl Timeline {
                     check_transition(t, &format!("segment {} ('{}') transition", k + 1, s.class))?;
                 }
                 position_of(classes, &s.class)
-                    .with_context(|| format!("segment {}: unknown class '{}'; valid classes: {}", k + 1, s.class, classes.join(", ")))
+                    .with_context(|| format!("segment {}: unknown class '{}'{}; valid classes: {}", k + 1, s.class, meant(&s.class, classes), classes.join(", ")))
             })
             .collect()
     }
@@ -95,7 +95,7 @@ impl Timeline {
                 if styles.is_empty() {
                     bail!("segment {} ('{}/{style}'): the {model} model has no styles; remove '/{style}' or choose a model with styles (models/all)", k + 1, s.class);
                 }
-                position_of(styles, style).map(Some).with_context(|| format!("segment {} ('{}/{style}'): unknown style '{style}'; valid styles: {}", k + 1, s.class, styles.join(", ")))
+                position_of(styles, style).map(Some).with_context(|| format!("segment {} ('{}/{style}'): unknown style '{style}'{}; valid styles: {}", k + 1, s.class, meant(style, styles), styles.join(", ")))
             })
             .collect()
     }
@@ -119,6 +119,11 @@ impl Timeline {
         }
         self
     }
+}
+
+/// " (did you mean 'X'?)" when one of `names` is likely what a mistyped `name` meant.
+fn meant(name: &str, names: &[String]) -> String {
+    super::class_map::closest(name, names).map(|n| format!(" (did you mean '{n}'?)")).unwrap_or_default()
 }
 
 /// Where a model's class or style `name` is among `names`, whatever its case.
@@ -237,6 +242,7 @@ mod tests {
         assert_eq!(t.clone().with_style("neutral").validate_styles(&styles, "all").unwrap(), [Some(1), Some(0)]);
         assert!(format!("{:#}", t.validate_styles(&[], "h36m").unwrap_err()).contains("the h36m model has no styles"));
         assert!(format!("{:#}", "walking/sad:2".parse::<Timeline>().unwrap().validate_styles(&styles, "all").unwrap_err()).contains("unknown style 'sad'; valid styles: neutral, tired"));
+        assert!(format!("{:#}", "walking/tird:2".parse::<Timeline>().unwrap().validate_styles(&styles, "all").unwrap_err()).contains("unknown style 'tird' (did you mean 'tired'?); valid styles"));
         assert!(format!("{:#}", "walking/:2".parse::<Timeline>().unwrap_err()).contains("the style after 'walking/' is empty"));
     }
 
@@ -244,6 +250,8 @@ mod tests {
     fn bad_timelines_say_what_is_wrong() {
         let err = |s: &str, pace: f32| format!("{:#}", s.parse::<Timeline>().and_then(|t| t.validate(&classes(), pace).map(|_| ())).unwrap_err());
         assert!(err("dance:3", 1.0).contains("unknown class 'dance'; valid classes: sitting, eating, walking"));
+        assert!(err("walk:3", 1.0).contains("unknown class 'walk' (did you mean 'walking'?); valid classes: sitting, eating, walking"));
+        assert!(err("sitting:2,Eat ing:3", 1.0).contains("segment 2: unknown class 'Eat ing' (did you mean 'eating'?)"));
         assert!(err("", 1.0).contains("empty"));
         assert!(err("walking:0", 1.0).contains("positive"));
         assert!(err("walking:-2", 1.0).contains("positive"));
