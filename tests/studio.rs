@@ -83,6 +83,27 @@ fn whole_app_with_a_generated_take_and_the_seed_map() {
     egui_kittest::image_snapshot_options(&render_on_clear_color(&mut h), "studio_app", &snapshot_options());
 }
 
+/// The seed map's key sits below the map, every class in it and inside the window, and a
+/// click on a class hides its seeds (the legend egui_plot drew over the map covered it all
+/// on the model of everything's 26 classes).
+#[test]
+fn the_seed_map_key_lists_every_class_and_hides_one_on_a_click() {
+    let _g = serial();
+    let mut h = harness("map-key");
+    wait_ready(&mut h);
+    let classes = h.state().model_info().unwrap().spec.classes.clone();
+    for class in &classes {
+        let r = h.get_by_label(&format!("Seed map key: {class}")).rect();
+        assert!(r.right() <= 1280.0 && r.bottom() <= 800.0, "{class} is at {r:?}");
+    }
+    h.get_by_label("Seed map key: walking").click();
+    h.run_ok();
+    assert!(h.state().hidden_on_map().contains("walking") && h.state().hidden_on_map().len() == 1, "hidden: {:?}", h.state().hidden_on_map());
+    h.get_by_label("Seed map key: walking").click();
+    h.run_ok();
+    assert!(h.state().hidden_on_map().is_empty());
+}
+
 #[test]
 fn the_layout_holds_at_900x600() {
     let _g = serial();

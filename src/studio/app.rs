@@ -121,6 +121,11 @@ impl StudioApp {
         self.engine.map.as_deref()
     }
 
+    /// Classes whose seeds the seed map hides (clicked off in its key).
+    pub fn hidden_on_map(&self) -> &std::collections::BTreeSet<String> {
+        &self.panels.hidden_on_map
+    }
+
     pub fn frame(&self) -> usize {
         self.playback.frame()
     }

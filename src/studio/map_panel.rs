@@ -3,17 +3,17 @@
 //! the take from that seed.
 
 use egui::{Color32, RichText};
-use egui_plot::{Legend, MarkerShape, Plot, PlotPoints, Points};
+use egui_plot::{MarkerShape, Plot, PlotPoints, Points};
 
 use super::app::StudioApp;
 use super::panels::InitTab;
 use super::timeline::color32;
-use crate::synth::render::class_color;
+use crate::synth::render::{class_color, palette_round};
 use super::worker::Take;
 use crate::synth::InitPose;
 
-/// The share of the points' height kept free below them for the legend.
-const LEGEND_ROOM: f32 = 0.8;
+/// The most of the map panel's height its key takes.
+const KEY_SHARE: f32 = 0.45;
 
 impl StudioApp {
     pub(super) fn map_panel(&mut self, ui: &mut egui::Ui) {
@@ -45,25 +45,24 @@ impl StudioApp {
                 egui_plot::HoverPosition::Elsewhere { .. } => None,
             }
         };
-        // Room below the points for the legend, which covered them: the panel is tall, so the
-        // cloud moves up rather than shrinks.
-        let (low, high) = map.points.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), p| (l.min(p[1]), h.max(p[1])));
-        let legend_room = if low.is_finite() { f64::from(low - LEGEND_ROOM * (high - low)) } else { 0.0 };
+        // The key below the map takes the height its content took last frame, at most
+        // KEY_SHARE of the panel's (on a small window it scrolls rather than crowd out the map).
+        let key_height = self.panels.map_key_height.min(ui.available_height() * KEY_SHARE);
+        let hidden = &self.panels.hidden_on_map;
         let resp = Plot::new("seed_map")
+            .height((ui.available_height() - key_height - ui.spacing().item_spacing.y).max(0.0))
             .data_aspect(1.0)
-            .include_y(legend_room)
-            .legend(Legend::default().position(egui_plot::Corner::LeftBottom))
             .show_axes(false)
             .show_grid(false)
             .allow_boxed_zoom(false)
             .label_formatter(formatter)
             .show(ui, |plot| {
                 for (k, idx) in by_class.iter().enumerate() {
-                    if idx.is_empty() {
+                    if idx.is_empty() || hidden.contains(&classes[k]) {
                         continue;
                     }
                     let pts: Vec<[f64; 2]> = idx.iter().map(|&i| [f64::from(map.points[i][0]), f64::from(map.points[i][1])]).collect();
-                    plot.points(Points::new(classes[k].clone(), PlotPoints::new(pts)).color(color32(class_color(k))).radius(3.0).filled(true));
+                    plot.points(Points::new(classes[k].clone(), PlotPoints::new(pts)).color(color32(class_color(k))).shape(class_marker(k)).radius(3.0).filled(true));
                 }
                 if let Some(i) = chosen.filter(|&i| i < map.points.len()) {
                     let p = map.points[i];
@@ -80,6 +79,9 @@ impl StudioApp {
                     plot_take_path(plot, t, current_block);
                 }
             });
+        let hidden = &mut self.panels.hidden_on_map;
+        let key = egui::ScrollArea::vertical().id_salt("seed_map_key").max_height(key_height).show(ui, |ui| map_key(ui, classes, &by_class, hidden));
+        self.panels.map_key_height = key.content_size.y;
         if let Some(i) = clicked_seed(&resp, &map.points) {
             self.editing.doc.options.init = InitPose::SeedIndex(i);
             self.panels.init_tab = InitTab::Seed;
@@ -101,6 +103,55 @@ impl StudioApp {
             ui.label(RichText::new("Load a model to see its seed bank").weak());
         }
     }
+}
+
+/// The map's key, below it: each class with seeds as a dot of its colour and its name, in the
+/// model's order (a dataset's classes together), wrapped to the panel's width; a click hides
+/// or shows its seeds. egui_plot's legend, drawn over the plot, covered the whole map once a
+/// model had 26 classes.
+fn map_key(ui: &mut egui::Ui, classes: &[String], by_class: &[Vec<usize>], hidden: &mut std::collections::BTreeSet<String>) {
+    ui.add_space(4.0);
+    ui.horizontal_wrapped(|ui| {
+        ui.spacing_mut().item_spacing = egui::vec2(10.0, 2.0);
+        for (k, class) in classes.iter().enumerate().filter(|(k, _)| !by_class[*k].is_empty()) {
+            let shown = !hidden.contains(class);
+            let entry = key_entry(ui, k, shown, class)
+                .on_hover_text(format!("{} seeds of {class}; click to {} them", by_class[k].len(), if shown { "hide" } else { "show" }));
+            if entry.clicked() && !hidden.remove(class) {
+                hidden.insert(class.clone());
+            }
+        }
+    });
+    ui.label(RichText::new("White ring: the initial pose; diamonds: the take's blocks, the one playing ringed").weak().small());
+    ui.add_space(2.0);
+}
+
+/// A class's marker on the map: a dot, then, for the classes whose colour the palette gives
+/// again, a square, then a triangle (the take's blocks are diamonds).
+fn class_marker(class: usize) -> MarkerShape {
+    [MarkerShape::Circle, MarkerShape::Square, MarkerShape::Up][palette_round(class) % 3]
+}
+
+/// A class in the map's key, one widget so a row wraps whole: its marker in its colour,
+/// filled while its seeds show and outlined while they are hidden, and its name.
+fn key_entry(ui: &mut egui::Ui, class: usize, shown: bool, name: &str) -> egui::Response {
+    const MARK: f32 = 8.0;
+    const GAP: f32 = 4.0;
+    let text = if shown { RichText::new(name) } else { RichText::new(name).weak() };
+    let galley = egui::WidgetText::from(text).into_galley(ui, Some(egui::TextWrapMode::Extend), f32::INFINITY, egui::TextStyle::Body);
+    let (rect, response) = ui.allocate_exact_size(egui::vec2(MARK + GAP + galley.size().x, galley.size().y), egui::Sense::click());
+    let mark = egui::Rect::from_center_size(egui::pos2(rect.left() + MARK / 2.0, rect.center().y), egui::Vec2::splat(MARK));
+    let color = color32(class_color(class));
+    let (fill, stroke) = if shown { (color, egui::Stroke::NONE) } else { (Color32::TRANSPARENT, egui::Stroke::new(1.0, color)) };
+    let painter = ui.painter();
+    match class_marker(class) {
+        MarkerShape::Square => painter.rect(mark.shrink(0.5), 0.0, fill, stroke, egui::StrokeKind::Inside),
+        MarkerShape::Up => painter.add(egui::Shape::convex_polygon(vec![mark.center_top(), mark.right_bottom(), mark.left_bottom()], fill, stroke)),
+        _ => painter.add(egui::epaint::CircleShape { center: mark.center(), radius: MARK / 2.0 - 0.5, fill, stroke }),
+    };
+    painter.galley(egui::pos2(rect.left() + MARK + GAP, rect.top()), galley, ui.visuals().text_color());
+    response.widget_info(|| egui::WidgetInfo::selected(egui::Role::CheckBox, true, shown, format!("Seed map key: {name}")));
+    response
 }
 
 /// The seed the take starts from, if it starts from one (`by_class`: each class's seeds).

@@ -102,6 +102,10 @@ pub struct Panels {
     pub(super) mapping: Option<MappingNote>,
     pub(super) show_mapping: bool,
     pub(super) show_map: bool,
+    /// Classes whose seeds the map hides (clicked off in its key), by name.
+    pub(super) hidden_on_map: std::collections::BTreeSet<String>,
+    /// The height the map's key took last frame (the map gets the rest).
+    pub(super) map_key_height: f32,
     pub(super) show_side: bool,
     pub(super) show_help: bool,
     pub(super) show_log: bool,
@@ -129,6 +133,8 @@ impl Panels {
             mapping: None,
             show_mapping: false,
             show_map: true,
+            hidden_on_map: Default::default(),
+            map_key_height: 0.0,
             show_side: true,
             show_help: false,
             show_log: false,

@@ -14,9 +14,19 @@ use crate::motion::{floor_height, JointRoles, Motion};
 
 /// A palette of distinct colours for classes, shared by the sheet and the studio.
 pub fn class_color(class: usize) -> [u8; 3] {
-    // Tableau's 10 categorical colours (its grey replaced by teal: grey is how the studio
-    // shows a segment of an unknown class), then two more distinct ones.
-    const PALETTE: [[u8; 3]; 12] = [
+    PALETTE[class % PALETTE.len()]
+}
+
+/// How many times the palette has come round before `class`'s colour: classes of the same
+/// colour (the model of everything has 26) tell themselves apart by it, in the studio's seed
+/// map by the marker's shape.
+pub fn palette_round(class: usize) -> usize {
+    class / PALETTE.len()
+}
+
+// Tableau's 10 categorical colours (its grey replaced by teal: grey is how the studio shows a
+// segment of an unknown class), then two more distinct ones.
+const PALETTE: [[u8; 3]; 12] = [
         [31, 119, 180],
         [255, 127, 14],
         [44, 160, 44],
@@ -29,9 +39,7 @@ pub fn class_color(class: usize) -> [u8; 3] {
         [23, 190, 207],
         [255, 215, 0],
         [0, 0, 139],
-    ];
-    PALETTE[class % PALETTE.len()]
-}
+];
 
 pub struct SheetOptions {
     pub columns: usize,
