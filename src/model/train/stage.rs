@@ -60,7 +60,7 @@ pub(super) struct TrainingData<'a> {
 pub(super) fn stage_training<'a>(data: TrainingData<'a>) -> Box<dyn StageTraining + 'a> {
     match data.opts.stage {
         Stage::Glogen => Box::new(GloGenTraining(data)),
-        Stage::Locgen => Box::new(LocGenTraining(data, Default::default())),
+        Stage::Locgen => Box::new(LocGenTraining(data)),
         Stage::Inbetween => Box::new(super::inbetween::InbetweenTraining(data)),
     }
 }
@@ -335,7 +335,7 @@ impl StageTraining for GloGenTraining<'_> {
 }
 
 /// LocGen: the residual on a dense window interpolated between the sparse poses.
-struct LocGenTraining<'a>(TrainingData<'a>, std::sync::OnceLock<Vec<crate::motion::contacts::FootContacts>>);
+struct LocGenTraining<'a>(TrainingData<'a>);
 
 impl LocGenTraining<'_> {
     /// The interpolated window from `frame` and the real one, normalised.
@@ -349,33 +349,6 @@ impl LocGenTraining<'_> {
         data.norm.normalize(&mut input);
         data.norm.normalize(&mut target);
         (input, target)
-    }
-
-    /// Per window, frame and feature of `drawn`'s target windows: 1 on a foot's joints while
-    /// that foot stands on the floor in the real clip, else 0.
-    fn contact_mask(&self, drawn: &[(&Track, usize)]) -> Result<Tensor> {
-        let data = &self.0;
-        let skeleton = &data.layout().skeleton;
-        let roles = crate::motion::JointRoles::new(skeleton)?;
-        let contacts = self.1.get_or_init(|| data.corpus.train.iter().map(|t| crate::motion::contacts::foot_contacts(&t.motion, &roles, &Default::default())).collect());
-        let (w, dim) = (data.spec.locgen.window, data.layout().dim());
-        let feet = [(roles.left.foot_joints(skeleton), crate::motion::Side::Left), (roles.right.foot_joints(skeleton), crate::motion::Side::Right)];
-        let mut mask = vec![0f32; drawn.len() * w * dim];
-        for (b, (track, start)) in drawn.iter().enumerate() {
-            let index = data.corpus.train.iter().position(|t| std::ptr::eq(t, *track)).context("a drawn window's track is not a training clip")?;
-            for (joints, side) in &feet {
-                let flags = contacts[index].side(*side);
-                for k in 0..w {
-                    if flags.get(start + k).copied().unwrap_or(false) {
-                        for &j in joints.iter().filter(|&&j| j > 0) {
-                            let at = (b * w + k) * dim + ROOT_FEATURES + 3 * (j - 1);
-                            mask[at..at + 3].fill(1.0);
-                        }
-                    }
-                }
-            }
-        }
-        Ok(Tensor::from_vec(mask, (drawn.len(), w, dim), &Device::Cpu)?)
     }
 
     /// The refined window: LocGen predicts a residual on its interpolated input, in units of
@@ -393,7 +366,7 @@ impl LocGenTraining<'_> {
 /// [`LocGenSpec::residual_scale`]: crate::model::spec::LocGenSpec
 pub(super) fn locgen_residual_scale(data: TrainingData) -> Result<Vec<f32>> {
     const WINDOWS: usize = 4096;
-    let training = LocGenTraining(data, Default::default());
+    let training = LocGenTraining(data);
     let data = &training.0;
     let (dim, span) = (data.layout().dim(), data.spec.locgen.window + 1);
     let mut rng = StdRng::seed_from_u64(0x5CA1E);
@@ -447,34 +420,12 @@ pub(super) fn skeleton_weighted_loss(norm: &Normalizer, pred: &Tensor, target: &
     Ok(joint_flow_loss(&pred.broadcast_mul(&weight)?, &target.broadcast_mul(&weight)?, None, LossKind::JointFlow)?)
 }
 
-/// The skeleton-weighted error of the masked features (a standing foot's joints): their
-/// positions, and their steps where both frames are masked.
-fn contact_loss(norm: &Normalizer, pred: &Tensor, target: &Tensor, mask: &Tensor) -> Result<Tensor> {
-    let std = &norm.std;
-    let rms = (std.iter().map(|s| s * s).sum::<f32>() / std.len() as f32).sqrt();
-    let weight = Tensor::from_vec(std.iter().map(|s| s / rms).collect(), (1, 1, std.len()), &Device::Cpu)?;
-    let err = (pred - target)?.broadcast_mul(&weight)?;
-    let count = (mask.sum_all()?.to_scalar::<f32>()?).max(1.0) as f64;
-    let joint = (err.sqr()? * mask)?.sum_all()?;
-    let steps = err.dim(1)? - 1;
-    let step_err = (err.narrow(1, 1, steps)? - err.narrow(1, 0, steps)?)?;
-    let step_mask = (mask.narrow(1, 1, steps)? * mask.narrow(1, 0, steps)?)?;
-    let flow = (step_err.sqr()? * step_mask)?.sum_all()?;
-    Ok(((joint + flow)? / count)?)
-}
-
 impl StageTraining for LocGenTraining<'_> {
     fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
         let span = self.0.spec.locgen.window + 1;
         let batch = self.0.batch(block, span, 1, rng, |track, frame| self.window(track, frame))?;
         let pred = self.predict(block, &batch.x, true)?;
-        let base = skeleton_weighted_loss(self.0.norm, &pred, &batch.y)?;
-        let weight: f64 = std::env::var("GLOCAL_CONTACT_WEIGHT").ok().and_then(|v| v.parse().ok()).unwrap_or(0.0);
-        if weight == 0.0 {
-            return Ok(base);
-        }
-        let mask = self.contact_mask(&batch.drawn)?;
-        Ok((base + (contact_loss(self.0.norm, &pred, &batch.y, &mask)? * weight)?)?)
+        skeleton_weighted_loss(self.0.norm, &pred, &batch.y)
     }
 
     fn validation_windows(&self) -> Vec<ValWindow> {
