@@ -105,8 +105,8 @@ impl StudioApp {
     }
 }
 
-/// The map's key, below it: each class with seeds as a dot of its colour and its name, in the
-/// model's order (a dataset's classes together), wrapped to the panel's width; a click hides
+/// The map's key, below it: each class with seeds as its marker and its name, in the model's
+/// order (a dataset's classes together), wrapped to the panel's width; a click hides
 /// or shows its seeds. egui_plot's legend, drawn over the plot, covered the whole map once a
 /// model had 26 classes.
 fn map_key(ui: &mut egui::Ui, classes: &[String], by_class: &[Vec<usize>], hidden: &mut std::collections::BTreeSet<String>) {
