@@ -59,7 +59,7 @@ pub(super) struct TrainingData<'a> {
 /// The training of `data.opts.stage`.
 pub(super) fn stage_training<'a>(data: TrainingData<'a>) -> Box<dyn StageTraining + 'a> {
     match data.opts.stage {
-        Stage::Glogen => Box::new(GloGenTraining(data, Default::default())),
+        Stage::Glogen => Box::new(GloGenTraining(data)),
         Stage::Locgen => Box::new(LocGenTraining(data)),
         Stage::Inbetween => Box::new(super::inbetween::InbetweenTraining(data)),
     }
@@ -161,7 +161,7 @@ pub(super) fn frame_errors(windows: &[ValWindow], predicted: impl Iterator<Item 
 }
 
 /// GloGen: blocks of sparse poses, rolled out on its own outputs for `rollout_blocks` blocks.
-struct GloGenTraining<'a>(TrainingData<'a>, std::sync::OnceLock<Vec<crate::motion::contacts::FootContacts>>);
+struct GloGenTraining<'a>(TrainingData<'a>);
 
 impl GloGenTraining<'_> {
     /// `1 + blocks` blocks of sparse poses from `frame`: (the first block, the rest), normalised.
@@ -251,60 +251,6 @@ impl GloGenTraining<'_> {
     }
 }
 
-impl GloGenTraining<'_> {
-    /// The error of each standing foot's step over the ground between sparse poses of block
-    /// `r` (`pred` and `real` `[B, 1 + T, D]`, each after the pose before the block): the
-    /// root's step plus the foot's step about the root, in units of the foot's spread, where
-    /// the real foot stands at both poses.
-    fn contact_loss(&self, drawn: &[(&Track, usize)], r: usize, pred: &Tensor, real: &Tensor) -> Result<Tensor> {
-        let data = &self.0;
-        let skeleton = &data.layout().skeleton;
-        let roles = crate::motion::JointRoles::new(skeleton)?;
-        let contacts = self.1.get_or_init(|| data.corpus.train.iter().map(|t| crate::motion::contacts::foot_contacts(&t.motion, &roles, &Default::default())).collect());
-        let (t, s, dim) = (data.spec.block_len, data.spec.stride, data.layout().dim());
-        let mean = Tensor::from_vec(data.norm.mean.clone(), (1, 1, dim), &Device::Cpu)?;
-        let std = Tensor::from_vec(data.norm.std.clone(), (1, 1, dim), &Device::Cpu)?;
-        let world = |x: &Tensor| -> Result<Tensor> { Ok(x.broadcast_mul(&std)?.broadcast_add(&mean)?) };
-        let (p, q) = (world(pred)?, world(real)?);
-        let b = drawn.len();
-        let mut total: Option<Tensor> = None;
-        let mut count = 0f32;
-        for (joints, side) in [(roles.left.foot_joints(skeleton), crate::motion::Side::Left), (roles.right.foot_joints(skeleton), crate::motion::Side::Right)] {
-            // Per window and step: 1 where the real foot stands at both ends of the step.
-            let mut mask = vec![0f32; b * t];
-            for (i, (track, frame)) in drawn.iter().enumerate() {
-                let index = data.corpus.train.iter().position(|c| std::ptr::eq(c, *track)).context("a drawn window's track is not a training clip")?;
-                let flags = contacts[index].side(side);
-                let stands = |k: usize| flags.get(frame + (t + r * t + k) * s - s).copied().unwrap_or(false);
-                for k in 0..t {
-                    if stands(k) && stands(k + 1) {
-                        mask[i * t + k] = 1.0;
-                    }
-                }
-            }
-            count += mask.iter().sum::<f32>() * joints.len() as f32;
-            let mask = Tensor::from_vec(mask, (b, t), &Device::Cpu)?;
-            for &j in joints.iter().filter(|&&j| j > 0) {
-                let at = ROOT_FEATURES + 3 * (j - 1);
-                let spread = (data.norm.std[at].powi(2) + data.norm.std[at + 1].powi(2) + data.norm.std[at + 2].powi(2)).sqrt() as f64;
-                let step = |x: &Tensor| -> Result<Tensor> {
-                    let rel = x.narrow(2, at, 3)?;
-                    let moved = (rel.narrow(1, 1, t)? - rel.narrow(1, 0, t)?)?;
-                    let root_step = Tensor::cat(&[&x.narrow(2, 1, 1)?.narrow(1, 1, t)?, &(x.narrow(2, 0, 1)?.narrow(1, 1, t)? - x.narrow(2, 0, 1)?.narrow(1, 0, t)?)?, &x.narrow(2, 2, 1)?.narrow(1, 1, t)?], 2)?;
-                    Ok((moved + root_step)?)
-                };
-                let err = ((step(&p)? - step(&q)?)? / spread)?.sqr()?.sum(2)?;
-                let term = (err * &mask)?.sum_all()?;
-                total = Some(match total {
-                    Some(a) => (a + term)?,
-                    None => term,
-                });
-            }
-        }
-        Ok((total.expect("a body has feet") / f64::from(count.max(1.0)))?)
-    }
-}
-
 impl StageTraining for GloGenTraining<'_> {
     fn loss(&self, block: &Seq2SeqBlock, rng: &mut StdRng) -> Result<Tensor> {
         let spec = &self.0.spec.glogen;
@@ -341,17 +287,11 @@ impl StageTraining for GloGenTraining<'_> {
             input = pred.clone();
             preds.push(pred);
         }
-        let contact_weight: f64 = std::env::var("GLOCAL_GLOGEN_CONTACT").ok().and_then(|v| v.parse().ok()).unwrap_or(0.0);
         let mut total: Option<Tensor> = None;
         for (r, pred) in preds.iter().enumerate() {
             let target = y.narrow(1, r * steps_in, steps_in)?;
             let last = if r == 0 { x.narrow(1, steps_in - 1, 1)? } else { preds[r - 1].narrow(1, steps_in - 1, 1)? };
-            let mut l = joint_flow_loss(pred, &target, Some(&last), spec.loss)?;
-            if contact_weight > 0.0 {
-                let real_last = if r == 0 { x.narrow(1, steps_in - 1, 1)? } else { y.narrow(1, r * steps_in - 1, 1)? };
-                let term = self.contact_loss(&batch.drawn, r, &Tensor::cat(&[&last, pred], 1)?, &Tensor::cat(&[&real_last, &target], 1)?)?;
-                l = (l + (term * contact_weight)?)?;
-            }
+            let l = joint_flow_loss(pred, &target, Some(&last), spec.loss)?;
             total = Some(match total {
                 Some(t) => (t + l)?,
                 None => l,
