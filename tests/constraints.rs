@@ -27,10 +27,10 @@ fn walking(m: &GlocalModel) -> String {
 #[test]
 fn takes_pass_through_their_keys() {
     for name in ["h36m", "bandai", "all"] {
-        let mut m = model(name);
+        let m = model(name);
         let class = walking(&m);
         let base = GenerateOptions { timeline: format!("{class}:12").parse().unwrap(), ..Default::default() };
-        let free = generate(&mut m, &base, &mut |_| true).unwrap().motion;
+        let free = generate(&m, &base, &mut |_| true).unwrap().motion;
         let (t1, t2) = (4.0, 8.0);
         let frame2 = (t2 * m.spec.fps).round() as usize;
         let turn = Quat::from_rotation_y(20f32.to_radians());
@@ -43,7 +43,7 @@ fn takes_pass_through_their_keys() {
             Key { seconds: t2, source: KeySource::Pose(moved), fix_root: true },
         ];
         let opts = GenerateOptions { keys: keys.clone(), ..base.clone() };
-        let take = generate(&mut m, &opts, &mut |_| true).unwrap().motion;
+        let take = generate(&m, &opts, &mut |_| true).unwrap().motion;
         let mut frames = Vec::new();
         for key in &keys {
             let frame = (key.seconds * m.spec.fps).round() as usize;
@@ -74,10 +74,10 @@ fn walking_follows_an_l_shaped_path() {
     let w = |x, z| Waypoint { x, z, seconds: None };
     let path = RootPath { waypoints: vec![w(0.0, 0.0), w(0.0, 6.0), w(6.0, 6.0)] };
     for name in ["h36m", "bandai", "all"] {
-        let mut m = model(name);
+        let m = model(name);
         let class = walking(&m);
         let opts = GenerateOptions { timeline: format!("{class}:12").parse().unwrap(), path: Some(path.clone()), ..Default::default() };
-        let take = generate(&mut m, &opts, &mut |_| true).unwrap();
+        let take = generate(&m, &opts, &mut |_| true).unwrap();
         // Bandai's faster walk goes on past the L's end, and says so; nothing else is said.
         assert!(take.warnings.iter().all(|w| w.contains("past the path's end")), "{name}: {:?}", take.warnings);
         let fit = path_fit(&take.motion, &m.spec.layout, &path);
@@ -93,11 +93,11 @@ fn walking_follows_an_l_shaped_path() {
 /// A path whose times ask walking for 5 m/s is followed, and the take says its feet will slide.
 #[test]
 fn an_impossible_path_speed_is_reported() {
-    let mut m = model("h36m");
+    let m = model("h36m");
     let w = |x, z, t| Waypoint { x, z, seconds: t };
     let path = RootPath { waypoints: vec![w(0.0, 0.0, None), w(0.0, 30.0, Some(8.0))] };
     let opts = GenerateOptions { timeline: "walking:10".parse().unwrap(), path: Some(path), ..Default::default() };
-    let take = generate(&mut m, &opts, &mut |_| true).unwrap();
+    let take = generate(&m, &opts, &mut |_| true).unwrap();
     let speed: Vec<&String> = take.warnings.iter().filter(|w| w.contains("m/s")).collect();
     assert_eq!(speed.len(), 1, "{:?}", take.warnings);
     assert!(speed[0].contains("3.8 m/s") && speed[0].contains("slide"), "{}", speed[0]);
@@ -121,7 +121,7 @@ fn a_path_shorter_than_the_walk_is_reported() {
 /// Keys outside the take, too close together, or of the wrong skeleton are refused by name.
 #[test]
 fn bad_keys_are_refused() {
-    let mut m = model("h36m");
+    let m = model("h36m");
     let key = |t, source| Key { seconds: t, source, fix_root: false };
     let seed = || KeySource::Init(InitPose::SeedIndex(0));
     let cases = [
@@ -132,7 +132,7 @@ fn bad_keys_are_refused() {
     ];
     for (keys, expected) in cases {
         let opts = GenerateOptions { timeline: "walking:10".parse().unwrap(), keys, ..Default::default() };
-        let err = match generate(&mut m, &opts, &mut |_| true) {
+        let err = match generate(&m, &opts, &mut |_| true) {
             Ok(_) => panic!("expected an error mentioning {expected}"),
             Err(e) => format!("{e:#}"),
         };
@@ -146,15 +146,15 @@ fn bad_keys_are_refused() {
 fn a_key_from_a_file_frame_is_reached() {
     let dir = tempfile::tempdir().unwrap();
     for name in ["h36m", "bandai", "all"] {
-        let mut m = model(name);
+        let m = model(name);
         let other = GenerateOptions { timeline: format!("{}:8", m.spec.classes[0]).parse().unwrap(), ..Default::default() };
-        let source = generate(&mut m, &other, &mut |_| true).unwrap();
+        let source = generate(&m, &other, &mut |_| true).unwrap();
         for ext in ["bvh", "npy"] {
             let file = dir.path().join(format!("{name}.{ext}"));
             export(&source.motion, &source.segments, &file).unwrap();
             let key = Key { seconds: 5.0, source: KeySource::Init(InitPose::file(file.clone(), 120)), fix_root: false };
             let opts = GenerateOptions { timeline: format!("{}:10", walking(&m)).parse().unwrap(), keys: vec![key.clone()], ..Default::default() };
-            let take = generate(&mut m, &opts, &mut |_| true).unwrap().motion;
+            let take = generate(&m, &opts, &mut |_| true).unwrap().motion;
             let frame = (key.seconds * m.spec.fps).round() as usize;
             let (body, _) = key_errors(&take, &m.spec.layout, frame, &key_pose(&m, &key, &opts.init).unwrap());
             assert!(body < 0.02, "{name} {ext}: a joint is {:.1} cm off the file's pose", 100.0 * body);

@@ -15,9 +15,9 @@ use glocal::synth::rig::onto_skeleton_file;
 use glocal::synth::{generate, GenerateOptions, Generated};
 
 fn take(name: &str) -> (Generated, f32) {
-    let mut m = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap();
+    let m = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap();
     let timeline = format!("{}:2,{}:2", m.spec.classes[0], m.spec.classes[2]);
-    let take = generate(&mut m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
+    let take = generate(&m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
     let unit = take.motion.skeleton.meters_per_unit();
     (take, unit)
 }

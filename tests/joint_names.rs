@@ -12,9 +12,9 @@ use glocal::synth::joint_names::JointNames;
 use glocal::synth::{generate, GenerateOptions};
 
 fn take(model: &str) -> Motion {
-    let mut m = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(model)).unwrap();
+    let m = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(model)).unwrap();
     let timeline = format!("{}:3", m.spec.classes[0]);
-    generate(&mut m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap().motion
+    generate(&m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap().motion
 }
 
 fn farthest(a: &Motion, b: &Motion) -> f32 {

@@ -129,11 +129,11 @@ fn contacts_on_real_walking() {
 #[test]
 fn foot_lock_plants_generated_walking() {
     for (name, class) in [("h36m", "walking"), ("bandai", "walk")] {
-        let mut m = model(name);
+        let m = model(name);
         assert!(m.spec.foot_lock, "{name} locks its feet by default");
         let opts = GenerateOptions { timeline: format!("{class}:8").parse().unwrap(), init: InitPose::SeedClass { class: class.into(), variant: 0 }, seed: 1, variation: 0.05, ..Default::default() };
         assert!(opts.foot_lock, "the foot lock is on by default");
-        let g = generate(&mut m, &opts, &mut |_| true).unwrap();
+        let g = generate(&m, &opts, &mut |_| true).unwrap();
         let motion = &g.motion;
         let unit = motion.skeleton.meters_per_unit();
         let roles = JointRoles::new(&motion.skeleton).unwrap();
@@ -167,7 +167,7 @@ fn foot_lock_plants_generated_walking() {
                 }
             }
         }
-        let unlocked = generate(&mut m, &GenerateOptions { foot_lock: false, ..opts }, &mut |_| true).unwrap();
+        let unlocked = generate(&m, &GenerateOptions { foot_lock: false, ..opts }, &mut |_| true).unwrap();
         let slide = |m: &Motion| {
             let mut pool = glocal::eval::motion::Pool::default();
             pool.add_take(&m.resample(COMMON_FPS), &roles, None);
@@ -212,8 +212,8 @@ fn suite_measures_reproduce_real_figures() {
 /// The JSON export carries the per-foot contact arrays of a generated take.
 #[test]
 fn json_export_has_contacts() {
-    let mut m = model("h36m");
-    let g = generate(&mut m, &GenerateOptions { timeline: "walking:3".parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
+    let m = model("h36m");
+    let g = generate(&m, &GenerateOptions { timeline: "walking:3".parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("take.json");
     glocal::synth::export::export_with_contacts(&g.motion, &g.segments, Some(&g.contacts), &path).unwrap();

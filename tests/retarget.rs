@@ -158,7 +158,7 @@ fn foreign_bvh_files_start_takes_on_both_models() {
     let dir = tempfile::tempdir().unwrap();
     let sources = [(cmu_dance(dir.path()), 200), (cmu_dance_with_reference_frame(dir.path()), 200), (mixamo_from_bandai(dir.path(), &MIXAMO_NAMES), 100), (cmu_asf(dir.path()), 30), (blender_unreal(), 20)];
     for name in ["h36m", "bandai", "all"] {
-        let mut m = model(name);
+        let m = model(name);
         let target = m.spec.layout.skeleton.clone();
         let tk = keys_of(&target);
         for (path, frame) in &sources {
@@ -166,7 +166,7 @@ fn foreign_bvh_files_start_takes_on_both_models() {
             let source = read_bvh(&std::fs::read_to_string(path).unwrap(), &file).unwrap();
             let sk = keys_of(&source.skeleton);
             let o = GenerateOptions { timeline: format!("{}:4", m.spec.classes[0]).parse().unwrap(), init: InitPose::file(path.clone(), *frame), ..Default::default() };
-            let take = generate(&mut m, &o, &mut |_| true).unwrap_or_else(|e| panic!("{file} on {name}: {e:#}"));
+            let take = generate(&m, &o, &mut |_| true).unwrap_or_else(|e| panic!("{file} on {name}: {e:#}"));
             let at_start = source.resample(m.spec.fps);
             let bones = mapped_bones(&tk, &target, &sk, &source.skeleton);
             assert!(bones.len() >= 14, "{file} on {name}: only {} mapped bones", bones.len());
@@ -200,9 +200,9 @@ fn a_take_retargeted_onto_the_cmu_skeleton_reads_back() {
     let dir = tempfile::tempdir().unwrap();
     let rig = write(dir.path(), "standard.bvh", &archive_text("cmu-dance", "cmu-dance/standard.bvh"));
     for name in ["h36m", "bandai", "all"] {
-        let mut m = model(name);
+        let m = model(name);
         let timeline = format!("{}:3,{}:3", m.spec.classes[0], m.spec.classes[1]);
-        let take = generate(&mut m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
+        let take = generate(&m, &GenerateOptions { timeline: timeline.parse().unwrap(), ..Default::default() }, &mut |_| true).unwrap();
         let out = dir.path().join(format!("{name}-on-cmu.bvh"));
         export(&onto_skeleton_file(&take.motion, &rig, None).unwrap(), &take.segments, &out).unwrap();
         let back = read_bvh(&std::fs::read_to_string(&out).unwrap(), "back").unwrap();

@@ -31,10 +31,10 @@ fn error_of(model: &mut GlocalModel, o: &GenerateOptions) -> String {
 #[test]
 fn two_minutes_stay_alive() {
     for name in ["h36m", "bandai", "all"] {
-        let mut m = model(name);
+        let m = model(name);
         let classes = m.spec.classes.clone();
         let timeline: Vec<String> = (0..12).map(|k| format!("{}:10", classes[k % classes.len()])).collect();
-        let take = generate(&mut m, &opts(&timeline.join(",")), &mut |_| true).unwrap();
+        let take = generate(&m, &opts(&timeline.join(",")), &mut |_| true).unwrap();
         let motion = &take.motion;
         assert!(motion.positions().iter().all(|p| p.is_finite()), "{name}: NaN");
         assert!((motion.seconds() - 120.0).abs() < 1.0, "{name}: {} s", motion.seconds());
@@ -71,30 +71,30 @@ fn keep_alive_holds_a_long_segment() {
 
 #[test]
 fn pace_stretches_the_same_poses() {
-    let mut m = model("h36m");
-    let base = generate(&mut m, &opts("walking:4"), &mut |_| true).unwrap();
+    let m = model("h36m");
+    let base = generate(&m, &opts("walking:4"), &mut |_| true).unwrap();
     let mut slow = opts("walking:4");
     slow.pace = 2.0;
-    let slow = generate(&mut m, &slow, &mut |_| true).unwrap();
+    let slow = generate(&m, &slow, &mut |_| true).unwrap();
     // Same duration asked, so half the sparse poses spread over the same frames.
     assert!((slow.motion.frames() as i64 - base.motion.frames() as i64).abs() <= 10);
     let mut half = opts("walking:2@2.0");
     half.locgen = false;
     let mut plain = opts("walking:1");
     plain.locgen = false;
-    let (half, plain) = (generate(&mut m, &half, &mut |_| true).unwrap(), generate(&mut m, &plain, &mut |_| true).unwrap());
+    let (half, plain) = (generate(&m, &half, &mut |_| true).unwrap(), generate(&m, &plain, &mut |_| true).unwrap());
     // walking:2 at pace 2 shows the poses of walking:1 at pace 1, each frame twice as long.
     let (a, b) = (half.motion.frame(20)[3], plain.motion.frame(10)[3]);
     assert!(a.distance(b) < 1e-2 * (1.0 / m.spec.layout.skeleton.meters_per_unit()), "{a} vs {b}");
     let mut frac = opts("walking:3");
     frac.pace = 1.37;
-    assert!(generate(&mut m, &frac, &mut |_| true).is_ok());
+    assert!(generate(&m, &frac, &mut |_| true).is_ok());
 }
 
 #[test]
 fn bvh_round_trip_within_a_centimetre() {
-    let mut m = model("h36m");
-    let take = generate(&mut m, &opts("walking:3,sitting:3"), &mut |_| true).unwrap();
+    let m = model("h36m");
+    let take = generate(&m, &opts("walking:3,sitting:3"), &mut |_| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("take.bvh");
     export(&take.motion, &take.segments, &path).unwrap();
@@ -123,9 +123,9 @@ fn bvh_round_trip_within_a_centimetre() {
 
 #[test]
 fn class_and_seed_choose_the_take() {
-    let mut m = model("h36m");
-    let walk = generate(&mut m, &opts("walking:4"), &mut |_| true).unwrap();
-    let sit = generate(&mut m, &opts("sitting:4"), &mut |_| true).unwrap();
+    let m = model("h36m");
+    let walk = generate(&m, &opts("walking:4"), &mut |_| true).unwrap();
+    let sit = generate(&m, &opts("sitting:4"), &mut |_| true).unwrap();
     assert_ne!(walk.motion.positions(), sit.motion.positions());
     let mut a = opts("walking:4");
     a.seed = 7;
@@ -133,15 +133,15 @@ fn class_and_seed_choose_the_take() {
     let mut b = a.clone();
     b.seed = 8;
     let (ta, ta2, tb) = (
-        generate(&mut m, &a, &mut |_| true).unwrap(),
-        generate(&mut m, &a, &mut |_| true).unwrap(),
-        generate(&mut m, &b, &mut |_| true).unwrap(),
+        generate(&m, &a, &mut |_| true).unwrap(),
+        generate(&m, &a, &mut |_| true).unwrap(),
+        generate(&m, &b, &mut |_| true).unwrap(),
     );
     assert_eq!(ta.motion.positions(), ta2.motion.positions(), "same seed, same take");
     assert_ne!(ta.motion.positions(), tb.motion.positions(), "another seed, another take");
     let mut seeded = opts("eating:3");
     seeded.init = InitPose::SeedClass { class: "walking".into(), variant: 2 };
-    assert!(generate(&mut m, &seeded, &mut |_| true).is_ok());
+    assert!(generate(&m, &seeded, &mut |_| true).is_ok());
 }
 
 #[test]
@@ -170,7 +170,7 @@ fn bad_input_is_named() {
     assert!(e.contains("cannot map this skeleton onto a humanoid: no joint found for Hips"), "{e}");
 
     // An unwritable path leaves nothing behind; a model folder with a missing file says which.
-    let take = generate(&mut m, &opts("walking:2"), &mut |_| true).unwrap();
+    let take = generate(&m, &opts("walking:2"), &mut |_| true).unwrap();
     let e = format!("{:#}", export(&take.motion, &take.segments, Path::new("/nonexistent-dir/take.bvh")).unwrap_err());
     assert!(e.contains("/nonexistent-dir"), "{e}");
     let e = format!("{:#}", export(&take.motion, &take.segments, &dir.path().join("take.txt")).unwrap_err());
@@ -187,8 +187,8 @@ fn bad_input_is_named() {
 
 #[test]
 fn cancel_stops_generation() {
-    let mut m = model("h36m");
-    let e = generate(&mut m, &opts("walking:60"), &mut |f| f < 0.2).err().unwrap();
+    let m = model("h36m");
+    let e = generate(&m, &opts("walking:60"), &mut |f| f < 0.2).err().unwrap();
     assert_eq!(e.downcast_ref::<glocal::synth::Error>(), Some(&glocal::synth::Error::Cancelled), "{e:#}");
     assert_eq!(format!("{e:#}"), "cancelled");
 }
@@ -197,13 +197,13 @@ fn cancel_stops_generation() {
 /// on the model's floor: the next take carries on at the height the first one was at.
 #[test]
 fn an_exported_take_starts_the_next_at_the_same_height() {
-    let mut m = model("h36m");
-    let first = generate(&mut m, &opts("walking:4"), &mut |_| true).unwrap();
+    let m = model("h36m");
+    let first = generate(&m, &opts("walking:4"), &mut |_| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("first.bvh");
     export(&first.motion, &first.segments, &path).unwrap();
     let next = GenerateOptions { init: InitPose::file(path, 0), ..opts("walking:4") };
-    let next = generate(&mut m, &next, &mut |_| true).unwrap();
+    let next = generate(&m, &next, &mut |_| true).unwrap();
     let hips = |motion: &glocal::motion::Motion, t: usize| motion.frame(t)[0].y;
     let unit = first.motion.skeleton.meters_per_unit();
     let gap = (hips(&next.motion, 0) - hips(&first.motion, m.spec.stride)).abs() * unit;

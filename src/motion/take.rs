@@ -159,6 +159,27 @@ impl Motion {
     }
 }
 
+/// The mean distance a joint moves from one frame to the next over `positions` (`joints` per
+/// frame, whole frames): the joint speed per frame step, 0 under two frames.
+pub fn mean_joint_step(positions: &[Vec3], joints: usize) -> f64 {
+    let frames = positions.len() / joints.max(1);
+    if frames < 2 {
+        return 0.0;
+    }
+    let sum: f64 = positions.chunks_exact(joints).zip(positions[joints..].chunks_exact(joints)).map(|(a, b)| a.iter().zip(b).map(|(p, q)| p.distance(*q) as f64).sum::<f64>()).sum();
+    sum / ((frames - 1) * joints) as f64
+}
+
+/// The height of the lowest of `positions` (0 when there are none).
+pub fn floor_height(positions: &[Vec3]) -> f32 {
+    let lowest = positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    if lowest.is_finite() {
+        lowest
+    } else {
+        0.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -192,26 +213,5 @@ mod tests {
         let sub = s.subset(&keep);
         assert_eq!(sub.parents(), vec![None, Some(0)]);
         assert_eq!(sub.offsets()[1], Vec3::new(0.0, 2.0, 0.0));
-    }
-}
-
-/// The mean distance a joint moves from one frame to the next over `positions` (`joints` per
-/// frame, whole frames): the joint speed per frame step, 0 under two frames.
-pub fn mean_joint_step(positions: &[Vec3], joints: usize) -> f64 {
-    let frames = positions.len() / joints.max(1);
-    if frames < 2 {
-        return 0.0;
-    }
-    let sum: f64 = positions.chunks_exact(joints).zip(positions[joints..].chunks_exact(joints)).map(|(a, b)| a.iter().zip(b).map(|(p, q)| p.distance(*q) as f64).sum::<f64>()).sum();
-    sum / ((frames - 1) * joints) as f64
-}
-
-/// The height of the lowest of `positions` (0 when there are none).
-pub fn floor_height(positions: &[Vec3]) -> f32 {
-    let lowest = positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-    if lowest.is_finite() {
-        lowest
-    } else {
-        0.0
     }
 }
