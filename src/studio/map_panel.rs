@@ -82,7 +82,8 @@ impl StudioApp {
         let hidden = &mut self.panels.hidden_on_map;
         let key = egui::ScrollArea::vertical().id_salt("seed_map_key").max_height(key_height).show(ui, |ui| map_key(ui, classes, &by_class, hidden));
         self.panels.map_key_height = key.content_size.y;
-        if let Some(i) = clicked_seed(&resp, &map.points) {
+        let shown = |i: usize| !self.panels.hidden_on_map.contains(&classes[seeds[i].class]);
+        if let Some(i) = clicked_seed(&resp, &map.points, shown) {
             self.editing.doc.options.init = InitPose::SeedIndex(i);
             self.panels.init_tab = InitTab::Seed;
             self.panels.fields.seed_index = i;
@@ -334,8 +335,9 @@ impl egui_plot::PlotItem for TakePath<'_> {
     }
 }
 
-/// The seed a click on the map picked: the nearest within a few pixels.
-fn clicked_seed<R>(resp: &egui_plot::PlotResponse<R>, points: &[[f32; 2]]) -> Option<usize> {
+/// The seed a click on the map picked: the nearest `shown` one within a few pixels (a class
+/// hidden in the key cannot be picked unseen).
+fn clicked_seed<R>(resp: &egui_plot::PlotResponse<R>, points: &[[f32; 2]], shown: impl Fn(usize) -> bool) -> Option<usize> {
     if !resp.response.clicked() {
         return None;
     }
@@ -343,6 +345,7 @@ fn clicked_seed<R>(resp: &egui_plot::PlotResponse<R>, points: &[[f32; 2]]) -> Op
     let (i, d) = points
         .iter()
         .enumerate()
+        .filter(|(i, _)| shown(*i))
         .map(|(i, p)| (i, resp.transform.position_from_point(&egui_plot::PlotPoint::new(p[0], p[1])).distance(pos)))
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
     (d < 10.0).then_some(i)
