@@ -27,18 +27,18 @@ pub fn palette_round(class: usize) -> usize {
 // Tableau's 10 categorical colours (its grey replaced by teal: grey is how the studio shows a
 // segment of an unknown class), then two more distinct ones.
 const PALETTE: [[u8; 3]; 12] = [
-        [31, 119, 180],
-        [255, 127, 14],
-        [44, 160, 44],
-        [214, 39, 40],
-        [148, 103, 189],
-        [140, 86, 75],
-        [227, 119, 194],
-        [0, 140, 110],
-        [188, 189, 34],
-        [23, 190, 207],
-        [255, 215, 0],
-        [0, 0, 139],
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [214, 39, 40],
+    [148, 103, 189],
+    [140, 86, 75],
+    [227, 119, 194],
+    [0, 140, 110],
+    [188, 189, 34],
+    [23, 190, 207],
+    [255, 215, 0],
+    [0, 0, 139],
 ];
 
 pub struct SheetOptions {
