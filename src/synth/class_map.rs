@@ -82,43 +82,58 @@ fn similarity(a: &str, b: &str) -> f64 {
     strsim::jaro_winkler(&a, &b)
 }
 
-/// The one of `names` a mistyped `name` most likely meant: the same name but for case and
-/// punctuation ("sitting down", "sittingdown"), its longer form ("walk", "walking"), or a
-/// name as similar as a typo makes it ([`TYPO_SIMILARITY`]).
-pub fn closest<'n>(name: &str, names: &'n [String]) -> Option<&'n str> {
+/// The one of `names` that is `name` but for case and punctuation.
+fn same_name<'n>(name: &str, names: &'n [String]) -> Option<&'n String> {
+    let key = normalized(name);
+    names.iter().find(|n| normalized(n) == key)
+}
+
+/// The shortest of `names` that is `name` plus a suffix: the same activity in another
+/// dataset's words ("run", "running"; "walk", "walking", not "walk-back").
+fn longer_form<'n>(name: &str, names: &'n [String]) -> Option<&'n String> {
     let key = normalized(name);
     if key.is_empty() {
         return None;
     }
-    let same = names.iter().find(|n| normalized(n) == key);
-    let longer = || names.iter().filter(|n| normalized(n).starts_with(&key)).min_by_key(|n| n.len());
-    let similar = || names.iter().map(|n| (similarity(name, n), n)).filter(|(s, _)| *s >= TYPO_SIMILARITY).max_by(|x, y| x.0.total_cmp(&y.0)).map(|(_, n)| n);
-    same.or_else(longer).or_else(similar).map(String::as_str)
+    names.iter().filter(|n| normalized(n).starts_with(&key)).min_by_key(|n| normalized(n).len())
+}
+
+/// The one of `names` most similar to `name`, when it is at least `at_least` similar.
+fn most_similar<'n>(name: &str, names: &'n [String], at_least: f64) -> Option<&'n String> {
+    names.iter().map(|n| (similarity(name, n), n)).max_by(|x, y| x.0.total_cmp(&y.0)).filter(|(s, _)| *s >= at_least).map(|(_, n)| n)
+}
+
+/// The one of `names` a mistyped `name` most likely meant: the same name but for case and
+/// punctuation ("sitting down", "sittingdown"), its longer form ("walk", "walking"), or a
+/// name as similar as a typo makes it ([`TYPO_SIMILARITY`]).
+pub fn closest<'n>(name: &str, names: &'n [String]) -> Option<&'n str> {
+    if normalized(name).is_empty() {
+        return None;
+    }
+    let found = same_name(name, names).or_else(|| longer_form(name, names)).or_else(|| most_similar(name, names, TYPO_SIMILARITY));
+    found.map(String::as_str)
 }
 
 impl ClassMap {
     /// Maps each of `from` to one of `to` (which must not be empty). `table` pairs are
     /// used when both names exist; user edits come first in it.
     pub fn build(from: &[String], to: &[String], table: &[(String, String)]) -> ClassMap {
-        let find = |name: &str| to.iter().find(|c| normalized(c) == normalized(name)).cloned();
         let pairs = from
             .iter()
             .map(|f| {
-                if let Some(same) = find(f) {
-                    return ClassPair { from: f.clone(), to: same, kind: MatchKind::Same };
+                let pair = |to: &String, kind| ClassPair { from: f.clone(), to: to.clone(), kind };
+                if let Some(same) = same_name(f, to) {
+                    return pair(same, MatchKind::Same);
                 }
-                // One name the other plus a suffix ("run", "running") is the same activity in
-                // another dataset's words; the shortest such name ("walking", not "walk-back").
-                if let Some(longer) = to.iter().filter(|c| normalized(c).starts_with(&normalized(f)) && !normalized(f).is_empty()).min_by_key(|c| normalized(c).len()) {
-                    return ClassPair { from: f.clone(), to: longer.clone(), kind: MatchKind::Similar };
+                if let Some(longer) = longer_form(f, to) {
+                    return pair(longer, MatchKind::Similar);
                 }
-                if let Some(t) = table.iter().filter(|(a, _)| normalized(a) == normalized(f)).find_map(|(_, b)| find(b)) {
-                    return ClassPair { from: f.clone(), to: t, kind: MatchKind::Table };
+                if let Some(t) = table.iter().filter(|(a, _)| normalized(a) == normalized(f)).find_map(|(_, b)| same_name(b, to)) {
+                    return pair(t, MatchKind::Table);
                 }
-                let best = to.iter().map(|c| (similarity(f, c), c)).max_by(|x, y| x.0.total_cmp(&y.0));
-                match best {
-                    Some((s, c)) if s >= MIN_SIMILARITY => ClassPair { from: f.clone(), to: c.clone(), kind: MatchKind::Similar },
-                    _ => ClassPair { from: f.clone(), to: to[0].clone(), kind: MatchKind::Fallback },
+                match most_similar(f, to, MIN_SIMILARITY) {
+                    Some(c) => pair(c, MatchKind::Similar),
+                    None => pair(&to[0], MatchKind::Fallback),
                 }
             })
             .collect();

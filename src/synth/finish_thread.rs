@@ -75,18 +75,25 @@ impl<'scope, 'env: 'scope> FinishingThread<'scope, 'env> {
     /// are), and shows `events` the takes finished meanwhile. An error when the thread has
     /// stopped (its own error is [`Self::stop`]'s).
     pub fn send(&mut self, sparse: &[f32], settled: usize, dim: usize, events: &mut dyn TakeEvents) -> Result<()> {
-        let end = (settled * dim).min(sparse.len()).max(self.sent);
-        let message = Settled { poses: sparse[self.sent..end].to_vec(), settled, show: events.wants_frames() };
-        self.sent = end;
-        self.settled.send(message).map_err(|_| anyhow!("the take's finishing stopped"))?;
+        self.hand(sparse, settled, dim, events.wants_frames())?;
         self.shown.try_iter().for_each(|so_far| events.frames(so_far));
         Ok(())
     }
 
-    /// Sends the last poses, waits for the thread and shows `events` what it finished last.
+    /// Sends the thread the poses of `sparse` settled since the last call, asking for the take
+    /// so far back when `show`.
+    fn hand(&mut self, sparse: &[f32], settled: usize, dim: usize, show: bool) -> Result<()> {
+        let end = (settled * dim).min(sparse.len()).max(self.sent);
+        let message = Settled { poses: sparse[self.sent..end].to_vec(), settled, show };
+        self.sent = end;
+        self.settled.send(message).map_err(|_| anyhow!("the take's finishing stopped"))
+    }
+
+    /// Sends the last poses, waits for the thread and shows `events` what it finished before
+    /// them (the whole take is the caller's to give, not a take so far).
     pub fn finish(mut self, sparse: &[f32], total: usize, dim: usize, events: &mut dyn TakeEvents) -> Result<ChunkFinish<'env>> {
         // A thread that stopped has its own error to give.
-        let _ = self.send(sparse, total, dim, events);
+        let _ = self.hand(sparse, total, dim, false);
         let Self { settled, shown, thread, .. } = self;
         drop(settled);
         let chunked = join(thread);
