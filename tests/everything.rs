@@ -3,11 +3,12 @@
 
 use std::path::{Path, PathBuf};
 
+use glocal::eval::constraints::frame_jerk;
 use glocal::eval::motion::{Measure, Pool, COMMON_FPS};
 use glocal::model::glocal::GlocalModel;
 use glocal::motion::{standard_humanoid, JointRoles};
 use glocal::synth::class_map::ClassMap;
-use glocal::synth::{generate, GenerateOptions, InitPose, Timeline};
+use glocal::synth::{generate, GenerateOptions, InitPose, Key, KeySource, Timeline};
 
 fn shipped(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)
@@ -225,6 +226,34 @@ fn the_texture_makes_a_dance_as_lively_as_its_capture() {
     assert!(moved < 0.01, "the texture moved salsa's joints {moved} m about the hips on average");
     assert_eq!(gains[spec.class_index("walk-left").unwrap()], 0.0);
     assert_eq!(mean_distance(&made("walk-left", false), &made("walk-left", true)), 0.0);
+}
+
+/// The gap the in-betweener fills before a key gets the take's motion texture again (it
+/// was laid before the gap was filled, so a keyed second was calmer than the rest): a salsa
+/// keyed 1.5 s after its starting poses has a livelier gap with its texture than without,
+/// and the key's pose is where it was.
+#[test]
+fn a_keys_filled_gap_has_the_takes_texture() {
+    let model = GlocalModel::load(&shipped("all")).unwrap_or_else(|e| panic!("{e:#}"));
+    let spec = &model.spec;
+    let gap = (1.5 * spec.fps) as usize;
+    let key_frame = spec.observed_span() + gap;
+    let made = |texture: bool| {
+        let key = Key { seconds: key_frame as f32 / spec.fps, source: KeySource::Init(InitPose::SeedClass { class: "salsa".into(), variant: 1 }), fix_root: false };
+        let opts = GenerateOptions { timeline: "salsa:6".parse().unwrap(), init: InitPose::SeedClass { class: "salsa".into(), variant: 0 }, keys: vec![key], texture, ..Default::default() }.varied(3);
+        generate(&model, &opts, &mut |_| true).unwrap().motion
+    };
+    let (plain, textured) = (made(false), made(true));
+    let gap_jerk = |m: &glocal::motion::Motion| {
+        let jerk = frame_jerk(&m.slice(spec.observed_span() + 1, key_frame));
+        jerk.iter().sum::<f32>() / jerk.len() as f32
+    };
+    let (before, after) = (gap_jerk(&plain), gap_jerk(&textured));
+    let (plain_pose, textured_pose) = (about_the_hips(&plain), about_the_hips(&textured));
+    let key_moved = plain_pose.frame(key_frame).iter().zip(textured_pose.frame(key_frame)).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max);
+    eprintln!("salsa's keyed gap: jerk {before:.0} m/s^3 without texture, {after:.0} with; key frames {:.2} mm apart", key_moved * 1000.0);
+    assert!(after > 1.3 * before, "the gap's jerk {before:.0} without texture, {after:.0} with");
+    assert!(key_moved < 1e-3, "the texture moved the key's frame {key_moved} m");
 }
 
 /// `all`'s dash is steered away from running too (`dash=running`): made plainly it ran at

@@ -111,12 +111,21 @@ impl Finishing<'_> {
         let spec = &self.model.spec;
         let layout = &spec.layout;
         let mut dense = self.model.densify(sparse, self.locgen);
-        self.lay_texture(&mut dense, &window);
-        let frames = self.frames_of(&window);
-        let mut positions = apply_pace(&dense, layout.joints(), spec.stride, &self.times[window.clone()], frames.clone());
         let starts_take = window.start == 0;
         let constraints = if starts_take { self.constraints } else { &[] };
+        // Frames a constraint replaces with motion of its own (the in-betweener's gaps before
+        // keys) lose the texture laid here, so it is laid on them again after.
+        let own_frames: Vec<Range<usize>> = constraints.iter().flat_map(|c| c.own_frames().iter().cloned()).collect();
+        let untextured = (self.texture.is_some() && !own_frames.is_empty()).then(|| dense.clone());
+        self.lay_texture(&mut dense, &window);
+        let frames = self.frames_of(&window);
+        let pace = |dense: &[Vec3]| apply_pace(dense, layout.joints(), spec.stride, &self.times[window.clone()], frames.clone());
+        let mut positions = pace(&dense);
         let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, layout, spec.fps)).collect();
+        if let Some(untextured) = untextured {
+            let texture: Vec<Vec3> = dense.iter().zip(&untextured).map(|(with, without)| *with - *without).collect();
+            lay_again(&mut positions, &pace(&texture), layout.joints(), frames.start, &own_frames);
+        }
         let FootLocked { motion, mut contacts } = self.locked(positions)?;
         let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
         constraints.iter().for_each(|c| c.on_contacts(&motion, &mut contacts));
@@ -210,6 +219,29 @@ impl Finishing<'_> {
             }
         }
         windows
+    }
+}
+
+/// The paced `texture` the frames `own` (take frames) held before a constraint replaced them,
+/// added again to `positions` (frames from `first`), less the straight line between its values
+/// at the frame before each run and at the run's end (a key's frame), so the frames either
+/// side stay as they are.
+fn lay_again(positions: &mut [Vec3], texture: &[Vec3], j: usize, first: usize, own: &[Range<usize>]) {
+    let frames = positions.len() / j;
+    for run in own {
+        // The run in the stretch's frames, from the frame before it to its end.
+        let (Some(before), Some(end)) = (run.start.checked_sub(first + 1), run.end.checked_sub(first)) else { continue };
+        if end >= frames {
+            continue;
+        }
+        let span = (end - before) as f32;
+        for f in before + 1..end {
+            let along = (f - before) as f32 / span;
+            for joint in 0..j {
+                let trend = texture[before * j + joint].lerp(texture[end * j + joint], along);
+                positions[f * j + joint] += texture[f * j + joint] - trend;
+            }
+        }
     }
 }
 

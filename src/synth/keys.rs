@@ -371,6 +371,10 @@ impl TakeConstraint for KeyConstraint<'_> {
         warnings
     }
 
+    fn own_frames(&self) -> &[Range<usize>] {
+        &self.gaps
+    }
+
     fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {
         rewarp(motion, layout, &self.keys)
     }

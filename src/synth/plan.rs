@@ -2,6 +2,8 @@
 //! poses, what each block is asked for ([`BlockPlan`]), and the constraints applied to the
 //! take stage by stage ([`TakeConstraint`]).
 
+use std::ops::Range;
+
 use anyhow::Result;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -219,6 +221,12 @@ pub(super) trait TakeConstraint: Sync {
         Vec::new()
     }
 
+    /// The take's frames `on_dense` replaced with motion of the constraint's own (the gaps an
+    /// in-betweener fills), which get the take's motion texture again.
+    fn own_frames(&self) -> &[Range<usize>] {
+        &[]
+    }
+
     /// The finished take, after the foot lock.
     fn on_finished(&self, motion: Motion, _layout: &FeatureLayout) -> Motion {
         motion
@@ -238,6 +246,10 @@ impl<T: TakeConstraint + ?Sized> TakeConstraint for &T {
 
     fn on_dense(&self, positions: &mut [Vec3], layout: &FeatureLayout, fps: f32) -> Vec<String> {
         (**self).on_dense(positions, layout, fps)
+    }
+
+    fn own_frames(&self) -> &[Range<usize>] {
+        (**self).own_frames()
     }
 
     fn on_finished(&self, motion: Motion, layout: &FeatureLayout) -> Motion {

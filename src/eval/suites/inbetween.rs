@@ -21,7 +21,7 @@ use crate::model::glocal::GlocalModel;
 use crate::synth::init::FileStart;
 use crate::synth::{generate, GenerateOptions, InitPose, Key, KeySource, Segment, Timeline};
 
-const DEFINITIONS: &str = "Per model, takes started from held-out clips (h36m: subject S11; Bandai: styles tired and musical), written as NPY files on the model's skeleton: `--init clip:FILE@F`, and a root-fixing key from the same file `GAP` after the last starting pose (`--key T=clip:FILE@K,root`), the take's class the clip's. **L2P**: mean joint distance to the real frames over the gap (the frames between the last starting pose and the key), in the take's world and relative to the root; **NPSS**: the normalised power spectrum similarity of the root-relative joints over the gap (0 = the real rhythm); against linear interpolation of every joint from the last starting pose to the key's real pose and zero-velocity (the last starting pose held). **Key error**: the take's frame at the key against the real frame, mean joint distance per case; **given poses**: the largest joint distance of the take's frames over the starting poses from the real ones, per case; **jerk at the key**: the peak per-frame jerk of any joint within 0.5 s of the key, over the real frames' peak there, per case.\n";
+const DEFINITIONS: &str = "Per model, takes started from held-out clips (h36m: subject S11; Bandai: styles tired and musical), written as NPY files on the model's skeleton: `--init clip:FILE@F`, and a root-fixing key from the same file `GAP` after the last starting pose (`--key T=clip:FILE@K,root`), the take's class the clip's. **L2P**: mean joint distance to the real frames over the gap (the frames between the last starting pose and the key), in the take's world and relative to the root; **NPSS**: the normalised power spectrum similarity of the root-relative joints over the gap (0 = the real rhythm); against linear interpolation of every joint from the last starting pose to the key's real pose and zero-velocity (the last starting pose held). **Key error**: the take's frame at the key against the real frame, mean joint distance per case; **given poses**: the largest joint distance of the take's frames over the starting poses from the real ones, per case; **jerk at the key**: the peak per-frame jerk of any joint within 0.5 s of the key, over the real frames' peak there, per case; **jerk over the gap**: the mean over the gap's frames of each frame's peak joint jerk, over the real frames', per case.\n";
 
 /// The gaps between the last given pose and the key: LaFAN1's shortest and two longer ones.
 const GAPS: [Gap; 3] = [Gap::Frames(6), Gap::Seconds(1.0), Gap::Seconds(2.0)];
@@ -122,6 +122,8 @@ struct GapRow {
     /// The peak jerk of the take's frames within [`NEAR_KEY_SECONDS`] of the key over the real
     /// frames' there, per case.
     arrival_jerk: Spread,
+    /// The mean over the gap of each frame's peak joint jerk, over the real frames', per case.
+    gap_jerk: Spread,
 }
 
 pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Markdown, Value)> {
@@ -221,7 +223,7 @@ fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, 
         let w = (f - last_given) as f32 / gap as f32;
         from.iter().zip(&to).map(|(a, b)| a.lerp(*b, w)).collect::<Vec<Vec3>>()
     };
-    row.linear.add(&frames(&lerp, gap_frames), &truth, joints, cm);
+    row.linear.add(&frames(&lerp, gap_frames.clone()), &truth, joints, cm);
     row.key.add(mean_distance(take.frame(key_frame), &to) * cm);
     let context = (0..=last_given).map(|f| max_distance(take.frame(f), &real(f))).fold(0.0, f32::max);
     row.context.add(context * cm);
@@ -230,7 +232,15 @@ fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, 
     let near = key_frame.saturating_sub(half)..(key_frame + half + 3).min(take.frames());
     let real_near = Motion::from_positions(take.skeleton.clone(), take.fps, frames(&real, near.clone()));
     row.arrival_jerk.add((peak_jerk(&take.slice(near.start, near.end)) / peak_jerk(&real_near).max(f32::EPSILON)) as f32);
+    let real_gap = Motion::from_positions(take.skeleton.clone(), take.fps, truth);
+    row.gap_jerk.add(mean_jerk(&take.slice(gap_frames.start, gap_frames.end)) / mean_jerk(&real_gap).max(f32::EPSILON));
     Ok(())
+}
+
+/// The mean over frames of the largest per-frame jerk of any joint (m/s^3).
+fn mean_jerk(m: &Motion) -> f32 {
+    let jerk = frame_jerk(m);
+    jerk.iter().sum::<f32>() / jerk.len().max(1) as f32
 }
 
 /// The largest per-frame jerk of any joint (m/s^3).
@@ -240,7 +250,7 @@ fn peak_jerk(m: &Motion) -> f32 {
 
 fn report(model: &GlocalModel, rows: &[GapRow], md: &mut Markdown) -> Value {
     md.text(&format!("\n**{}**\n\n", model.spec.dataset));
-    let mut table = Table::new(["gap", "L2P global (cm): keyed / linear / zero-velocity", "L2P root-relative (cm)", "NPSS", "key error mean / max (cm)", "given poses max (cm): mean / worst", "jerk at the key over real: mean / worst"]);
+    let mut table = Table::new(["gap", "L2P global (cm): keyed / linear / zero-velocity", "L2P root-relative (cm)", "NPSS", "key error mean / max (cm)", "given poses max (cm): mean / worst", "jerk at the key over real: mean / worst", "jerk over the gap over real: mean / worst"]);
     let mut json_rows = Vec::new();
     for (gap, row) in GAPS.iter().zip(rows) {
         let (k, l, z) = (row.keyed.mean(), row.linear.mean(), row.zero_velocity.mean());
@@ -253,10 +263,11 @@ fn report(model: &GlocalModel, rows: &[GapRow], md: &mut Markdown) -> Value {
             format!("{} / {}", fixed(row.key.mean(), 2), fixed(row.key.max, 2)),
             format!("{} / {}", fixed(row.context.mean(), 2), fixed(row.context.max, 2)),
             format!("{}x / {}x", fixed(row.arrival_jerk.mean(), 2), fixed(row.arrival_jerk.max, 2)),
+            format!("{}x / {}x", fixed(row.gap_jerk.mean(), 2), fixed(row.gap_jerk.max, 2)),
         ]);
         json_rows.push(json!({
             "gap": gap.label(), "keyed": row.keyed.json(), "linear": row.linear.json(), "zero_velocity": row.zero_velocity.json(),
-            "key_error": row.key.json(), "given_poses_error": row.context.json(), "arrival_jerk_over_real": row.arrival_jerk.json(),
+            "key_error": row.key.json(), "given_poses_error": row.context.json(), "arrival_jerk_over_real": row.arrival_jerk.json(), "gap_jerk_over_real": row.gap_jerk.json(),
         }));
     }
     md.table(table);
