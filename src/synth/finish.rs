@@ -119,12 +119,19 @@ impl Finishing<'_> {
         let untextured = (self.texture.is_some() && !own_frames.is_empty()).then(|| dense.clone());
         self.lay_texture(&mut dense, &window);
         let frames = self.frames_of(&window);
-        let pace = |dense: &[Vec3]| apply_pace(dense, layout.joints(), spec.stride, &self.times[window.clone()], frames.clone());
-        let mut positions = pace(&dense);
+        let j = layout.joints();
+        let pace = |dense: &[Vec3], to: Range<usize>| apply_pace(dense, j, spec.stride, &self.times[window.clone()], to);
+        let mut positions = pace(&dense, frames.clone());
         let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, layout, spec.fps)).collect();
         if let Some(untextured) = untextured {
             let texture: Vec<Vec3> = dense.iter().zip(&untextured).map(|(with, without)| *with - *without).collect();
-            lay_again(&mut positions, &pace(&texture), layout.joints(), frames.start, &own_frames);
+            // Each run from the frame before it to its end (a key's frame), when both are in
+            // the stretch.
+            for run in own_frames.iter().filter(|run| run.start > frames.start && run.end < frames.end) {
+                let span = run.start - 1..run.end + 1;
+                let local = (span.start - frames.start) * j..(span.end - frames.start) * j;
+                lay_again(&mut positions[local], &pace(&texture, span), j);
+            }
         }
         let FootLocked { motion, mut contacts } = self.locked(positions)?;
         let motion = constraints.iter().fold(motion, |m, c| c.on_finished(m, layout));
@@ -222,25 +229,17 @@ impl Finishing<'_> {
     }
 }
 
-/// The paced `texture` the frames `own` (take frames) held before a constraint replaced them,
-/// added again to `positions` (frames from `first`), less the straight line between its values
-/// at the frame before each run and at the run's end (a key's frame), so the frames either
-/// side stay as they are.
-fn lay_again(positions: &mut [Vec3], texture: &[Vec3], j: usize, first: usize, own: &[Range<usize>]) {
-    let frames = positions.len() / j;
-    for run in own {
-        // The run in the stretch's frames, from the frame before it to its end.
-        let (Some(before), Some(end)) = (run.start.checked_sub(first + 1), run.end.checked_sub(first)) else { continue };
-        if end >= frames {
-            continue;
-        }
-        let span = (end - before) as f32;
-        for f in before + 1..end {
-            let along = (f - before) as f32 / span;
-            for joint in 0..j {
-                let trend = texture[before * j + joint].lerp(texture[end * j + joint], along);
-                positions[f * j + joint] += texture[f * j + joint] - trend;
-            }
+/// The paced `texture` frames held before a constraint replaced them with motion of its own,
+/// added again to them (`positions`, from the frame before the replaced run to its end),
+/// less its straight line between those two frames, so the frames either side stay as they
+/// are.
+fn lay_again(positions: &mut [Vec3], texture: &[Vec3], j: usize) {
+    let last = positions.len() / j - 1;
+    for f in 1..last {
+        let along = f as f32 / last as f32;
+        for joint in 0..j {
+            let trend = texture[joint].lerp(texture[last * j + joint], along);
+            positions[f * j + joint] += texture[f * j + joint] - trend;
         }
     }
 }

@@ -12,6 +12,7 @@ use serde_json::{json, Value};
 
 use super::context::SuiteContext;
 use crate::eval::constraints::{frame_jerk, NEAR_KEY_SECONDS};
+use crate::eval::metrics::mean;
 use crate::eval::table::{fixed, Markdown, Table};
 use crate::motion::Motion;
 use crate::data::npy::motion_to_npy;
@@ -85,7 +86,7 @@ impl GapScores {
     }
 }
 
-/// Largest and mean over cases of an error that must stay small (cm).
+/// Largest and mean over cases of a per-case score (an error in cm, a jerk ratio).
 #[derive(Clone, Copy, Debug, Default)]
 struct Spread {
     sum: f64,
@@ -105,7 +106,7 @@ impl Spread {
     }
 
     fn json(&self) -> Value {
-        json!({"mean_cm": self.mean(), "max_cm": self.max})
+        json!({"mean": self.mean(), "max": self.max})
     }
 }
 
@@ -239,8 +240,7 @@ fn score_case(model: &GlocalModel, generation: &GenerateOptions, track: &Track, 
 
 /// The mean over frames of the largest per-frame jerk of any joint (m/s^3).
 fn mean_jerk(m: &Motion) -> f32 {
-    let jerk = frame_jerk(m);
-    jerk.iter().sum::<f32>() / jerk.len().max(1) as f32
+    mean(&frame_jerk(m)) as f32
 }
 
 /// The largest per-frame jerk of any joint (m/s^3).
@@ -267,7 +267,7 @@ fn report(model: &GlocalModel, rows: &[GapRow], md: &mut Markdown) -> Value {
         ]);
         json_rows.push(json!({
             "gap": gap.label(), "keyed": row.keyed.json(), "linear": row.linear.json(), "zero_velocity": row.zero_velocity.json(),
-            "key_error": row.key.json(), "given_poses_error": row.context.json(), "arrival_jerk_over_real": row.arrival_jerk.json(), "gap_jerk_over_real": row.gap_jerk.json(),
+            "key_error_cm": row.key.json(), "given_poses_error_cm": row.context.json(), "arrival_jerk_over_real": row.arrival_jerk.json(), "gap_jerk_over_real": row.gap_jerk.json(),
         }));
     }
     md.table(table);
