@@ -176,7 +176,13 @@ impl Steering {
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
         let leaning = self.easing.as_ref().is_some_and(|e| !e.change);
-        let looping = may_keep_alive && (self.easing.is_none() || leaning) && repeats_earlier(sparse, &self.bank.spread, t / 2, t, LOOP_TOLERANCE * self.bank.typical_step[plan.target]);
+        // The half block the next seam join leaves as it is is compared too: the join still
+        // moves the last half, so a loop can differ from its earlier turn there alone (with
+        // keep-alive's windows drawn near the take, tried and not kept, `all`'s ten-minute
+        // phoning repeated one 3 s stretch exactly for eight minutes unseen).
+        let settled = &sparse[..sparse.len().saturating_sub(t / 2 * dim)];
+        let repeats = |poses: &[f32]| repeats_earlier(poses, &self.bank.spread, t / 2, t, LOOP_TOLERANCE * self.bank.typical_step[plan.target]);
+        let looping = may_keep_alive && (self.easing.is_none() || leaning) && (repeats(sparse) || repeats(settled));
         // A class change waits for the easing into the class before it, unless that would
         // leave its segment, longer than a block, no block of its own: a 6 s walk at pace 2
         // between two segments at pace 0.5 has one block, which the first segment's easing
