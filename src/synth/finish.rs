@@ -491,9 +491,9 @@ impl Placing {
 /// chunk before's look-ahead, which starts at the same frame: the lowest support (a foot, or
 /// the seat of a floor sit) over the frames both hold. Each chunk's foot lock levels it on
 /// its own floor, and placed by its root's height alone a chunk whose body stood a little
-/// higher over its floor at the boundary took its floor with it: h36m's 60 s walk from its
-/// walking seed (`glocal generate --model models/h36m --timeline walking:60 --init
-/// seed:walking`) had its feet 4.5 cm over the last chunk's floor for its first 40 s.
+/// higher over its floor at the boundary took its floor with it: h36m's 60 s walk at seed 1
+/// stood its last 40 s 1.3-3.3 cm over the first chunk's floor (`tests/synth.rs`,
+/// `a_long_takes_chunks_stand_on_one_floor`).
 fn floor_rise(placed: &Motion, previous: &LookAhead) -> f32 {
     let Ok(roles) = JointRoles::new(&placed.skeleton) else { return 0.0 };
     let j = placed.joints();
