@@ -146,6 +146,11 @@ impl Finishing<'_> {
         }
     }
 
+    /// Whether the take's feet are locked: asked for, and the model's skeleton has feet to lock.
+    fn locks_feet(&self) -> bool {
+        self.foot_lock && self.model.spec.foot_lock
+    }
+
     /// Frames of the paced take (model units) with the bones projected, when asked, and the
     /// feet locked.
     fn locked(&self, positions: Vec<Vec3>) -> Result<FootLocked> {
@@ -157,7 +162,7 @@ impl Finishing<'_> {
         } else {
             Motion::from_positions(skeleton, spec.fps, positions)
         };
-        foot_lock(motion, self.foot_lock && spec.foot_lock, &self.travel)
+        foot_lock(motion, self.locks_feet(), &self.travel)
     }
 
     /// A take that holds all but its `held` constraint's free frames: only the stretches of
@@ -325,8 +330,7 @@ impl<'a> ChunkFinish<'a> {
         let before = self.done.done();
         while let Some(chunk) = self.done.next().filter(|c| c.window.end <= settled).cloned() {
             let stretch = self.finishing.stretch(&self.decoded[chunk.window.start * joints..chunk.window.end * joints], chunk.window.clone())?;
-            let on_floor = self.finishing.foot_lock && spec.foot_lock;
-            self.done.push(stretch, self.finishing.frame_of(chunk.core.start)..self.finishing.frame_of(chunk.core.end), &spec.layout, on_floor);
+            self.done.push(stretch, self.finishing.frame_of(chunk.core.start)..self.finishing.frame_of(chunk.core.end), &spec.layout, self.finishing.locks_feet());
         }
         Ok(self.done.done() > before)
     }
@@ -398,14 +402,13 @@ impl FinishedChunks {
         let local = |f: usize| f - stretch.first;
         let previous = self.look_aheads.last().cloned();
         let own_start = stretch.motion.frame(local(core.start));
-        let placing = previous
-            .as_ref()
-            .and_then(|p| p.positions.get((core.start - p.first) * j..(core.start - p.first + 1) * j))
-            .map_or(Placing::none(), |before| Placing::onto(layout.placement(own_start), layout.placement(before), own_start[0].y, before[0].y));
-        let mut placed = placing.apply(&stretch.motion, local(core.start));
-        if let Some(previous) = previous.as_ref().filter(|_| on_floor) {
-            placed = placed.translated(Vec3::Y * floor_rise(&placed, previous));
-        }
+        let placing = previous.as_ref().and_then(|p| {
+            let before = p.positions.get((core.start - p.first) * j..(core.start - p.first + 1) * j)?;
+            let floors = on_floor.then(|| shared_floors(&stretch.motion, local(core.start), p)).flatten();
+            let (from_y, onto_y) = floors.unwrap_or((own_start[0].y, before[0].y));
+            Some(Placing::onto(layout.placement(own_start), layout.placement(before), from_y, onto_y))
+        });
+        let placed = placing.unwrap_or_else(Placing::none).apply(&stretch.motion, local(core.start));
         let mut positions = placed.positions().to_vec();
         let mut poses = placed.local_poses;
         if let Some(previous) = previous {
@@ -487,23 +490,24 @@ impl Placing {
     }
 }
 
-/// How far `placed` (a chunk's frames from its first) must rise to stand on the floor of the
-/// chunk before's look-ahead, which starts at the same frame: the lowest support (a foot, or
-/// the seat of a floor sit) over the frames both hold. Each chunk's foot lock levels it on
-/// its own floor, and placed by its root's height alone a chunk whose body stood a little
-/// higher over its floor at the boundary took its floor with it: h36m's 60 s walk at seed 1
-/// stood its last 40 s 1.3-3.3 cm over the first chunk's floor (`tests/synth.rs`,
+/// The floor under `motion`'s frames from `first` and the floor under the chunk before's
+/// look-ahead, which starts at the same frame: the lowest support (a foot, or the seat of a
+/// floor sit) of each over the frames both hold. A chunk is placed to stand on the floor of
+/// the chunk before, not by its root's height: each chunk's foot lock levels it on its own
+/// floor, and placed by its root's height a chunk whose body stood a little higher over its
+/// floor at the boundary took its floor with it (h36m's 60 s walk at seed 1 stood its last
+/// 40 s 1.3-3.3 cm over the first chunk's floor; `tests/synth.rs`,
 /// `a_long_takes_chunks_stand_on_one_floor`).
-fn floor_rise(placed: &Motion, previous: &LookAhead) -> f32 {
-    let Ok(roles) = JointRoles::new(&placed.skeleton) else { return 0.0 };
-    let j = placed.joints();
-    let shared = (previous.positions.len() / j).min(placed.frames());
+fn shared_floors(motion: &Motion, first: usize, previous: &LookAhead) -> Option<(f32, f32)> {
+    let roles = JointRoles::new(&motion.skeleton).ok()?;
+    let j = motion.joints();
+    let shared = (previous.positions.len() / j).min(motion.frames() - first);
     if shared == 0 {
-        return 0.0;
+        return None;
     }
-    let before = Motion::from_positions(placed.skeleton.clone(), placed.fps, previous.positions[..shared * j].to_vec());
+    let before = Motion::from_positions(motion.skeleton.clone(), motion.fps, previous.positions[..shared * j].to_vec());
     let lowest = |m: &Motion| support_heights(m, &roles).into_iter().fold(f32::INFINITY, f32::min);
-    lowest(&before) - lowest(&placed.slice(0, shared))
+    Some((lowest(&motion.slice(first, first + shared)), lowest(&before)))
 }
 
 /// Fades `positions` (frames from `first`) in from the chunk before's look-ahead over

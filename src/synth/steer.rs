@@ -176,8 +176,8 @@ impl Steering {
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
         let leaning = self.easing.as_ref().is_some_and(|e| !e.change);
-        // The half block the next seam join leaves as it is is compared too: the join still
-        // moves the last half, so a loop can differ from its earlier turn there alone (with
+        // The half block before the last is compared too: the next seam join still moves
+        // the last half, so a loop can differ from its earlier turn there alone (with
         // keep-alive's windows drawn near the take, tried and not kept, `all`'s ten-minute
         // phoning repeated one 3 s stretch exactly for eight minutes unseen).
         let settled = &sparse[..sparse.len().saturating_sub(t / 2 * dim)];
