@@ -12,6 +12,7 @@
 //! "motion texture", 2002, with the spline as the keyframed motion).
 
 use std::collections::{BTreeMap, HashMap};
+use std::ops::Range;
 use std::path::Path;
 
 use anyhow::{Context, Result};
@@ -23,7 +24,7 @@ use super::spec::ModelSpec;
 use super::Error;
 use crate::data::features::{spline_through_own_poses, FeatureLayout};
 use crate::data::write::write_atomic;
-use crate::motion::{JointRoles, RolesError};
+use crate::motion::{peak_accelerations, JointRoles, RolesError};
 
 /// The texture bank of a model folder, beside its weights.
 pub const TEXTURE_FILE: &str = "texture.safetensors";
@@ -41,6 +42,13 @@ const SWING_SPEED: f32 = 0.6;
 /// A foot slow enough to be planted this long before or after gets none either: a running
 /// foot touches down for a few frames, between frames of swing.
 const SWING_MARGIN_SECONDS: f32 = 0.07;
+/// A stretch of texture keeps every frame's joint acceleration within this many times its
+/// class's 99th percentile. The rarest frames of a class are its capture's glitches (CMU's
+/// clips start from a reference pose 0.7-1.4 m from their first frame; its dances lose a
+/// marker for a frame or two: 250-1440 m/s^2 where the class's 99th percentile is 70-140)
+/// and its most violent moments; gathered, either came back every 10 s of the class as a
+/// pop (Indian dance's and salsa's takes peaked at 2.5-15x their jerk without texture).
+const MAX_ACCELERATION_OVER_P99: f32 = 2.0;
 /// Largest texture file read.
 const MAX_TEXTURE_BYTES: u64 = 16 << 20;
 
@@ -63,15 +71,18 @@ impl Texture {
         let classes = (0..spec.classes.len())
             .map(|class| {
                 let clips: Vec<_> = corpus.train.iter().filter(|t| t.class == class).collect();
+                let accelerations: Vec<Vec<f32>> = clips.iter().map(|t| peak_accelerations(t.motion.positions(), layout.joints(), t.motion.fps)).collect();
+                let limit = MAX_ACCELERATION_OVER_P99 * percentile_99(&accelerations);
                 // An even share of the class's budget from each clip, at least a stretch long.
                 let share = (budget / clips.len().max(1)).max(min_stretch);
                 let mut bank = Vec::new();
-                for clip in clips {
+                for (clip, accelerations) in clips.iter().zip(&accelerations) {
                     let left = budget.saturating_sub(bank.len() / (stride * layout.joints()));
                     if left == 0 {
                         break;
                     }
-                    bank.extend(clip_texture(layout, clip.motion.positions(), stride, share.min(left)));
+                    let calm = |frames: Range<usize>| accelerations[frames].iter().all(|&a| a <= limit);
+                    bank.extend(clip_texture(layout, clip.motion.positions(), stride, share.min(left), calm));
                 }
                 bank
             })
@@ -231,6 +242,13 @@ fn shares_around(pose_classes: &[usize], k: usize, reach: usize, gains: &[f32], 
     mix.iter_mut().for_each(|(class, share)| *share *= gains.get(*class).copied().unwrap_or(1.0) / total);
 }
 
+/// The 99th percentile of the values of `clips` (0 when they hold none).
+fn percentile_99(clips: &[Vec<f32>]) -> f32 {
+    let mut values: Vec<f32> = clips.iter().flatten().copied().collect();
+    values.sort_by(f32::total_cmp);
+    values.get(values.len() * 99 / 100).copied().unwrap_or(0.0)
+}
+
 /// Where a take of variation `seed` starts reading class `class`'s bank.
 fn bank_offset(seed: u64, class: usize) -> usize {
     // SplitMix64's finaliser: neighbouring seeds and classes land far apart.
@@ -241,9 +259,10 @@ fn bank_offset(seed: u64, class: usize) -> usize {
 }
 
 /// Up to `intervals` sparse intervals of one clip's texture (`positions`, `joints` a frame),
-/// from its middle (a clip's start and end are often a standing pose), each frame's in the
-/// heading frame of its pose.
-fn clip_texture(layout: &FeatureLayout, positions: &[Vec3], stride: usize, intervals: usize) -> Vec<Vec3> {
+/// each frame's in the heading frame of its pose: the stretch nearest the clip's middle (a
+/// clip's start and end are often a standing pose) whose frames are all `calm`; none where
+/// no stretch of that length is.
+fn clip_texture(layout: &FeatureLayout, positions: &[Vec3], stride: usize, intervals: usize, calm: impl Fn(Range<usize>) -> bool) -> Vec<Vec3> {
     let j = layout.joints();
     let frames = positions.len() / j;
     let available = frames.saturating_sub(1) / stride;
@@ -251,8 +270,10 @@ fn clip_texture(layout: &FeatureLayout, positions: &[Vec3], stride: usize, inter
     if take == 0 {
         return Vec::new();
     }
-    let start = (available - take) / 2 * stride;
-    let real = &positions[start * j..(start + take * stride + 1) * j];
+    let frames_of = |first: usize| first * stride..(first + take) * stride + 1;
+    let middle = (available - take) / 2;
+    let Some(first) = (0..=available - take).filter(|&f| calm(frames_of(f))).min_by_key(|f| f.abs_diff(middle)) else { return Vec::new() };
+    let real = &positions[frames_of(first).start * j..frames_of(first).end * j];
     let spline = spline_through_own_poses(real, j, stride);
     let mut out = Vec::with_capacity(take * stride * j);
     for (pose, smooth) in real.chunks_exact(j).zip(spline.chunks_exact(j)).take(take * stride) {

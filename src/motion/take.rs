@@ -159,6 +159,16 @@ impl Motion {
     }
 }
 
+/// Per frame of `positions` (`joints` per frame) at `fps`, the largest acceleration of a
+/// joint there (the second difference about the frame, per second squared, in the
+/// positions' unit); 0 on the first and last frames, which have none.
+pub fn peak_accelerations(positions: &[Vec3], joints: usize, fps: f32) -> Vec<f32> {
+    let frames = positions.len() / joints.max(1);
+    let at = |f: usize| &positions[f * joints..(f + 1) * joints];
+    let peak = |f: usize| at(f - 1).iter().zip(at(f)).zip(at(f + 1)).map(|((a, b), c)| (*a - 2.0 * *b + *c).length()).fold(0.0f32, f32::max) * fps * fps;
+    (0..frames).map(|f| if f == 0 || f + 1 >= frames { 0.0 } else { peak(f) }).collect()
+}
+
 /// The mean distance a joint moves from one frame to the next over `positions` (`joints` per
 /// frame, whole frames): the joint speed per frame step, 0 under two frames.
 pub fn mean_joint_step(positions: &[Vec3], joints: usize) -> f64 {
@@ -194,6 +204,16 @@ mod tests {
             )
             .unwrap(),
         )
+    }
+
+    /// One joint at 30 fps moving at 1 unit a frame, one frame 0.5 off its line: that frame
+    /// accelerates at 2 x 0.5 x 30^2, the frames either side at half of it.
+    #[test]
+    fn a_jumping_frame_has_the_peak_acceleration() {
+        let mut xs: Vec<Vec3> = (0..8).map(|f| Vec3::new(f as f32, 0.0, 0.0)).collect();
+        xs[4].y = 0.5;
+        let peaks = peak_accelerations(&xs, 1, 30.0);
+        assert_eq!(peaks, vec![0.0, 0.0, 0.0, 450.0, 900.0, 450.0, 0.0, 0.0]);
     }
 
     #[test]
