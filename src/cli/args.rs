@@ -25,8 +25,8 @@ impl From<TransitionArg> for Transition {
     }
 }
 
-/// What `glocal train` makes of a model folder: one of its networks (see [`Stage`]) or
-/// its motion texture.
+/// What `glocal train` makes of a model folder: one of its networks (see [`Stage`]), its
+/// motion texture or its seed bank.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum StageArg {
     Glogen,
@@ -36,16 +36,19 @@ pub enum StageArg {
     /// The motion texture of each class's training clips (no network: gathered in seconds;
     /// `crate::model::texture`).
     Texture,
+    /// The seed bank: the starting windows of each class from its training clips, which a
+    /// new model gets with its first stage (no network: gathered in seconds).
+    Seeds,
 }
 
 impl StageArg {
-    /// The network this stage trains (none for the texture).
+    /// The network this stage trains (none for the texture and the seed bank).
     pub fn network(self) -> Option<Stage> {
         match self {
             StageArg::Glogen => Some(Stage::Glogen),
             StageArg::Locgen => Some(Stage::Locgen),
             StageArg::Inbetween => Some(Stage::Inbetween),
-            StageArg::Texture => None,
+            StageArg::Texture | StageArg::Seeds => None,
         }
     }
 }

@@ -13,7 +13,8 @@ use crate::model::spec::{ModelSpec, PoseBase, SeamJoin};
 use crate::data::registry::Dataset;
 use crate::model::corpus::Corpus;
 use crate::model::texture::{Texture, TEXTURE_FILE};
-use crate::model::train::{train, ModelShape, TrainOptions};
+use crate::model::glocal::SEEDS_FILE;
+use crate::model::train::{train, write_seed_bank, ModelShape, TrainOptions};
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -143,21 +144,27 @@ fn stop_on_interrupt(cancel: Arc<AtomicBool>) -> Result<()> {
     .context("cannot install the Ctrl-C handler")
 }
 
-/// `--stage texture`: the bank of the trained model in `--out`, from its training clips.
-fn gather_texture(args: &TrainArgs) -> Result<()> {
+/// `--stage texture` or `--stage seeds`: the motion texture or the seed bank of the model in
+/// `--out`, from its training clips.
+fn gather(args: &TrainArgs) -> Result<()> {
     let dataset: Dataset = args.dataset.parse()?;
-    // The spec alone: a texture there before is replaced, not read.
+    // The spec alone: a texture or seed bank there before is replaced, not read.
     let spec = ModelSpec::read_verified(&args.out)?;
     let corpus = Corpus::for_model(dataset, &DataRoot::resolve(args.data.as_deref()), &spec, &args.out)?;
-    let texture = Texture::build(&corpus, &spec)?;
-    let path = args.out.join(TEXTURE_FILE);
-    texture.save(&path, &spec)?;
+    let path = if args.stage == StageArg::Seeds {
+        write_seed_bank(&args.out, &spec, &corpus)?;
+        args.out.join(SEEDS_FILE)
+    } else {
+        let path = args.out.join(TEXTURE_FILE);
+        Texture::build(&corpus, &spec)?.save(&path, &spec)?;
+        path
+    };
     say!("wrote {} ({} classes)", path.display(), spec.classes.len());
     Ok(())
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
-    let Some(stage) = args.stage.network() else { return gather_texture(&args) };
+    let Some(stage) = args.stage.network() else { return gather(&args) };
     let mut opts = TrainOptions::new(args.dataset.parse()?, stage, args.out);
     opts.data = DataRoot::resolve(args.data.as_deref());
     opts.steps = args.steps;

@@ -171,6 +171,49 @@ impl Corpus {
     }
 }
 
+/// Which stretches of the training clips are free of capture glitches, for what is taken
+/// from the clips as they are (the motion texture, the seed bank): every frame's largest
+/// joint acceleration within [`CALM_OVER_P99`] times its class's 99th percentile.
+pub struct CalmFrames {
+    /// Per training clip (in [`Corpus::train`]'s order), each frame's largest joint
+    /// acceleration ([`crate::motion::peak_accelerations`]).
+    accelerations: Vec<Vec<f32>>,
+    /// Per training clip, the largest acceleration a calm frame of its class has.
+    limits: Vec<f32>,
+}
+
+/// A calm frame's joint acceleration stays within this many times its class's 99th
+/// percentile. The rarest frames of a class are its capture's glitches (CMU's clips start
+/// from a reference pose 0.7-1.4 m from their first frame; its dances lose a marker for a
+/// frame or two; a Human3.6M sitting clip's joint jumps: 150-1440 m/s^2 where the class's
+/// 99th percentile is 30-140) and its most violent moments. Gathered into the motion
+/// texture, either came back every 10 s of the class as a pop (Indian dance's and salsa's
+/// takes peaked at 2.5-15x their jerk without texture); in a seed window, a take started
+/// from it popped in its first second (`all`'s sitting seed 102: 8156 m/s^3, 90x the
+/// take's median).
+pub const CALM_OVER_P99: f32 = 2.0;
+
+impl CalmFrames {
+    pub fn of(corpus: &Corpus) -> Self {
+        let accelerations: Vec<Vec<f32>> = corpus.train.iter().map(|t| crate::motion::peak_accelerations(t.motion.positions(), t.motion.joints(), t.motion.fps)).collect();
+        let class_limits: Vec<f32> = (0..corpus.classes.len())
+            .map(|class| {
+                let mut values: Vec<f32> = corpus.train.iter().zip(&accelerations).filter(|(t, _)| t.class == class).flat_map(|(_, a)| a.iter().copied()).collect();
+                values.sort_by(f32::total_cmp);
+                CALM_OVER_P99 * values.get(values.len() * 99 / 100).copied().unwrap_or(0.0)
+            })
+            .collect();
+        let limits = corpus.train.iter().map(|t| class_limits[t.class]).collect();
+        Self { accelerations, limits }
+    }
+
+    /// Whether frames `frames` of training clip `clip` (an index into [`Corpus::train`]) are
+    /// all calm.
+    pub fn holds(&self, clip: usize, frames: std::ops::Range<usize>) -> bool {
+        self.accelerations[clip][frames].iter().all(|&a| a <= self.limits[clip])
+    }
+}
+
 /// The joints a model of this skeleton keeps: bones shorter than a fraction of the longest
 /// limb bone are duplicates or collapsed end sites. Joints above the body root (Bandai's
 /// `joint_Root`, a placement handle above `Hips`) are dropped too, so the model's root is the

@@ -19,12 +19,12 @@ use anyhow::{Context, Result};
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::corpus::Corpus;
+use super::corpus::{CalmFrames, Corpus};
 use super::spec::ModelSpec;
 use super::Error;
 use crate::data::features::{spline_through_own_poses, FeatureLayout};
 use crate::data::write::write_atomic;
-use crate::motion::{peak_accelerations, JointRoles, RolesError};
+use crate::motion::{JointRoles, RolesError};
 
 /// The texture bank of a model folder, beside its weights.
 pub const TEXTURE_FILE: &str = "texture.safetensors";
@@ -42,13 +42,6 @@ const SWING_SPEED: f32 = 0.6;
 /// A foot slow enough to be planted this long before or after gets none either: a running
 /// foot touches down for a few frames, between frames of swing.
 const SWING_MARGIN_SECONDS: f32 = 0.07;
-/// A stretch of texture keeps every frame's joint acceleration within this many times its
-/// class's 99th percentile. The rarest frames of a class are its capture's glitches (CMU's
-/// clips start from a reference pose 0.7-1.4 m from their first frame; its dances lose a
-/// marker for a frame or two: 250-1440 m/s^2 where the class's 99th percentile is 70-140)
-/// and its most violent moments; gathered, either came back every 10 s of the class as a
-/// pop (Indian dance's and salsa's takes peaked at 2.5-15x their jerk without texture).
-const MAX_ACCELERATION_OVER_P99: f32 = 2.0;
 /// Largest texture file read.
 const MAX_TEXTURE_BYTES: u64 = 16 << 20;
 
@@ -68,21 +61,20 @@ impl Texture {
         let (stride, layout) = (spec.stride, &spec.layout);
         let budget = (SECONDS_PER_CLASS * spec.fps / stride as f32).round() as usize;
         let min_stretch = (MIN_STRETCH_SECONDS * spec.fps / stride as f32).round() as usize;
+        let calm_frames = CalmFrames::of(corpus);
         let classes = (0..spec.classes.len())
             .map(|class| {
-                let clips: Vec<_> = corpus.train.iter().filter(|t| t.class == class).collect();
-                let accelerations: Vec<Vec<f32>> = clips.iter().map(|t| peak_accelerations(t.motion.positions(), layout.joints(), t.motion.fps)).collect();
-                let limit = MAX_ACCELERATION_OVER_P99 * percentile_99(&accelerations);
+                let clips: Vec<usize> = (0..corpus.train.len()).filter(|&i| corpus.train[i].class == class).collect();
                 // An even share of the class's budget from each clip, at least a stretch long.
                 let share = (budget / clips.len().max(1)).max(min_stretch);
                 let mut bank = Vec::new();
-                for (clip, accelerations) in clips.iter().zip(&accelerations) {
+                for &clip in &clips {
                     let left = budget.saturating_sub(bank.len() / (stride * layout.joints()));
                     if left == 0 {
                         break;
                     }
-                    let calm = |frames: Range<usize>| accelerations[frames].iter().all(|&a| a <= limit);
-                    bank.extend(clip_texture(layout, clip.motion.positions(), stride, share.min(left), calm));
+                    let calm = |frames: Range<usize>| calm_frames.holds(clip, frames);
+                    bank.extend(clip_texture(layout, corpus.train[clip].motion.positions(), stride, share.min(left), calm));
                 }
                 bank
             })
@@ -242,13 +234,6 @@ fn shares_around(pose_classes: &[usize], k: usize, reach: usize, gains: &[f32], 
     mix.iter_mut().for_each(|(class, share)| *share *= gains.get(*class).copied().unwrap_or(1.0) / total);
 }
 
-/// The 99th percentile of the values of `clips` (0 when they hold none).
-fn percentile_99(clips: &[Vec<f32>]) -> f32 {
-    let mut values: Vec<f32> = clips.iter().flatten().copied().collect();
-    values.sort_by(f32::total_cmp);
-    values.get(values.len() * 99 / 100).copied().unwrap_or(0.0)
-}
-
 /// Where a take of variation `seed` starts reading class `class`'s bank.
 fn bank_offset(seed: u64, class: usize) -> usize {
     // SplitMix64's finaliser: neighbouring seeds and classes land far apart.
@@ -260,8 +245,8 @@ fn bank_offset(seed: u64, class: usize) -> usize {
 
 /// Up to `intervals` sparse intervals of one clip's texture (`positions`, `joints` a frame),
 /// each frame's in the heading frame of its pose: the stretch nearest the clip's middle (a
-/// clip's start and end are often a standing pose) whose frames are all `calm`; none where
-/// no stretch of that length is.
+/// clip's start and end are often a standing pose) whose frames are all `calm`
+/// ([`CalmFrames`]); none where no stretch of that length is.
 fn clip_texture(layout: &FeatureLayout, positions: &[Vec3], stride: usize, intervals: usize, calm: impl Fn(Range<usize>) -> bool) -> Vec<Vec3> {
     let j = layout.joints();
     let frames = positions.len() / j;

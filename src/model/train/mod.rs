@@ -29,7 +29,7 @@ use self::styles::{style_corpus, style_indices, StyleInputs};
 use self::widen::load_fine_tuned;
 use super::adamw::AdamW;
 use super::block::{seed_dropout, BlockConfig, Seq2SeqBlock};
-use super::corpus::{Corpus, Track};
+use super::corpus::{CalmFrames, Corpus};
 use super::glocal::SEEDS_FILE;
 use super::inbetween::GAP_CHANNELS;
 use super::spec::{GloGenSpec, InbetweenSpec, DEFAULT_CLASS_STRENGTH, DEFAULT_CONTRAST_STRENGTH, GLOGEN_FILE, INBETWEEN_FILE, LOCGEN_FILE, LocGenSpec, LossKind, ModelSpec, PoseBase, SeamJoin, Seed, StageRecord, TrainingRecords, FORMAT_VERSION};
@@ -618,22 +618,30 @@ fn split_description(d: Dataset) -> &'static str {
     }
 }
 
-/// Up to 16 seeds per class, evenly spread over the class's training frames.
-fn write_seed_bank(dir: &Path, spec: &ModelSpec, corpus: &Corpus) -> Result<()> {
+/// Up to 16 seeds per class, evenly spread over the class's training frames; a window that
+/// holds a capture glitch ([`CalmFrames`]) gives way to the nearest calm one.
+pub fn write_seed_bank(dir: &Path, spec: &ModelSpec, corpus: &Corpus) -> Result<()> {
     const PER_CLASS: usize = 16;
     let span = spec.block_len * spec.stride;
+    let calm = CalmFrames::of(corpus);
     let mut seeds = Vec::new();
     for class in 0..spec.classes.len() {
-        let candidates: Vec<(&Track, usize)> = corpus
-            .train
-            .iter()
-            .filter(|t| t.class == class && t.motion.frames() > span + spec.stride)
-            .flat_map(|t| (spec.stride..t.motion.frames() - span).step_by(span).map(move |f| (t, f)))
+        let candidates: Vec<(usize, usize)> = (0..corpus.train.len())
+            .filter(|&i| corpus.train[i].class == class && corpus.train[i].motion.frames() > span + spec.stride)
+            .flat_map(|i| (spec.stride..corpus.train[i].motion.frames() - span).step_by(span).map(move |f| (i, f)))
             .collect();
+        let is_calm = |&(clip, frame): &(usize, usize)| calm.holds(clip, frame..frame + span);
         let step = (candidates.len() / PER_CLASS).max(1);
-        for (t, frame) in candidates.into_iter().step_by(step).take(PER_CLASS) {
-            let features = spec.layout.encode_motion(&t.motion, frame, spec.stride, spec.block_len);
-            seeds.push(Seed { class, clip: t.file.clone(), frame, features });
+        let mut picked: Vec<usize> = Vec::new();
+        for spread in (0..candidates.len()).step_by(step).take(PER_CLASS) {
+            let nearest_calm = (0..candidates.len()).filter(|i| !picked.contains(i) && is_calm(&candidates[*i])).min_by_key(|i| i.abs_diff(spread));
+            picked.extend(nearest_calm);
+        }
+        picked.sort_unstable();
+        for (clip, frame) in picked.into_iter().map(|i| candidates[i]) {
+            let track = &corpus.train[clip];
+            let features = spec.layout.encode_motion(&track.motion, frame, spec.stride, spec.block_len);
+            seeds.push(Seed { class, clip: track.file.clone(), frame, features });
         }
     }
     write_atomic(&dir.join(SEEDS_FILE), serde_json::to_string(&seeds)?.as_bytes())
