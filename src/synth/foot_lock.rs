@@ -54,6 +54,13 @@ const REPLANT_LIFT: f32 = 0.06;
 /// gave 1.00x and 1.300x, and 5 cm by the weight squared, since long takes keep their pace
 /// ([`super::pace`]), 0.95x and 1.29x (4.5 cm then: 1.01x and 1.28x).
 const SWING_LIFT: f32 = 0.05;
+/// The shortest swing that gets all of [`SWING_LIFT`] (seconds; a walk's swing lasts
+/// 0.35-0.45 s): a shorter one, a shuffle between two plants, is lifted by its share of this
+/// squared, so its toe rises and falls no faster than an ordinary swing's. With the whole
+/// lift over any gap, a standing take's 0.13 s shuffle hopped its foot 5-6 cm and back in
+/// four frames, its knee jerking at 10-17x the take's p95 in its first second (`all`'s
+/// discussion and guide, Bandai's guide, started from their own seeds).
+const FULL_LIFT_SWING_SECONDS: f32 = 0.3;
 
 /// Seconds over which a contact's share in carrying the body eases in and out at its ends
 /// (see [`carried_by_feet`]).
@@ -472,7 +479,7 @@ fn locked_positions(motion: &Motion, roles: &JointRoles, contacts: &FootContacts
         })
         .collect();
     let mut targets: Vec<Vec<(Vec<Vec3>, f32)>> = (0..motion.frames()).map(|t| legs.iter().map(|leg| foot_target(skeleton, motion.frame(t), leg, t)).collect()).collect();
-    lift_swings(&mut targets, &legs, SWING_LIFT / skeleton.meters_per_unit());
+    lift_swings(&mut targets, &legs, SWING_LIFT / skeleton.meters_per_unit(), FULL_LIFT_SWING_SECONDS * motion.fps);
     // The hips' shift, smoothed over time (a shift that starts or stops abruptly jerks the
     // whole body), then topped up where the smoothed shift leaves a leg short.
     let raw: Vec<Vec3> = (0..motion.frames()).map(|t| hip_offset(&pulls(motion.frame(t), &legs, &targets[t], Vec3::ZERO))).collect();
@@ -512,14 +519,16 @@ fn pelvis_facing(motion: &Motion, legs: &[LegLock]) -> Vec<Vec3> {
 /// far as the other foot carries the body (its lock's weight, squared): the network's
 /// swinging toes skim the floor (Bandai's skating ratio 1.42x real with the feet locked,
 /// 1.00x with 4.5 cm of clearance), and a lift while both feet are off the floor would only
-/// make a runner float.
-fn lift_swings(targets: &mut [Vec<(Vec<Vec3>, f32)>], legs: &[LegLock], height: f32) {
+/// make a runner float. A swing shorter than `full_lift_frames` is lifted by its share of
+/// them squared ([`FULL_LIFT_SWING_SECONDS`]).
+fn lift_swings(targets: &mut [Vec<(Vec<Vec3>, f32)>], legs: &[LegLock], height: f32, full_lift_frames: f32) {
     for (i, leg) in legs.iter().enumerate() {
         for p in leg.plants.iter().filter(|p| !p.replant) {
+            let share = p.gap_after.map_or(1.0, |gap| (gap as f32 / full_lift_frames).min(1.0).powi(2));
             for (t, frame) in targets.iter_mut().enumerate().skip(p.end) {
                 let Some(arc) = p.lift_at(t) else { break };
                 let carried = frame[1 - i].1.powi(2);
-                let up = height * carried * arc;
+                let up = height * share * carried * arc;
                 frame[i].0.iter_mut().for_each(|q| q.y += up);
             }
         }
