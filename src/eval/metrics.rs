@@ -15,6 +15,7 @@
 //! And the plain statistics the motion and constraint measures share: mean, standard
 //! deviation, quantile.
 
+pub use crate::motion::quantile;
 use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -289,15 +290,6 @@ pub fn std_dev(v: &[f32]) -> f32 {
     (v.iter().map(|x| (*x as f64 - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt() as f32
 }
 
-/// The `q` quantile of `v` (the nearest rank), NaN when it is empty.
-pub fn quantile(v: &[f32], q: f32) -> f32 {
-    if v.is_empty() {
-        return f32::NAN;
-    }
-    let mut s = v.to_vec();
-    let k = ((s.len() - 1) as f32 * q).round() as usize;
-    *s.select_nth_unstable_by(k, f32::total_cmp).1
-}
 
 /// Long-take statistics of one window.
 #[derive(Clone, Debug, serde::Serialize)]

@@ -12,7 +12,7 @@ use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
 use super::spec::ModelSpec;
-use crate::motion::{JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
+use crate::motion::{peak_accelerations, quantile, JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
 
 /// The styles that mean "no particular style", which a class's usual style falls to on a tie.
 const PLAIN_STYLES: [&str; 2] = ["neutral", "normal"];
@@ -195,12 +195,11 @@ pub const CALM_OVER_P99: f32 = 2.0;
 
 impl CalmFrames {
     pub fn of(corpus: &Corpus) -> Self {
-        let accelerations: Vec<Vec<f32>> = corpus.train.iter().map(|t| crate::motion::peak_accelerations(t.motion.positions(), t.motion.joints(), t.motion.fps)).collect();
+        let accelerations: Vec<Vec<f32>> = corpus.train.iter().map(|t| peak_accelerations(t.motion.positions(), t.motion.joints(), t.motion.fps)).collect();
         let class_limits: Vec<f32> = (0..corpus.classes.len())
             .map(|class| {
-                let mut values: Vec<f32> = corpus.train.iter().zip(&accelerations).filter(|(t, _)| t.class == class).flat_map(|(_, a)| a.iter().copied()).collect();
-                values.sort_by(f32::total_cmp);
-                CALM_OVER_P99 * values.get(values.len() * 99 / 100).copied().unwrap_or(0.0)
+                let values: Vec<f32> = corpus.train.iter().zip(&accelerations).filter(|(t, _)| t.class == class).flat_map(|(_, a)| a.iter().copied()).collect();
+                CALM_OVER_P99 * quantile(&values, 0.99)
             })
             .collect();
         let limits = corpus.train.iter().map(|t| class_limits[t.class]).collect();

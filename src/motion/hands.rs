@@ -59,14 +59,15 @@ fn bend_sides(positions: &[Vec3], joints: usize, arm: (usize, usize, usize)) -> 
     let bent: Vec<usize> = (0..own.len()).filter(|&t| own[t].is_some()).collect();
     (0..own.len())
         .map(|t| {
-            let next = bent.partition_point(|&b| b < t);
-            match (next.checked_sub(1).map(|i| bent[i]), bent.get(next).copied()) {
-                _ if own[t].is_some() => own[t],
-                (Some(a), Some(b)) => own[a].zip(own[b]).map(|(from, to)| from.slerp(to, (t - a) as f32 / (b - a) as f32)),
-                (Some(a), None) => own[a],
-                (None, Some(b)) => own[b],
-                (None, None) => None,
-            }
+            own[t].or_else(|| {
+                let next = bent.partition_point(|&b| b < t);
+                match (next.checked_sub(1).map(|i| bent[i]), bent.get(next).copied()) {
+                    (Some(a), Some(b)) => Some(own[a]?.slerp(own[b]?, (t - a) as f32 / (b - a) as f32)),
+                    (Some(a), None) => own[a],
+                    (None, Some(b)) => own[b],
+                    (None, None) => None,
+                }
+            })
         })
         .collect()
 }

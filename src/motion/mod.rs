@@ -33,4 +33,4 @@ pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError, SHORT_BONE_FRACTION};
 pub use solve::solve_local_poses;
 pub use standard::standard_humanoid;
-pub use take::{floor_height, mean_joint_step, peak_accelerations, Motion};
+pub use take::{floor_height, mean_joint_step, peak_accelerations, quantile, Motion};

@@ -169,6 +169,16 @@ pub fn peak_accelerations(positions: &[Vec3], joints: usize, fps: f32) -> Vec<f3
     (0..frames).map(|f| if f == 0 || f + 1 >= frames { 0.0 } else { peak(f) }).collect()
 }
 
+/// The `q` quantile of `v` (the nearest rank), NaN when it is empty.
+pub fn quantile(v: &[f32], q: f32) -> f32 {
+    if v.is_empty() {
+        return f32::NAN;
+    }
+    let mut s = v.to_vec();
+    let k = ((s.len() - 1) as f32 * q).round() as usize;
+    *s.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
 /// The mean distance a joint moves from one frame to the next over `positions` (`joints` per
 /// frame, whole frames): the joint speed per frame step, 0 under two frames.
 pub fn mean_joint_step(positions: &[Vec3], joints: usize) -> f64 {

@@ -630,11 +630,11 @@ pub fn write_seed_bank(dir: &Path, spec: &ModelSpec, corpus: &Corpus) -> Result<
             .filter(|&i| corpus.train[i].class == class && corpus.train[i].motion.frames() > span + spec.stride)
             .flat_map(|i| (spec.stride..corpus.train[i].motion.frames() - span).step_by(span).map(move |f| (i, f)))
             .collect();
-        let is_calm = |&(clip, frame): &(usize, usize)| calm.holds(clip, frame..frame + span);
+        let is_calm: Vec<bool> = candidates.iter().map(|&(clip, frame)| calm.holds(clip, frame..frame + span)).collect();
         let step = (candidates.len() / PER_CLASS).max(1);
         let mut picked: Vec<usize> = Vec::new();
         for spread in (0..candidates.len()).step_by(step).take(PER_CLASS) {
-            let nearest_calm = (0..candidates.len()).filter(|i| !picked.contains(i) && is_calm(&candidates[*i])).min_by_key(|i| i.abs_diff(spread));
+            let nearest_calm = (0..candidates.len()).filter(|&i| is_calm[i] && !picked.contains(&i)).min_by_key(|i| i.abs_diff(spread));
             picked.extend(nearest_calm);
         }
         picked.sort_unstable();
