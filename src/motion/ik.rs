@@ -55,6 +55,17 @@ pub fn two_bone_folding(hip: Vec3, target: Vec3, pole: Vec3, own_thigh: Vec3, (u
     (knee, knee + shin * lower)
 }
 
+/// The way a knee points on a leg running from hip to ankle along `leg`, on a body facing
+/// `facing` (horizontal): the facing carried by the shortest turn from a leg hanging straight
+/// down to `leg`. Forwards on a standing leg, up on a leg raised in front, down on one
+/// stretched behind, still forwards on one lifted to the side. The facing's part square to
+/// the leg says the same on a leg below the hip but turns over as a leg in front rises past
+/// the horizontal (a Human3.6M floor sit's knee flipped 20 cm in three frames).
+pub fn knee_forward(facing: Vec3, leg: Vec3) -> Vec3 {
+    let Some(leg) = leg.try_normalize() else { return facing };
+    Quat::from_rotation_arc(Vec3::NEG_Y, leg) * facing
+}
+
 /// The smallest-effort shift of the hips that brings every `(hip, target, reach)` within
 /// reach: each leg pulls the hips straight towards its target by what it lacks, a few rounds
 /// so two planted legs settle together. Zero when every target is already in reach.
@@ -160,6 +171,26 @@ fn outer(a: Vec3, b: Vec3) -> Mat3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_knee_points_forwards_on_a_hanging_leg_and_turns_smoothly_as_it_rises() {
+        let facing = Vec3::Z;
+        let close = |a: Vec3, b: Vec3| a.distance(b) < 1e-5;
+        assert!(close(knee_forward(facing, Vec3::NEG_Y), facing));
+        assert!(close(knee_forward(facing, Vec3::Z), Vec3::Y), "a leg raised in front: knee up");
+        assert!(close(knee_forward(facing, Vec3::NEG_Z), Vec3::NEG_Y), "a leg stretched behind: knee down");
+        assert!(close(knee_forward(facing, Vec3::X), facing), "a leg lifted to the side: knee forwards");
+        // A leg in front swinging up past the horizontal: the knee's way turns by as much as
+        // the leg does, never over.
+        let mut last = knee_forward(facing, Vec3::new(0.0, -0.5, 1.0));
+        for step in 1..=40 {
+            let leg = Vec3::new(0.0, -0.5 + step as f32 * 0.025, 1.0);
+            let knee = knee_forward(facing, leg);
+            assert!(knee.dot(leg.normalize()).abs() < 1e-5, "square to the leg");
+            assert!(knee.angle_between(last) < 0.05, "turned {} rad at step {step}", knee.angle_between(last));
+            last = knee;
+        }
+    }
 
     #[test]
     fn reaches_with_exact_bones() {

@@ -17,7 +17,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 
 use crate::motion::contacts::{body_speeds, foot_contacts, local_floor, runs, sliding, smoothed, support_heights, ContactConfig, FootContacts};
-use crate::motion::ik::{hip_offset, two_bone, two_bone_folding, MAX_STRETCH};
+use crate::motion::ik::{hip_offset, knee_forward, two_bone, two_bone_folding, MAX_STRETCH};
 use super::smoothstep;
 use crate::motion::{keep_hands_above_floor, keep_knees_above_floor, solve_local_poses, JointRoles, Motion, Side, Skeleton};
 
@@ -61,6 +61,15 @@ const SWING_LIFT: f32 = 0.05;
 /// four frames, its knee jerking at 10-17x the take's p95 in its first second (`all`'s
 /// discussion and guide, Bandai's guide, started from their own seeds).
 const FULL_LIFT_SWING_SECONDS: f32 = 0.3;
+/// The shortest step over to a replant (metres, horizontally between the two plants) that
+/// gets the whole [`REPLANT_LIFT`]; a shorter one is lifted by its share of it, as a person
+/// shifting a foot while standing barely lifts it. A straight-legged standing body bends its
+/// knee deep for every centimetre its foot rises: lifted the whole 6 cm over a 10 cm replant,
+/// Bandai's and `all`'s guide moved a knee 3.3-3.8 cm in one frame (the network's own
+/// knee 0.7 cm; 2.3-2.8 since). A lower lift moves the foot nearer the floor, where the
+/// suite counts it as support: at 30 cm, `all`'s Bandai classes' support-point speed rose from
+/// 1.488x to 1.497x real (issue 35's line 1.5x), at 20 cm to 1.495x.
+const FULL_LIFT_STEP: f32 = 0.2;
 
 /// Seconds over which a contact's share in carrying the body eases in and out at its ends
 /// (see [`carried_by_feet`]).
@@ -343,9 +352,11 @@ struct Plant {
     fade_out: Fade,
     /// Frames to the next plant, where there is one.
     gap_after: Option<usize>,
+    /// How far the foot steps to the next plant (metres, horizontally; 0 without one).
+    step_after: f32,
     /// The next plant continues this one's contact, which the network's foot slid through:
-    /// the foot steps over, lifting [`REPLANT_LIFT`]; after an ordinary swing's gap it is
-    /// lifted by [`lift_swings`].
+    /// the foot steps over, lifting [`REPLANT_LIFT`] by the step's length
+    /// ([`FULL_LIFT_STEP`]); after an ordinary swing's gap it is lifted by [`lift_swings`].
     replant: bool,
 }
 
@@ -377,6 +388,12 @@ impl Plant {
         let x = (t + 1 - self.end) as f32 / (gap + 1) as f32;
         Some((std::f32::consts::PI * x).sin().powi(2))
     }
+
+    /// The share of a whole lift the step after the plant gets by its length
+    /// ([`FULL_LIFT_STEP`]).
+    fn step_share(&self) -> f32 {
+        (self.step_after / FULL_LIFT_STEP).min(1.0)
+    }
 }
 
 /// Each stance locks the foot as it stood in the stance's anchor frame, set on the floor.
@@ -393,7 +410,7 @@ fn plants(motion: &Motion, foot: &[usize], contacts: &[bool]) -> Vec<Plant> {
     // A fade ends before the neighbouring stance begins, or the foot would jump there.
     let gap_before = |k: usize| if k == 0 { usize::MAX } else { stances[k].start - stances[k - 1].end };
     let gap_after = |k: usize| stances.get(k + 1).map_or(usize::MAX, |next| next.start - stances[k].end);
-    (0..stances.len())
+    let mut plants: Vec<Plant> = (0..stances.len())
         .map(|k| {
             let Stance { start, end, anchor, replant } = stances[k];
             let frame = motion.frame(anchor);
@@ -404,9 +421,14 @@ fn plants(motion: &Motion, foot: &[usize], contacts: &[bool]) -> Vec<Plant> {
             let mut fade_out = fade(&locked, end - 1);
             fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
-            Plant { start, end, fade_in, fade_out, foot: locked, gap_after: next, replant }
+            Plant { start, end, fade_in, fade_out, foot: locked, gap_after: next, step_after: 0.0, replant }
         })
-        .collect()
+        .collect();
+    for k in 1..plants.len() {
+        let step = plants[k].foot[0] - plants[k - 1].foot[0];
+        plants[k - 1].step_after = glam::Vec2::new(step.x, step.z).length() * unit;
+    }
+    plants
 }
 
 /// One plant of a foot: frames `[start, end)`, locked where the foot stood at `anchor`;
@@ -562,12 +584,13 @@ fn locked_frame(frame: &[Vec3], legs: &[LegLock], targets: &[(Vec<Vec3>, f32)], 
         let lower = frame[ankle].distance(frame[leg.knee]);
         let own_reach = frame[leg.hip].distance(frame[ankle]);
         let foot = &heel_lifted(out[leg.hip], target, leg, (upper + lower, own_reach), *weight);
-        // The knee bends towards where it was, pulled forwards (the way the pelvis faces) by a
-        // whole thigh's length: a knee is a hinge, and the network's knee sometimes bends
-        // backwards through the straight leg; following it, a shortened leg's knee would flip
-        // from front to back in one frame. Every frame is solved, locked or not, so the knee
-        // never switches between the network's and the solver's side.
-        let pole = out[leg.knee] + facing * upper;
+        // The knee bends towards where it was, pulled by a whole thigh's length the way a knee
+        // points on this leg (forwards on a hanging leg, up on one raised in front): a knee is
+        // a hinge, and the network's knee sometimes bends backwards through the straight leg;
+        // following it, a shortened leg's knee would flip from front to back in one frame.
+        // Every frame is solved, locked or not, so the knee never switches between the
+        // network's and the solver's side.
+        let pole = out[leg.knee] + knee_forward(facing, foot[0] - out[leg.hip]) * upper;
         // A folded leg's knee keeps to the network's thigh where the foot is free to give.
         let (knee, reached) = two_bone_folding(out[leg.hip], foot[0], pole, frame[leg.knee] - frame[leg.hip], (upper, lower), 1.0 - weight);
         out[leg.knee] = knee;
@@ -626,8 +649,8 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
             let shifted: Vec<Vec3> = own.iter().enumerate().map(|(i, &p)| p + fades.iter().map(|&(w, f, lock)| pull(i, p, f, lock) * w).sum::<Vec3>()).collect();
             let weight = fades.iter().map(|(w, _, _)| *w).fold(0.0, f32::max);
             let mut foot = if fades.is_empty() { own } else { rigid(skeleton, &leg.foot, &own, &shifted) };
-            if let Some(arc) = leg.plants.iter().filter(|p| p.replant).find_map(|p| p.lift_at(t)) {
-                let up = REPLANT_LIFT / skeleton.meters_per_unit() * arc;
+            if let Some((arc, share)) = leg.plants.iter().filter(|p| p.replant).find_map(|p| Some((p.lift_at(t)?, p.step_share()))) {
+                let up = REPLANT_LIFT / skeleton.meters_per_unit() * arc * share;
                 foot.iter_mut().for_each(|p| p.y += up);
             }
             (foot, weight)
