@@ -60,7 +60,7 @@ pub fn two_bone_folding(hip: Vec3, target: Vec3, pole: Vec3, own_thigh: Vec3, (u
 /// down to `leg`. Forwards on a standing leg, up on a leg raised in front, down on one
 /// stretched behind, still forwards on one lifted to the side. The facing's part square to
 /// the leg says the same on a leg below the hip but turns over as a leg in front rises past
-/// the horizontal (a Human3.6M floor sit's knee flipped 20 cm in three frames).
+/// the horizontal (Human3.6M's sittingdown from its seed 117: the knee 8.1 cm in one frame).
 pub fn knee_forward(facing: Vec3, leg: Vec3) -> Vec3 {
     let Some(leg) = leg.try_normalize() else { return facing };
     Quat::from_rotation_arc(Vec3::NEG_Y, leg) * facing
