@@ -296,23 +296,26 @@ fn a_lifted_hands_elbow_does_not_flip() {
     let elbow = m.spec.layout.skeleton.index_of("RightForeArm").unwrap();
     let opts = GenerateOptions { timeline: "sittingdown:5".parse().unwrap(), init: InitPose::SeedIndex(115), ..Default::default() };
     let take = generate(&m, &opts, &mut |_| true).unwrap().motion;
-    let unit = take.skeleton.meters_per_unit();
-    let (step, at) = (1..take.frames()).map(|t| (take.frame(t)[elbow].distance(take.frame(t - 1)[elbow]) * unit, t)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    let (step, at) = largest_step(&take, elbow, |_| true);
     println!("the right elbow's largest step: {:.1} cm at frame {at}", 100.0 * step);
     assert!(step < 0.05, "the right elbow moves {:.1} cm between frames {} and {at}", 100.0 * step, at - 1);
 }
 
-/// The largest step (metres) of joint `name` between two frames of a take of `timeline`
-/// started from seed `seed` of model `model_name`, with the feet locked and without, and
-/// the frame it ends on.
+/// The largest step (metres) `joint` of `take` makes from one frame to the next, among the
+/// steps ending on a frame `counted` keeps, and the frame it ends on.
+fn largest_step(take: &Motion, joint: usize, counted: impl Fn(usize) -> bool) -> (f32, usize) {
+    let unit = take.skeleton.meters_per_unit();
+    (1..take.frames()).filter(|&t| counted(t)).map(|t| (take.frame(t)[joint].distance(take.frame(t - 1)[joint]) * unit, t)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a })
+}
+
+/// The largest step of joint `name` ([`largest_step`]) in a take of `timeline` started from
+/// seed `seed` of model `model_name`, with the feet locked and without.
 fn largest_steps(model_name: &str, timeline: &str, seed: usize, name: &str) -> [(f32, usize); 2] {
     let m = model(model_name);
     let joint = m.spec.layout.skeleton.index_of(name).unwrap();
     [true, false].map(|foot_lock| {
         let opts = GenerateOptions { timeline: timeline.parse().unwrap(), init: InitPose::SeedIndex(seed), foot_lock, ..Default::default() };
-        let take = generate(&m, &opts, &mut |_| true).unwrap().motion;
-        let unit = take.skeleton.meters_per_unit();
-        (1..take.frames()).map(|t| (take.frame(t)[joint].distance(take.frame(t - 1)[joint]) * unit, t)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a })
+        largest_step(&generate(&m, &opts, &mut |_| true).unwrap().motion, joint, |_| true)
     })
 }
 
@@ -354,9 +357,8 @@ fn a_tiptoe_planted_ankle_does_not_pop() {
     let ankle = m.spec.layout.skeleton.index_of("RightFoot").unwrap();
     let opts = GenerateOptions { timeline: "bye:5".parse().unwrap(), init: InitPose::SeedIndex(259), ..Default::default() };
     let take = generate(&m, &opts, &mut |_| true).unwrap();
-    let (motion, planted) = (&take.motion, &take.contacts.right);
-    let unit = motion.skeleton.meters_per_unit();
-    let (step, at) = (1..motion.frames()).filter(|&t| planted[t - 1] && planted[t]).map(|t| (motion.frame(t)[ankle].distance(motion.frame(t - 1)[ankle]) * unit, t)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    let planted = &take.contacts.right;
+    let (step, at) = largest_step(&take.motion, ankle, |t| planted[t - 1] && planted[t]);
     println!("the planted right ankle's largest step: {:.2} cm at frame {at}", 100.0 * step);
     assert!(step < 0.01, "the planted right ankle moves {:.1} cm between frames {} and {at}", 100.0 * step, at - 1);
 }

@@ -290,7 +290,6 @@ pub fn std_dev(v: &[f32]) -> f32 {
     (v.iter().map(|x| (*x as f64 - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt() as f32
 }
 
-
 /// Long-take statistics of one window.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct WindowStats {

@@ -416,7 +416,7 @@ fn plants(motion: &Motion, foot: &[usize], contacts: &[bool]) -> Vec<Plant> {
     // A fade ends before the neighbouring stance begins, or the foot would jump there.
     let gap_before = |k: usize| if k == 0 { usize::MAX } else { stances[k].start - stances[k - 1].end };
     let gap_after = |k: usize| stances.get(k + 1).map_or(usize::MAX, |next| next.start - stances[k].end);
-    let mut plants: Vec<Plant> = (0..stances.len())
+    (0..stances.len())
         .map(|k| {
             let Stance { start, end, anchor, replant } = stances[k];
             let frame = motion.frame(anchor);
@@ -427,14 +427,14 @@ fn plants(motion: &Motion, foot: &[usize], contacts: &[bool]) -> Vec<Plant> {
             let mut fade_out = fade(&locked, end - 1);
             fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
-            Plant { start, end, fade_in, fade_out, foot: locked, gap_after: next, step_after: 0.0, replant }
+            // A lock keeps its anchor frame's foot but for its height.
+            let step_after = stances.get(k + 1).map_or(0.0, |next| {
+                let step = motion.frame(next.anchor)[foot[0]] - frame[foot[0]];
+                glam::Vec2::new(step.x, step.z).length() * unit
+            });
+            Plant { start, end, fade_in, fade_out, foot: locked, gap_after: next, step_after, replant }
         })
-        .collect();
-    for k in 1..plants.len() {
-        let step = plants[k].foot[0] - plants[k - 1].foot[0];
-        plants[k - 1].step_after = glam::Vec2::new(step.x, step.z).length() * unit;
-    }
-    plants
+        .collect()
 }
 
 /// One plant of a foot: frames `[start, end)`, locked where the foot stood at `anchor`;
