@@ -267,3 +267,30 @@ fn unmappable_skeletons_are_named_and_a_joint_map_fixes_them() {
     assert!(e.contains("bad.json") && e.contains("'LeftElbow'") && e.contains("LeftForeArm"), "{e}");
 }
 
+
+/// A generated take's retargeted toe points as the take's toe, not as its foot: as the heel
+/// rolls at toe-off, the toes stay on the floor. Carried by the foot, the toe of `all`'s
+/// skeleton (the standard humanoid, with toe ends) tilted with an h36m walk's rising heel, 21
+/// degrees from the take's toe at worst, and a Mixamo-named rig's toe tips sank 2.2 cm into
+/// the floor in Blender (tests/blender.rs).
+#[test]
+fn a_retargeted_toe_points_as_the_sources() {
+    let (h36m, all) = (model("h36m"), model("all"));
+    let take = generate(&h36m, &GenerateOptions { timeline: "walking:6".parse().unwrap(), init: InitPose::SeedClass { class: "walking".into(), variant: 0 }, ..Default::default() }, &mut |_| true).unwrap();
+    let source = &take.motion;
+    let target = all.spec.layout.skeleton.clone();
+    let keys = |s: &Skeleton| key_joints(s, None, "a skeleton").unwrap();
+    let moved = glocal::motion::Retarget::new(&source.skeleton, &keys(&source.skeleton), target.clone(), &keys(&target)).unwrap().with_toes_to_tips(&source.skeleton).apply(source);
+    let mut worst: f32 = 0.0;
+    for side in ["Left", "Right"] {
+        let bone = |m: &Motion, toe: &str, tip: &str, t: usize| {
+            let [toe, tip] = [toe, tip].map(|n| m.skeleton.index_of(&format!("{side}{n}")).unwrap());
+            m.frame(t)[tip] - m.frame(t)[toe]
+        };
+        for t in 0..source.frames() {
+            worst = worst.max(bone(source, "ToeBase", "ToeSite", t).angle_between(bone(&moved, "ToeBase", "Toe_End", t)).to_degrees());
+        }
+    }
+    println!("the retargeted toe's largest angle from the source's toe: {worst:.1} degrees");
+    assert!(worst < 5.0, "the retargeted toe turns {worst:.1} degrees from the source's");
+}

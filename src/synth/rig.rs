@@ -44,7 +44,7 @@ pub fn onto_skeleton_file(take: &Motion, skeleton_path: &Path, user: Option<&Use
     let target = Skeleton::new(read.names().to_vec(), read.parents().to_vec(), read.offsets().to_vec(), unit).with_context(|| format!("{name}: bad skeleton"))?;
     let source_keys = key_joints(&take.skeleton, None, "the take's skeleton")?;
     let retarget = Retarget::new(&take.skeleton, &source_keys, target.into(), &target_keys).with_context(|| format!("{name}: cannot retarget"))?;
-    Ok(retarget.apply(take))
+    Ok(retarget.with_toes_to_tips(&take.skeleton).apply(take))
 }
 
 /// A BVH does not say its unit: the one of [`PLAUSIBLE_UNITS`] that gives the closest to a
