@@ -267,7 +267,6 @@ fn unmappable_skeletons_are_named_and_a_joint_map_fixes_them() {
     assert!(e.contains("bad.json") && e.contains("'LeftElbow'") && e.contains("LeftForeArm"), "{e}");
 }
 
-
 /// A generated take's retargeted toe points as the take's toe, not as its foot: as the heel
 /// rolls at toe-off, the toes stay on the floor. Carried by the foot, the toe of `all`'s
 /// skeleton (the standard humanoid, with toe ends) tilted with an h36m walk's rising heel, 21

@@ -496,7 +496,6 @@ fn stances(motion: &Motion, ankle: usize, contacts: &[std::ops::Range<usize>]) -
 struct LegLock {
     hip: usize,
     knee: usize,
-    toe: Option<usize>,
     foot: Vec<usize>,
     /// Where the toe is in `foot`.
     toe_at: Option<usize>,
@@ -514,7 +513,7 @@ fn locked_positions(motion: &Motion, roles: &JointRoles, contacts: &FootContacts
             let foot = foot_set(skeleton, leg.ankle);
             let toe_at = leg.toe.and_then(|toe| foot.iter().position(|&j| j == toe));
             let plants = plants(motion, &foot, toe_at, contacts.side(side));
-            LegLock { hip: leg.hip, knee: leg.knee, toe: leg.toe, foot, toe_at, plants }
+            LegLock { hip: leg.hip, knee: leg.knee, foot, toe_at, plants }
         })
         .collect();
     let mut targets: Vec<Vec<FootTarget>> = (0..motion.frames()).map(|t| legs.iter().map(|leg| foot_target(skeleton, motion.frame(t), leg, t)).collect()).collect();
@@ -546,7 +545,7 @@ fn pelvis_facing(motion: &Motion, legs: &[LegLock]) -> Vec<Vec3> {
     let ahead = |t: usize, leg: &LegLock| {
         let f = motion.frame(t);
         let knee = f[leg.knee] - (f[leg.hip] + f[leg.foot[0]]) / 2.0;
-        let toe = leg.toe.map_or(Vec3::ZERO, |toe| f[toe] - f[leg.foot[0]]);
+        let toe = leg.toe_at.map_or(Vec3::ZERO, |toe| f[leg.foot[toe]] - f[leg.foot[0]]);
         square[t].dot(knee + toe)
     };
     let forward: f32 = legs.iter().map(|leg| (0..motion.frames()).map(|t| ahead(t, leg)).sum::<f32>()).sum();
