@@ -159,7 +159,7 @@ fn model_round_trip(h: &mut Harness<'_, StudioApp>) {
 /// command line, run as a user runs it, writes the same file as the studio's own export. The
 /// take's settings are off their defaults where the command line has a flag (a class start's
 /// variant, a seed key, a segment's own pace and transition, guidance, the walk's course
-/// left to the network, variation).
+/// left to the network, snaps left unspread, variation).
 #[test]
 fn the_command_line_the_studio_copies_makes_the_same_take() {
     let _g = serial();
@@ -172,6 +172,7 @@ fn the_command_line_the_studio_copies_makes_the_same_take() {
         o.pace = 1.2;
         o.class_strength = Some(2.0);
         o.hold_course = false;
+        o.spread_snaps = false;
         o.init = InitPose::SeedClass { class: "sitting".into(), variant: 3 };
         o.keys = vec![TakeKey { seconds: 5.0, source: KeySource::Init(InitPose::SeedClass { class: "walking".into(), variant: 0 }), fix_root: false }];
         *o = o.clone().varied(5);

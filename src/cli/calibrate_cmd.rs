@@ -1,14 +1,16 @@
 //! `glocal calibrate`: per-class guidance for a trained model ([`crate::eval::calibrate`]).
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
 
 use crate::data::archive::DataRoot;
 use crate::eval::calibrate::{calibrate, LIVELY_SHARE};
+use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
+use crate::model::spec::ModelSpec;
 
 #[derive(Args, Debug)]
 pub struct CalibrateArgs {
@@ -28,6 +30,10 @@ pub struct CalibrateArgs {
     /// own.
     #[arg(long, value_delimiter = ',', value_parser = parse_contrast)]
     contrast: Vec<(String, String)>,
+    /// Write only the bones' turn limits (model.json's `bone_turn_limits`, from the training
+    /// clips; a full calibration writes them too) and leave the guidance as it is.
+    #[arg(long)]
+    turn_limits_only: bool,
 }
 
 fn parse_contrast(pair: &str) -> Result<(String, String), String> {
@@ -40,8 +46,13 @@ fn parse_contrast(pair: &str) -> Result<(String, String), String> {
 pub fn run(args: CalibrateArgs) -> Result<()> {
     let data = DataRoot::resolve(args.data.as_deref());
     let mut model = GlocalModel::load(&args.model)?;
+    let limits = turn_limits(&model, &data, &args.model)?;
+    model = model.with_bone_turn_limits(limits)?;
+    if args.turn_limits_only {
+        return write(&model.spec, &args);
+    }
     if !args.contrast.is_empty() {
-        model = model.with_class_contrasts(args.contrast.into_iter().collect())?;
+        model = model.with_class_contrasts(args.contrast.iter().cloned().collect())?;
     }
     // The texture is calibrated from all of it.
     let model = model.with_texture_gains(BTreeMap::new())?;
@@ -62,6 +73,20 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
     }
     say!("{} of {} classes need more than the model's guidance ({}) to reach {LIVELY_SHARE} of their training clips' jerk", spec.class_strengths.len(), classes.len(), spec.class_strength);
+    write(&spec, &args)
+}
+
+/// The bones' turn limits from the training clips of `model` (in `dir`), printed.
+fn turn_limits(model: &GlocalModel, data: &DataRoot, dir: &Path) -> Result<BTreeMap<String, f32>> {
+    let corpus = Corpus::for_model(model.spec.dataset.parse()?, data, &model.spec, dir)?;
+    let limits = corpus.bone_turn_limits();
+    let row = |(bone, limit): (&String, &f32)| format!("{bone} {:.0} ({:.1} a frame)", limit, limit / model.spec.fps);
+    say!("bones' turn limits, degrees a second: {}", limits.iter().map(row).collect::<Vec<_>>().join(", "));
+    Ok(limits)
+}
+
+/// `spec` into the model's model.json, unless only a dry run is asked for.
+fn write(spec: &ModelSpec, args: &CalibrateArgs) -> Result<()> {
     if !args.dry_run {
         spec.write(&args.model)?;
         say!("wrote {}", args.model.join("model.json").display());

@@ -88,6 +88,10 @@ pub struct GenerateArgs {
     /// the classes' training clips (on models that ship one: `all`).
     #[arg(long)]
     pub no_texture: bool,
+    /// Leave a bone that turns farther in one frame than the model's training clips do as
+    /// the network made it, instead of spreading its turn over the frames around it.
+    #[arg(long)]
+    pub no_snap_spread: bool,
     /// Cut the take (one activity) to a cycle of about its duration whose end joins its
     /// start in pose and velocity, for a game engine's loop; the travel per cycle is printed.
     #[arg(long = "loop")]
@@ -250,6 +254,7 @@ fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOpti
         foot_lock: !args.no_foot_lock,
         hold_course: !args.no_hold_course,
         texture: !args.no_texture,
+        spread_snaps: !args.no_snap_spread,
         keys: args.keys.iter().map(|k| Key::parse(k, parse_init)).collect::<Result<_>>()?,
         path: args.path.as_deref().map(RootPath::read).transpose()?,
         cycle: args.cycle,

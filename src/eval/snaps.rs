@@ -10,13 +10,7 @@ use serde::Serialize;
 use super::metrics::quantile;
 use super::motion::COMMON_FPS;
 use crate::model::corpus::Track;
-use crate::motion::Motion;
-
-/// The quantile of the real per-frame turns a generated bone may reach.
-pub const SNAP_QUANTILE: f32 = 0.999;
-/// Bones shorter than this (metres) have no direction worth measuring: duplicate joints and
-/// collapsed end sites.
-const MIN_BONE_M: f32 = 0.01;
+use crate::motion::{Motion, SNAP_QUANTILE};
 
 /// A bone by its child joint, named `parent>child`.
 fn bone_name(m: &Motion, j: usize) -> String {
@@ -27,18 +21,7 @@ fn bone_name(m: &Motion, j: usize) -> String {
 /// Per bone (its child joint, with the bone's name), the angle in degrees its direction turns
 /// between each frame and the next of `m`.
 pub fn bone_turns(m: &Motion) -> Vec<(usize, String, Vec<f32>)> {
-    let rest = m.skeleton.rest_bone_lengths();
-    let unit = m.skeleton.meters_per_unit();
-    (0..m.joints())
-        .filter_map(|j| {
-            let parent = m.skeleton.parents()[j]?;
-            (rest[j] * unit >= MIN_BONE_M).then(|| {
-                let direction = |t: usize| (m.frame(t)[j] - m.frame(t)[parent]).normalize_or_zero();
-                let turns = (1..m.frames()).map(|t| direction(t - 1).dot(direction(t)).clamp(-1.0, 1.0).acos().to_degrees()).collect();
-                (j, bone_name(m, j), turns)
-            })
-        })
-        .collect()
+    crate::motion::bone_turns(m).into_iter().map(|(j, turns)| (j, bone_name(m, j), turns)).collect()
 }
 
 /// Per bone name, the real clips' [`SNAP_QUANTILE`] of the per-frame turn (degrees).

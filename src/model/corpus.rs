@@ -1,6 +1,7 @@
 //! Training material for one dataset: every clip resampled to the working frame rate, cut
 //! to the model's joints, with the normalisation statistics of the training split.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -12,7 +13,7 @@ use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
 use crate::data::registry::{self, Dataset, Split};
 use super::spec::ModelSpec;
-use crate::motion::{peak_accelerations, quantile, JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION};
+use crate::motion::{bone_turns, peak_accelerations, quantile, JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION, SNAP_QUANTILE};
 
 /// The styles that mean "no particular style", which a class's usual style falls to on a tie.
 const PLAIN_STYLES: [&str; 2] = ["neutral", "normal"];
@@ -153,6 +154,24 @@ impl Corpus {
                 (sum / n.max(1) as f64) as f32
             })
             .collect()
+    }
+
+    /// Per bone of the model's skeleton (by its child joint), the turn of its direction in
+    /// one frame that the training clips' calm frames ([`CalmFrames`]) stay within but once in
+    /// a thousand ([`SNAP_QUANTILE`]), degrees a second: how far a take's bone may turn
+    /// ([`ModelSpec::bone_turn_limits`]).
+    pub fn bone_turn_limits(&self) -> BTreeMap<String, f32> {
+        let calm = CalmFrames::of(self);
+        let mut pooled: BTreeMap<usize, Vec<f32>> = BTreeMap::new();
+        for (clip, track) in self.train.iter().enumerate() {
+            for (j, turns) in bone_turns(&track.motion) {
+                // Turn `t` is from frame `t` to `t + 1`.
+                let calm_turns = turns.iter().enumerate().filter(|&(t, _)| calm.holds(clip, t..t + 2)).map(|(_, &turn)| turn);
+                pooled.entry(j).or_default().extend(calm_turns);
+            }
+        }
+        let names = self.layout.skeleton.names();
+        pooled.into_iter().filter(|(_, turns)| !turns.is_empty()).map(|(j, turns)| (names[j].clone(), quantile(&turns, SNAP_QUANTILE) * self.fps)).collect()
     }
 
     /// Normalisation of sparse features (`stride` apart) and of dense ones (1 apart).

@@ -92,6 +92,12 @@ impl GlocalModel {
         self.with_spec(|spec| spec.texture_gains = gains)
     }
 
+    /// The model with its bones' turn limits replaced
+    /// ([`ModelSpec::bone_turn_limits`]).
+    pub fn with_bone_turn_limits(self, limits: BTreeMap<String, f32>) -> Result<Self, Error> {
+        self.with_spec(|spec| spec.bone_turn_limits = limits)
+    }
+
     pub fn has_locgen(&self) -> bool {
         self.locgen.is_some()
     }

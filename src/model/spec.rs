@@ -289,6 +289,13 @@ pub struct ModelSpec {
     /// class is as lively as its training clips: a class not named gets all of it.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub texture_gains: BTreeMap<String, f32>,
+    /// Per bone (by its child joint), the farthest its direction turns in one frame of a take,
+    /// degrees a second: the training clips' turn of the bone once in a thousand calm frames
+    /// (`crate::model::corpus::Corpus::bone_turn_limits`); a snap beyond it is spread over the
+    /// frames around it ([`crate::motion::spread_snaps`]). Written at training and by
+    /// `glocal calibrate`; a bone not named is left as the network made it.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub bone_turn_limits: BTreeMap<String, f32>,
     pub glogen: GloGenSpec,
     pub locgen: LocGenSpec,
     /// The in-betweener, for models trained with one.
@@ -347,6 +354,10 @@ const MAX_BLOCK_LEN: usize = 1000;
 const MAX_ROLLOUT: usize = 100;
 const MAX_LOCGEN_WINDOW: usize = 1000;
 const MAX_HIDDEN: usize = 4096;
+/// A bone's turn limit: from a bone that barely moves to a half turn every frame at the
+/// highest rate.
+const MIN_TURN_DEGREES_A_SECOND: f32 = 1.0;
+const MAX_TURN_DEGREES_A_SECOND: f32 = 180.0 * MAX_FPS;
 /// Parameters of one block (about 4 bytes each, several copies while loading).
 const MAX_BLOCK_PARAMETERS: usize = 100_000_000;
 
@@ -530,6 +541,12 @@ impl ModelSpec {
             }
             in_range(&format!("texture_gains.{class}"), gain, 0.0, 1.0)?;
         }
+        for (joint, &limit) in &self.bone_turn_limits {
+            if self.layout.skeleton.index_of(joint).is_none_or(|j| j == 0) {
+                return Err(E::field("bone_turn_limits", format!("names '{}', which is not a bone of the model's skeleton", clipped(joint))));
+            }
+            in_range(&format!("bone_turn_limits.{joint}"), limit, MIN_TURN_DEGREES_A_SECOND, MAX_TURN_DEGREES_A_SECOND)?;
+        }
         for (class, away) in &self.class_contrasts {
             if !self.classes.contains(class) || !self.classes.contains(away) || class == away {
                 return Err(E::field(&format!("class_contrasts.{}", clipped(class)), format!("pairs '{}' with '{}'; both must be the model's classes, and two different ones", clipped(class), clipped(away))));
@@ -576,6 +593,12 @@ impl ModelSpec {
         for i in self.label_indices(class, style) {
             row[i] = 1.0;
         }
+    }
+
+    /// Per joint of the model's skeleton, how far (radians) its bone may turn in one frame of
+    /// a take ([`Self::bone_turn_limits`] at the model's rate); none for a bone without one.
+    pub fn turn_limits_per_frame(&self) -> Vec<Option<f32>> {
+        self.layout.skeleton.names().iter().map(|n| self.bone_turn_limits.get(n).map(|d| (d / self.fps).to_radians())).collect()
     }
 
     /// One-hot entries of the label part of the conditioning: the classes, then the styles.
@@ -755,6 +778,23 @@ mod tests {
         assert!(unknown.contains("texture_gains") && unknown.contains("'salsa'"), "{unknown}");
         let over = with(&mut model, serde_json::json!({"walking": 1.5})).unwrap_err().to_string();
         assert!(over.contains("texture_gains.walking") && over.contains("between 0 and 1"), "{over}");
+    }
+
+    /// A bone's turn limit names a bone of the model's skeleton (not its root, which has no
+    /// bone) and is a turn a second in range; it is read a frame at the model's rate.
+    #[test]
+    fn bone_turn_limits_name_a_bone_and_a_turn_in_range() {
+        let mut model = shipped_h36m_json();
+        let with = |model: &mut Value, limits: Value| with_field(model, "bone_turn_limits", limits);
+        let spec = with(&mut model, serde_json::json!({"LeftHand": 500.0})).unwrap();
+        let per_frame = spec.turn_limits_per_frame();
+        let hand = spec.layout.skeleton.index_of("LeftHand").unwrap();
+        assert!((per_frame[hand].unwrap() - (500.0 / spec.fps).to_radians()).abs() < 1e-6);
+        assert_eq!(per_frame.iter().filter(|l| l.is_some()).count(), 1);
+        for (bad, says) in [(serde_json::json!({"Tail": 500.0}), "'Tail'"), (serde_json::json!({"Hips": 500.0}), "'Hips'"), (serde_json::json!({"LeftHand": -3.0}), "bone_turn_limits.LeftHand")] {
+            let e = with(&mut model, bad).unwrap_err().to_string();
+            assert!(e.contains("bone_turn_limits") && e.contains(says), "{e}");
+        }
     }
 
     /// A contrast pairs two of the model's classes, different ones, on a GloGen with guidance;

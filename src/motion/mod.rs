@@ -19,6 +19,7 @@ mod skeleton;
 mod solve;
 mod standard;
 mod take;
+mod turns;
 
 pub use hands::keep_hands_above_floor;
 pub use kinematics::{forward_kinematics, LocalPose};
@@ -33,4 +34,5 @@ pub use rotation::{euler_to_quat, quat_to_euler, unwrap_angle, EulerOrder};
 pub use skeleton::{clipped, Skeleton, SkeletonError, SHORT_BONE_FRACTION};
 pub use solve::solve_local_poses;
 pub use standard::standard_humanoid;
+pub use turns::{bone_turns, spread_snaps, SNAP_QUANTILE};
 pub use take::{floor_height, mean_joint_step, peak_accelerations, quantile, Motion};

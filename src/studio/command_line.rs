@@ -111,6 +111,7 @@ fn option_args(options: &GenerateOptions, model: &ModelInfo) -> Vec<String> {
         (!options.foot_lock, "--no-foot-lock"),
         (!options.hold_course, "--no-hold-course"),
         (!options.texture, "--no-texture"),
+        (!options.spread_snaps, "--no-snap-spread"),
         (options.cycle, "--loop"),
     ];
     args.extend(switches.into_iter().filter(|(on, _)| *on).map(|(_, flag)| flag.to_string()));

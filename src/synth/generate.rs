@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::finish::{chunks, ChunkFinish, Finishing, Stretch, Textured};
+use super::finish::{above_the_legs, chunks, ChunkFinish, Finishing, Stretch, Textured};
 use super::finish_thread::{FinishingThread, Shown};
 use super::course::HoldCourse;
 use super::foot_lock::Travel;
@@ -114,7 +114,8 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let travel = if spec.carry_by_feet && opts.path.is_none() { Travel::FromFeet { kept: learnt } } else { Travel::Kept };
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
     let texture = model.texture().filter(|_| opts.texture).map(|bank| Textured { bank, pose_classes: pose_classes(&block_classes, t, total), seed: opts.seed });
-    let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints, texture };
+    let turn_limits = (opts.spread_snaps && !spec.bone_turn_limits.is_empty()).then(|| above_the_legs(spec.turn_limits_per_frame(), &spec.layout.skeleton));
+    let finishing = Finishing { model, locgen: opts.locgen, project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints, texture, turn_limits };
     let segments = timeline.planned_spans(&spec.classes);
 
     // Only a resumable take is printed: the print of a request's held frames would cost

@@ -86,6 +86,10 @@ pub struct GenerateOptions {
     /// Lay the motion texture of each class's training clips over the frames between
     /// GloGen's sparse poses (see [`crate::model::texture`]), on models that ship one.
     pub texture: bool,
+    /// Spread a bone's turn over the frames around it where it turns farther in one frame
+    /// than the model's training clips do (see [`crate::motion::spread_snaps`]), on models
+    /// that carry the limits ([`crate::model::spec::ModelSpec::bone_turn_limits`]).
+    pub spread_snaps: bool,
     /// Full-body poses the take passes through (see [`super::constraints`]).
     pub keys: Vec<Key>,
     /// A path on the ground the take's locomotion follows.
@@ -118,6 +122,7 @@ impl Default for GenerateOptions {
             foot_lock: true,
             hold_course: true,
             texture: true,
+            spread_snaps: true,
             keys: Vec::new(),
             path: None,
             key_method: KeyMethod::default(),

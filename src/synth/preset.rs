@@ -7,7 +7,7 @@ use super::options::{GenerateOptions, Transition};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Preset {
     /// The product's method: every addition on (anchored transitions, guidance, keep-alive,
-    /// seam joins, foot lock), each as the options say.
+    /// seam joins, foot lock, texture, snaps spread), each as the options say.
     #[default]
     Shipped,
     /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks that
@@ -28,6 +28,7 @@ impl Preset {
             opts.foot_lock = false;
             opts.hold_course = false;
             opts.texture = false;
+            opts.spread_snaps = false;
         }
         opts
     }
@@ -52,6 +53,6 @@ mod tests {
         assert_eq!(Preset::Shipped.apply(shipped.clone()), shipped);
         let paper = Preset::Paper.apply(shipped);
         assert_eq!((paper.transition, paper.transition_seconds, paper.class_strength), (Transition::Cut, 0.0, Some(1.0)));
-        assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock || paper.hold_course || paper.texture));
+        assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock || paper.hold_course || paper.texture || paper.spread_snaps));
     }
 }

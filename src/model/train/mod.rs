@@ -581,6 +581,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         class_contrasts: BTreeMap::new(),
         contrast_strength: DEFAULT_CONTRAST_STRENGTH,
         texture_gains: BTreeMap::new(),
+        bone_turn_limits: corpus.bone_turn_limits(),
         glogen: shapes.glogen,
         locgen: shapes.locgen,
         inbetween: (opts.stage == Stage::Inbetween).then_some(shapes.inbetween),
