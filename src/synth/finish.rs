@@ -248,10 +248,11 @@ impl Finishing<'_> {
     }
 }
 
-/// Bones' turn limits `limits` (per joint of `skeleton`) without the legs': a leg's snaps are
-/// the foot lock's to settle, and a foot's flick spread over the frames around it moves the
-/// foot while it stands (`all`'s Bandai classes' support-point speed 1.42 -> 1.49x real with
-/// the legs spread too).
+/// Bones' turn limits `limits` (per joint of `skeleton`) without the legs': a foot's flick
+/// spread over the frames around it moves the foot while it stands (`all`'s Bandai classes'
+/// support-point speed 1.42 -> 1.49x real with the legs spread too), and after the foot lock,
+/// in the frames a foot is up, Bandai's running legs, faster than its clips for frames on
+/// end, jerked 1.35x real (docs/RESULTS.md, "Snaps spread").
 pub(super) fn above_the_legs(mut limits: Vec<Option<f32>>, skeleton: &Skeleton) -> Vec<Option<f32>> {
     if let Ok(roles) = JointRoles::new(skeleton) {
         for leg in [roles.left, roles.right] {
@@ -584,4 +585,3 @@ mod tests {
         assert_eq!(chunks(1549, 0.2).last().unwrap().core, 1400..1549);
     }
 }
-
