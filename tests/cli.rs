@@ -116,6 +116,25 @@ fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
     assert_eq!(std::fs::read(model.join("model.json")).unwrap(), before, "model.json changed");
 }
 
+/// The shipped models' bones' turn limits are what the README's `glocal calibrate
+/// --turn-limits-only` writes from the data: on a copy of the h36m model, model.json comes out
+/// byte for byte the shipped one.
+#[test]
+fn the_shipped_turn_limits_come_from_the_readme_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("h36m");
+    std::fs::create_dir(&model).unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
+    for file in ["model.json", "glogen.safetensors", "locgen.safetensors", "inbetween.safetensors", "seeds.json"] {
+        std::fs::copy(shipped.join(file), model.join(file)).unwrap();
+    }
+    let mut spec: serde_json::Value = serde_json::from_slice(&std::fs::read(model.join("model.json")).unwrap()).unwrap();
+    spec.as_object_mut().unwrap().remove("bone_turn_limits");
+    std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
+    ok(glocal_in(dir.path(), &["calibrate", "--model", model.to_str().unwrap(), "--turn-limits-only"]), "calibrate --turn-limits-only");
+    assert!(std::fs::read(model.join("model.json")).unwrap() == std::fs::read(shipped.join("model.json")).unwrap(), "model.json differs from the shipped one");
+}
+
 /// `--no-texture` is a setting a project saves: a project on `all` asking no texture makes the
 /// take the flag makes, and both differ from the textured take (a studio user who turned the
 /// "Motion texture" box off and copied the command line gets the take they saw).

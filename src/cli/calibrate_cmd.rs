@@ -32,7 +32,7 @@ pub struct CalibrateArgs {
     contrast: Vec<(String, String)>,
     /// Write only the bones' turn limits (model.json's `bone_turn_limits`, from the training
     /// clips; a full calibration writes them too) and leave the guidance as it is.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["contrast", "strengths"])]
     turn_limits_only: bool,
 }
 
@@ -46,13 +46,13 @@ fn parse_contrast(pair: &str) -> Result<(String, String), String> {
 pub fn run(args: CalibrateArgs) -> Result<()> {
     let data = DataRoot::resolve(args.data.as_deref());
     let mut model = GlocalModel::load(&args.model)?;
+    if !args.contrast.is_empty() {
+        model = model.with_class_contrasts(args.contrast.iter().cloned().collect())?;
+    }
     let limits = turn_limits(&model, &data, &args.model)?;
     model = model.with_bone_turn_limits(limits)?;
     if args.turn_limits_only {
         return write(&model.spec, &args);
-    }
-    if !args.contrast.is_empty() {
-        model = model.with_class_contrasts(args.contrast.iter().cloned().collect())?;
     }
     // The texture is calibrated from all of it.
     let model = model.with_texture_gains(BTreeMap::new())?;
