@@ -150,13 +150,12 @@ impl Finishing<'_> {
         }
     }
 
-    /// Paced frames `positions` with their bones' snaps spread, when the take spreads them.
-    /// Before the constraints (a key's or a start's frames stay as given) and the foot lock
-    /// (a planted foot stays where the lock puts it).
-    fn spread_snaps(&self, positions: &mut [Vec3]) {
-        if let Some(limits) = &self.turn_limits {
-            spread_snaps(positions, &self.model.spec.layout.skeleton, limits);
-        }
+    /// Frames `positions` with their bones' snaps spread, when the take spreads them; whether
+    /// any was. On the paced frames, before the constraints (a key's or a start's frames stay
+    /// as given), and again after the bone projection; both before the foot lock (a planted
+    /// foot stays where the lock puts it).
+    fn spread_snaps(&self, positions: &mut [Vec3]) -> bool {
+        self.turn_limits.as_ref().is_some_and(|limits| spread_snaps(positions, &self.model.spec.layout.skeleton, limits) > 0)
     }
 
     /// Whether the take's feet are locked: asked for, and the model's skeleton has feet to lock.
@@ -170,8 +169,17 @@ impl Finishing<'_> {
         let spec = &self.model.spec;
         let skeleton = spec.layout.skeleton.clone();
         let motion = if self.project_bones {
-            let poses = solve_local_poses(&skeleton, &positions);
-            Motion::from_local_poses(skeleton, spec.fps, poses)
+            let projected = Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, &positions));
+            // The projection bridges a bone the network collapses while it turns, and the
+            // bridge may turn it past its limit again (Bandai's dash from seed window 2: a
+            // forearm 38 degrees a frame spread, 60 bridged); its snaps are spread once more
+            // and the take solved again, exactly now that every bone has its rest length.
+            let mut again = projected.positions().to_vec();
+            if self.spread_snaps(&mut again) {
+                Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, &again))
+            } else {
+                projected
+            }
         } else {
             Motion::from_positions(skeleton, spec.fps, positions)
         };
