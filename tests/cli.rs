@@ -4,6 +4,10 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+#[path = "support/models.rs"]
+mod models;
+use models::model_copy;
+
 const BIN: &str = env!("CARGO_BIN_EXE_glocal");
 
 /// `glocal ARGS` run in `dir`.
@@ -99,14 +103,7 @@ fn a_walk_at_its_own_pace_walks_whatever_the_global_pace() {
 /// line naming what is wrong, and the model folder is left as it was.
 #[test]
 fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("all");
-    std::fs::create_dir(&model).unwrap();
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/all");
-    for entry in std::fs::read_dir(&shipped).unwrap() {
-        let entry = entry.unwrap();
-        std::fs::copy(entry.path(), model.join(entry.file_name())).unwrap();
-    }
+    let (dir, model) = model_copy("all");
     let before = std::fs::read(model.join("model.json")).unwrap();
     for (contrast, says) in [("walk-left", "is not CLASS=OTHER"), ("walk-left=tango", "class_contrasts.walk-left"), ("walking=walking", "two different ones")] {
         let out = glocal_in(dir.path(), &["calibrate", "--model", model.to_str().unwrap(), "--contrast", contrast]);
@@ -121,13 +118,8 @@ fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
 /// byte for byte the shipped one.
 #[test]
 fn the_shipped_turn_limits_come_from_the_readme_command() {
-    let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("h36m");
-    std::fs::create_dir(&model).unwrap();
+    let (dir, model) = model_copy("h36m");
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
-    for file in ["model.json", "glogen.safetensors", "locgen.safetensors", "inbetween.safetensors", "seeds.json"] {
-        std::fs::copy(shipped.join(file), model.join(file)).unwrap();
-    }
     let mut spec: serde_json::Value = serde_json::from_slice(&std::fs::read(model.join("model.json")).unwrap()).unwrap();
     spec.as_object_mut().unwrap().remove("bone_turn_limits");
     std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();

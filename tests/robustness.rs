@@ -19,21 +19,12 @@ use glocal::synth::export::parse_json_take;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
-use tempfile::TempDir;
+
+#[path = "support/models.rs"]
+mod models;
+use models::model_copy;
 
 const BIN: &str = env!("CARGO_BIN_EXE_glocal");
-
-/// A copy of a shipped model in a fresh folder (never the shipped folder itself).
-fn model_copy(name: &str) -> (TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    let to = dir.path().join(name);
-    std::fs::create_dir(&to).unwrap();
-    for entry in std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap() {
-        let entry = entry.unwrap();
-        std::fs::copy(entry.path(), to.join(entry.file_name())).unwrap();
-    }
-    (dir, to)
-}
 
 fn glocal(args: &[&str]) -> Output {
     Command::new(BIN).args(args).stdin(Stdio::null()).output().unwrap()
