@@ -1,7 +1,7 @@
 //! `glocal calibrate`: per-class guidance for a trained model ([`crate::eval::calibrate`]).
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
@@ -49,14 +49,16 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     if !args.contrast.is_empty() {
         model = model.with_class_contrasts(args.contrast.iter().cloned().collect())?;
     }
-    let limits = turn_limits(&model, &data, &args.model)?;
+    eprintln!("calibrate: {} training clips", model.spec.dataset);
+    let corpus = Corpus::for_model(model.spec.dataset.parse()?, &data, &model.spec, &args.model)?;
+    let limits = turn_limits(&corpus, model.spec.fps);
     model = model.with_bone_turn_limits(limits)?;
     if args.turn_limits_only {
         return write(&model.spec, &args);
     }
     // The texture is calibrated from all of it.
     let model = model.with_texture_gains(BTreeMap::new())?;
-    let classes = calibrate(&model, &data, &args.strengths, &mut |m| eprintln!("{m}"))?;
+    let classes = calibrate(&model, &corpus, &args.strengths, &mut |m| eprintln!("{m}"))?;
     let mut spec = model.spec.clone();
     say!("| class | training clips' jerk (m/s^3) | at each strength: generated jerk over the training clips', travel (m/s) | chosen |\n|---|---|---|---|");
     for c in &classes {
@@ -76,13 +78,12 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     write(&spec, &args)
 }
 
-/// The bones' turn limits from the training clips of `model` (in `dir`), printed.
-fn turn_limits(model: &GlocalModel, data: &DataRoot, dir: &Path) -> Result<BTreeMap<String, f32>> {
-    let corpus = Corpus::for_model(model.spec.dataset.parse()?, data, &model.spec, dir)?;
+/// The bones' turn limits from the training clips of `corpus` (a model at `fps`), printed.
+fn turn_limits(corpus: &Corpus, fps: f32) -> BTreeMap<String, f32> {
     let limits = corpus.bone_turn_limits();
-    let row = |(bone, limit): (&String, &f32)| format!("{bone} {:.0} ({:.1} a frame)", limit, limit / model.spec.fps);
+    let row = |(bone, limit): (&String, &f32)| format!("{bone} {:.0} ({:.1} a frame)", limit, limit / fps);
     say!("bones' turn limits, degrees a second: {}", limits.iter().map(row).collect::<Vec<_>>().join(", "));
-    Ok(limits)
+    limits
 }
 
 /// `spec` into the model's model.json, unless only a dry run is asked for.

@@ -13,8 +13,6 @@ use glam::Vec3;
 
 use super::motion::{real_pieces, Measure, Pool, COMMON_FPS};
 use super::suites::motion::scored_take;
-use crate::data::archive::DataRoot;
-use crate::data::registry::Dataset;
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
 use crate::motion::{JointRoles, Motion};
@@ -66,19 +64,17 @@ impl Reading {
 }
 
 /// Each class of `model`, generated at each of `strengths` (ascending, the model's
-/// own first) from its first seed windows, against the mean jerk of its training clips: the
+/// own first) from its first seed windows, against the mean jerk of its training clips (in
+/// `corpus`, the data it was trained on): the
 /// lowest strength at which the class reaches [`LIVELY_SHARE`] of it, or the liveliest when
 /// none does, but never one at which it travels less than [`KEPT_TRAVEL`] of its own.
-pub fn calibrate(model: &GlocalModel, data: &DataRoot, strengths: &[f32], log: &mut dyn FnMut(&str)) -> Result<Vec<ClassCalibration>> {
+pub fn calibrate(model: &GlocalModel, corpus: &Corpus, strengths: &[f32], log: &mut dyn FnMut(&str)) -> Result<Vec<ClassCalibration>> {
     let spec = &model.spec;
     if strengths.is_empty() || strengths.windows(2).any(|w| w[0] >= w[1]) || strengths[0] < spec.class_strength {
         bail!("the strengths to try must rise from the model's own ({}), got {strengths:?}", spec.class_strength);
     }
-    let dataset: Dataset = spec.dataset.parse()?;
-    log(&format!("calibrate: {dataset} training clips"));
-    let corpus = Corpus::for_model(dataset, data, spec, &model.dir)?;
     let roles = JointRoles::new(&spec.layout.skeleton)?;
-    let real_jerks = training_jerks(&corpus, &roles);
+    let real_jerks = training_jerks(corpus, &roles);
     let mut out = Vec::new();
     for (class, name) in spec.classes.iter().enumerate() {
         let real_jerk = real_jerks[class];

@@ -20,7 +20,8 @@ pub const SNAP_QUANTILE: f32 = 0.999;
 const MIN_BONE_M: f32 = 0.01;
 
 /// Per bone long enough to have a direction (by its child joint), the angle in degrees its
-/// direction turns between each frame and the next of `m`.
+/// direction turns between each frame and the next of `m` (a frame where the bone has no
+/// length reads as a right angle: as the motion suite has always counted it).
 pub fn bone_turns(m: &Motion) -> Vec<(usize, Vec<f32>)> {
     let rest = m.skeleton.rest_bone_lengths();
     let unit = m.skeleton.meters_per_unit();
@@ -29,7 +30,7 @@ pub fn bone_turns(m: &Motion) -> Vec<(usize, Vec<f32>)> {
             let parent = m.skeleton.parents()[j]?;
             (rest[j] * unit >= MIN_BONE_M).then(|| {
                 let direction = |t: usize| (m.frame(t)[j] - m.frame(t)[parent]).normalize_or_zero();
-                (j, (1..m.frames()).map(|t| turn(direction(t - 1), direction(t)).to_degrees()).collect())
+                (j, (1..m.frames()).map(|t| direction(t - 1).dot(direction(t)).clamp(-1.0, 1.0).acos().to_degrees()).collect())
             })
         })
         .collect()

@@ -150,12 +150,23 @@ impl Finishing<'_> {
         }
     }
 
-    /// Frames `positions` with their bones' snaps spread, when the take spreads them; whether
-    /// any was. On the paced frames, before the constraints (a key's or a start's frames stay
-    /// as given), and again after the bone projection; both before the foot lock (a planted
-    /// foot stays where the lock puts it).
-    fn spread_snaps(&self, positions: &mut [Vec3]) -> bool {
-        self.turn_limits.as_ref().is_some_and(|limits| spread_snaps(positions, &self.model.spec.layout.skeleton, limits) > 0)
+    /// Paced frames `positions` with their bones' snaps spread, when the take spreads them.
+    /// Before the constraints (a key's or a start's frames stay as given) and the foot lock
+    /// (a planted foot stays where the lock puts it).
+    fn spread_snaps(&self, positions: &mut [Vec3]) {
+        if let Some(limits) = &self.turn_limits {
+            spread_snaps(positions, &self.model.spec.layout.skeleton, limits);
+        }
+    }
+
+    /// The projected take's frames with its snaps spread once more, when the take spreads
+    /// them and any is: the projection bridges a bone the network collapses while it turns,
+    /// and the bridge may turn it past its limit again (Bandai's dash from seed window 2: a
+    /// forearm 38 degrees a frame spread, 60 bridged).
+    fn spread_again(&self, projected: &Motion) -> Option<Vec<Vec3>> {
+        let limits = self.turn_limits.as_ref()?;
+        let mut positions = projected.positions().to_vec();
+        (spread_snaps(&mut positions, &self.model.spec.layout.skeleton, limits) > 0).then_some(positions)
     }
 
     /// Whether the take's feet are locked: asked for, and the model's skeleton has feet to lock.
@@ -170,15 +181,10 @@ impl Finishing<'_> {
         let skeleton = spec.layout.skeleton.clone();
         let motion = if self.project_bones {
             let projected = Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, &positions));
-            // The projection bridges a bone the network collapses while it turns, and the
-            // bridge may turn it past its limit again (Bandai's dash from seed window 2: a
-            // forearm 38 degrees a frame spread, 60 bridged); its snaps are spread once more
-            // and the take solved again, exactly now that every bone has its rest length.
-            let mut again = projected.positions().to_vec();
-            if self.spread_snaps(&mut again) {
-                Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, &again))
-            } else {
-                projected
+            // Solved again where spread, exactly now that every bone has its rest length.
+            match self.spread_again(&projected) {
+                Some(again) => Motion::from_local_poses(skeleton.clone(), spec.fps, solve_local_poses(&skeleton, &again)),
+                None => projected,
             }
         } else {
             Motion::from_positions(skeleton, spec.fps, positions)
