@@ -127,6 +127,34 @@ fn the_shipped_turn_limits_come_from_the_readme_command() {
     assert!(std::fs::read(model.join("model.json")).unwrap() == std::fs::read(shipped.join("model.json")).unwrap(), "model.json differs from the shipped one");
 }
 
+/// h36m's shares of its motion texture are what the README's `glocal calibrate --strengths
+/// 1.5` writes: on a copy without them, the same classes get the same shares (within 0.02; the
+/// calibration generates takes, whose last digits may differ on another processor) and
+/// nothing else in model.json changes, the guidance the model's one.
+#[test]
+fn the_shipped_texture_shares_come_from_the_readme_command() {
+    let (dir, model) = model_copy("h36m");
+    let read = |path: &Path| -> serde_json::Value { serde_json::from_slice(&std::fs::read(path.join("model.json")).unwrap()).unwrap() };
+    let shipped = read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m"));
+    let mut spec = shipped.clone();
+    spec.as_object_mut().unwrap().remove("texture_gains");
+    std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
+    ok(glocal_in(dir.path(), &["calibrate", "--model", model.to_str().unwrap(), "--strengths", "1.5"]), "calibrate --strengths 1.5");
+    let mut written = read(&model);
+    let shares = |spec: &mut serde_json::Value| -> Vec<(String, f64)> {
+        let gains = spec.as_object_mut().unwrap().remove("texture_gains").expect("no texture_gains");
+        gains.as_object().unwrap().iter().map(|(class, gain)| (class.clone(), gain.as_f64().unwrap())).collect()
+    };
+    let (made, expected) = (shares(&mut written), shares(&mut shipped.clone()));
+    assert_eq!(made.iter().map(|(c, _)| c).collect::<Vec<_>>(), expected.iter().map(|(c, _)| c).collect::<Vec<_>>(), "other classes have shares");
+    for ((class, a), (_, b)) in made.iter().zip(&expected) {
+        assert!((a - b).abs() < 0.02, "{class}: share {a:.3}, shipped {b:.3}");
+    }
+    let mut rest = shipped;
+    rest.as_object_mut().unwrap().remove("texture_gains");
+    assert!(written == rest, "calibrate changed more of model.json than the texture shares");
+}
+
 /// `--no-texture` is a setting a project saves: a project on `all` asking no texture makes the
 /// take the flag makes, and both differ from the textured take (a studio user who turned the
 /// "Motion texture" box off and copied the command line gets the take they saw).
