@@ -460,7 +460,8 @@ fn a_standing_person_keeps_the_small_motion_of_capture() {
 /// The texture is capture detail of millimetres, which turned the 75 mm toe of h36m's
 /// sitting down from the new-project seed 60 degrees in one frame and back in the next: laid
 /// so that it turns no bone further than half the training clips' turn in a frame, the toe
-/// turns at most its limit further than without the texture (17 degrees against 13; limit 25).
+/// turns within its limit (17 degrees, 13 without the texture, 29 held at the whole limit;
+/// limit 25).
 #[test]
 fn the_texture_does_not_snap_a_toe() {
     let m = model("h36m");
@@ -473,5 +474,5 @@ fn the_texture_does_not_snap_a_toe() {
     };
     let (plain, textured) = (largest(false), largest(true));
     println!("the left toe's largest turn in one frame: {plain:.1} degrees without the texture, {textured:.1} with it (limit {limit:.1})");
-    assert!(textured <= plain + limit, "the texture turns the toe {textured:.1} degrees in one frame ({plain:.1} without it, limit {limit:.1})");
+    assert!(textured <= limit, "the texture turns the toe {textured:.1} degrees in one frame ({plain:.1} without it, limit {limit:.1})");
 }

@@ -133,7 +133,7 @@ impl Texture {
                 }
                 let turn = Quat::from_rotation_y(layout.heading(frame));
                 texture.iter_mut().zip(&weights).for_each(|(t, w)| *t = turn * *t * *w);
-                hold_turns(frame, &mut texture, &mut laid, parents, &limits);
+                hold_turns(frame, &mut texture, &mut laid, &weights, parents, &limits);
                 frame.iter_mut().zip(&texture).for_each(|(p, t)| *p += *t);
             }
         }
@@ -229,21 +229,27 @@ fn swing_weights(dense: &[Vec3], joints: usize, ankle: usize, fps: f32, metres_p
 /// toe, a thumb) by as much as the offset is long. Laid whole, h36m's sitting down from the
 /// new-project seed turned a 75 mm toe 60 degrees in one frame and back in the next. Each
 /// bone keeps the texture's move of its child relative to its parent, less what turns it past
-/// its limit, so a held bone carries the joints below it (`laid`: room for the moves as laid).
-fn hold_turns(frame: &[Vec3], moves: &mut [Vec3], laid: &mut Vec<Vec3>, parents: &[Option<usize>], limits: &[Option<f32>]) {
+/// half its limit, and shortens by at most half its length (further, it would turn round its
+/// parent); parents come first, so a held bone carries the joints below it. A joint with a
+/// share of its texture under 1 (`weights`: a foot as it slows to a stand) takes that share
+/// of the held move and the rest as laid, so a planted foot stays where the lock finds it.
+/// `laid`: room for the moves as laid.
+fn hold_turns(frame: &[Vec3], moves: &mut [Vec3], laid: &mut Vec<Vec3>, weights: &[f32], parents: &[Option<usize>], limits: &[Option<f32>]) {
     laid.clear();
     laid.extend_from_slice(moves);
     for j in 0..moves.len() {
         let Some(parent) = parents[j] else { continue };
         let mut own = laid[j] - laid[parent];
-        if let (Some(Some(limit)), Some(along)) = (limits.get(j), (frame[j] - frame[parent]).try_normalize()) {
+        let bone = frame[j] - frame[parent];
+        if let (Some(Some(limit)), Some(along)) = (limits.get(j), bone.try_normalize()) {
+            let length = bone.length();
+            let lengthened = own.dot(along).max(-0.5 * length);
             let across = own - along * own.dot(along);
-            let most = (frame[j] - frame[parent]).length() * (limit / 2.0).tan();
-            if across.length() > most {
-                own -= across * (1.0 - most / across.length());
-            }
+            let max_across = (length + lengthened) * (limit / 2.0).tan();
+            own = along * lengthened + across * (max_across / across.length()).min(1.0);
         }
-        moves[j] = moves[parent] + own;
+        let held = moves[parent] + own;
+        moves[j] = laid[j].lerp(held, weights[j]);
     }
 }
 
@@ -310,24 +316,35 @@ mod tests {
     }
 
     /// A chain ankle -> toe -> toe end: 7 cm of texture across the 75 mm toe turns it by half
-    /// its limit (5 of 10 degrees) and no further, along it is kept (the bone projection sees
-    /// to lengths), and the toe end, moved as the toe was, moves with the toe as held.
+    /// its limit (5 of 10 degrees) and no further, and the toe end, moved as the toe was, moves
+    /// with the toe as held; a move along the toe is kept but for shortening it by more than
+    /// half (the bone projection sees to lengths), and the cap holds on the toe as moved; a
+    /// toe without a limit is left, and a toe end with no share of the texture (a planted
+    /// foot's) stays where it was laid whatever its parent's hold.
     #[test]
     fn texture_turns_no_bone_past_its_limit() {
         let frame = [Vec3::ZERO, Vec3::new(0.0, 0.0, 75.0), Vec3::new(0.0, 0.0, 150.0)];
         let parents = [None, Some(0), Some(1)];
         let limit = 10f32.to_radians();
+        let limits = [None, Some(limit), Some(limit)];
+        let hold = |moves: &mut [Vec3], weights: &[f32], limits: &[Option<f32>]| hold_turns(&frame, moves, &mut Vec::new(), weights, &parents, limits);
+        let turned = |moves: &[Vec3]| (frame[1] + moves[1] - frame[0] - moves[0]).angle_between(frame[1] - frame[0]);
         let mut moves = [Vec3::ZERO, Vec3::new(0.0, -70.0, 0.0), Vec3::new(0.0, -70.0, 0.0)];
-        hold_turns(&frame, &mut moves, &mut Vec::new(), &parents, &[None, Some(limit), Some(limit)]);
-        let toe = frame[1] + moves[1] - frame[0] - moves[0];
-        assert!((toe.angle_between(frame[1] - frame[0]) - limit / 2.0).abs() < 1e-4, "{toe:?}");
+        hold(&mut moves, &[1.0; 3], &limits);
+        assert!((turned(&moves) - limit / 2.0).abs() < 1e-4, "{moves:?}");
         assert_eq!(moves[2] - moves[1], Vec3::ZERO);
         let mut along = [Vec3::ZERO, Vec3::new(0.0, 0.0, 5.0), Vec3::new(0.0, 0.0, 5.0)];
-        hold_turns(&frame, &mut along, &mut Vec::new(), &parents, &[None, Some(limit), Some(limit)]);
+        hold(&mut along, &[1.0; 3], &limits);
         assert_eq!(along[1], Vec3::new(0.0, 0.0, 5.0));
+        let mut shortened = [Vec3::ZERO, Vec3::new(0.0, -70.0, -60.0), Vec3::ZERO];
+        hold(&mut shortened, &[1.0; 3], &limits);
+        assert!((turned(&shortened) - limit / 2.0).abs() < 1e-4 && (shortened[1].z + 37.5).abs() < 1e-4, "{shortened:?}");
         let mut free = [Vec3::ZERO, Vec3::new(0.0, -70.0, 0.0), Vec3::ZERO];
-        hold_turns(&frame, &mut free, &mut Vec::new(), &parents, &[None, None, None]);
+        hold(&mut free, &[1.0; 3], &[None, None, None]);
         assert_eq!(free[1], Vec3::new(0.0, -70.0, 0.0));
+        let mut planted = [Vec3::ZERO, Vec3::new(0.0, -70.0, 0.0), Vec3::ZERO];
+        hold(&mut planted, &[1.0, 1.0, 0.0], &limits);
+        assert_eq!(planted[2], Vec3::ZERO);
     }
 
     /// A foot planted for 10 frames and then stepping at 1 m/s (30 fps, metres) gets no texture

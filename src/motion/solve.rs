@@ -96,7 +96,7 @@ pub fn solve_local_poses(skeleton: &Skeleton, positions: &[Vec3]) -> Vec<LocalPo
 
 /// A bone bent further than this from its rest direction (degrees; an elbow nearly folded
 /// shut) has no stable smallest swing: its twist is carried from frame to frame instead. The
-/// swing's twist turns tan(bend / 2) times as fast as the bone, 3.5x at 149 degrees: at 150,
+/// swing's twist turns tan(bend / 2) times as fast as the bone, 3.6x at 149 degrees: at 150,
 /// an h36m elbow bent to 142-149 turned its hand's end 94 degrees in one frame; at 135-140 the
 /// ease back after such shallow folds turned a thumb 64-78.
 const FOLDED_ABOVE: f32 = 145.0;
