@@ -6,7 +6,7 @@ use std::process::{Command, Output};
 
 #[path = "support/models.rs"]
 mod models;
-use models::model_copy;
+use models::{model_copy, shipped_model};
 
 const BIN: &str = env!("CARGO_BIN_EXE_glocal");
 
@@ -48,7 +48,7 @@ fn models_are_found_and_a_project_brings_its_own() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("walk.bvh");
     ok(glocal_in(dir.path(), &["generate", "--timeline", "walking:4", "--out", out.to_str().unwrap()]), "generate with no --model outside the checkout");
-    let bandai = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/bandai");
+    let bandai = shipped_model("bandai");
     let mut document = glocal::synth::project::Document::new(bandai);
     document.options.timeline = "walk:3,bow:2".parse().unwrap();
     let project = dir.path().join("scene.glocal");
@@ -119,7 +119,7 @@ fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
 #[test]
 fn the_shipped_turn_limits_come_from_the_readme_command() {
     let (dir, model) = model_copy("h36m");
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
+    let shipped = shipped_model("h36m");
     let mut spec: serde_json::Value = serde_json::from_slice(&std::fs::read(model.join("model.json")).unwrap()).unwrap();
     spec.as_object_mut().unwrap().remove("bone_turn_limits");
     std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
@@ -135,7 +135,7 @@ fn the_shipped_turn_limits_come_from_the_readme_command() {
 fn the_shipped_texture_shares_come_from_the_readme_command() {
     let (dir, model) = model_copy("h36m");
     let read = |path: &Path| -> serde_json::Value { serde_json::from_slice(&std::fs::read(path.join("model.json")).unwrap()).unwrap() };
-    let shipped = read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m"));
+    let shipped = read(&shipped_model("h36m"));
     let mut spec = shipped.clone();
     spec.as_object_mut().unwrap().remove("texture_gains");
     std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();

@@ -1,7 +1,7 @@
 //! Joint roles on every dataset's skeleton, foot contacts on real walking, the foot lock on
 //! generated takes, and the motion suite's measures on real clips.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -19,8 +19,18 @@ fn data() -> DataRoot {
     DataRoot::resolve(None)
 }
 
+fn model_dir(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)
+}
+
 fn model(name: &str) -> GlocalModel {
-    GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"))
+    GlocalModel::load(&model_dir(name)).unwrap_or_else(|e| panic!("{name}: {e:#}"))
+}
+
+/// The largest turn (degrees) of `joint`'s bone in one frame of `take`.
+fn largest_turn(take: &Motion, joint: usize) -> f32 {
+    let (_, turns) = bone_turns(take).into_iter().find(|(j, _)| *j == joint).expect("the bone is long enough to have a direction");
+    turns.into_iter().fold(0.0, f32::max)
 }
 
 /// One file of a dataset archive, as text.
@@ -416,8 +426,7 @@ fn a_hand_snap_is_spread_within_the_training_clips_turn() {
         let largest = |spread_snaps: bool| {
             let o = GenerateOptions { timeline: timeline.parse().unwrap(), init: init.clone(), spread_snaps, ..Default::default() }.varied(1);
             let take = generate(&m, &o, &mut |_| true).unwrap().motion;
-            let turns = bone_turns(&take.slice(seed_frames, take.frames())).into_iter().find(|(j, _)| *j == hand).unwrap().1;
-            turns.into_iter().fold(0.0, f32::max)
+            largest_turn(&take.slice(seed_frames, take.frames()), hand)
         };
         let (own, spread) = (largest(false), largest(true));
         println!("{timeline} from {init:?}: the right hand's largest turn in one frame {own:.1} degrees as made, {spread:.1} spread (limit {limit:.1})");
@@ -434,8 +443,7 @@ fn a_hand_snap_is_spread_within_the_training_clips_turn() {
 fn a_standing_person_keeps_the_small_motion_of_capture() {
     let m = model("h36m");
     assert!(m.texture().is_some(), "models/h36m has no texture.safetensors");
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
-    let corpus = Corpus::for_model(Dataset::H36m, &data(), &m.spec, &dir).unwrap();
+    let corpus = Corpus::for_model(Dataset::H36m, &data(), &m.spec, &model_dir("h36m")).unwrap();
     let roles = JointRoles::new(&corpus.layout.skeleton).unwrap();
     let real = real_pools(&corpus, &roles, None, 10.0);
     let seed_frames = m.spec.block_len * m.spec.stride;
@@ -469,8 +477,7 @@ fn the_texture_does_not_snap_a_toe() {
     let limit = m.spec.bone_turn_limits["LeftToeSite"] / m.spec.fps;
     let largest = |texture: bool| {
         let o = GenerateOptions { timeline: "walking:4,sittingdown:4,sitting:5".parse().unwrap(), init: InitPose::SeedIndex(0), texture, ..Default::default() };
-        let take = generate(&m, &o, &mut |_| true).unwrap().motion;
-        bone_turns(&take).into_iter().find(|(j, _)| *j == toe).unwrap().1.into_iter().fold(0.0, f32::max)
+        largest_turn(&generate(&m, &o, &mut |_| true).unwrap().motion, toe)
     };
     let (plain, textured) = (largest(false), largest(true));
     println!("the left toe's largest turn in one frame: {plain:.1} degrees without the texture, {textured:.1} with it (limit {limit:.1})");

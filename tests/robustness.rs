@@ -22,7 +22,7 @@ use serde_json::Value;
 
 #[path = "support/models.rs"]
 mod models;
-use models::model_copy;
+use models::{model_copy, shipped_model};
 
 const BIN: &str = env!("CARGO_BIN_EXE_glocal");
 
@@ -101,7 +101,7 @@ fn a_fine_tuned_locgen_keeps_the_residual_scale_it_was_trained_with() {
 #[test]
 fn a_style_taught_alone_leaves_every_other_take_as_it_was() {
     let (t, model) = model_copy("all");
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/all");
+    let shipped = shipped_model("all");
     let before = ModelSpec::read(&model).unwrap();
     succeeds(&["train", "--dataset", "all", "--stage", "glogen", "--steps", "3", "--eval-every", "3", "--checkpoint-every", "3", "--stride", "3", "--out", s(&model), "--fine-tune", "--only-styles", "tired"]);
     let after = ModelSpec::read(&model).unwrap();
@@ -125,7 +125,7 @@ fn a_style_taught_alone_leaves_every_other_take_as_it_was() {
 fn fine_tuning_from_a_model_of_other_labels_is_refused_before_anything_is_written() {
     let t = tempfile::tempdir().unwrap();
     let out = t.path().join("new");
-    let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m");
+    let from = shipped_model("h36m");
     refused(&["train", "--dataset", "bandai", "--stage", "glogen", "--steps", "3", "--stride", "3", "--out", s(&out), "--init-from", s(&from)], &["cannot fine-tune from", "models/h36m", "its classes (directions", "are not the data's (walk"]);
     assert!(!out.exists());
 }

@@ -242,9 +242,9 @@ fn hold_turns(frame: &[Vec3], moves: &mut [Vec3], laid: &mut Vec<Vec3>, weights:
         let mut own = laid[j] - laid[parent];
         let bone = frame[j] - frame[parent];
         if let (Some(Some(limit)), Some(along)) = (limits.get(j), bone.try_normalize()) {
-            let length = bone.length();
-            let lengthened = own.dot(along).max(-0.5 * length);
-            let across = own - along * own.dot(along);
+            let (length, reach) = (bone.length(), own.dot(along));
+            let lengthened = reach.max(-0.5 * length);
+            let across = own - along * reach;
             let max_across = (length + lengthened) * (limit / 2.0).tan();
             own = along * lengthened + across * (max_across / across.length()).min(1.0);
         }

@@ -124,8 +124,7 @@ impl Finishing<'_> {
         let frames = self.frames_of(&window);
         let j = layout.joints();
         let pace = |dense: &[Vec3], to: Range<usize>| apply_pace(dense, j, spec.stride, &self.times[window.clone()], to);
-        let mut positions = pace(&dense, frames.clone());
-        self.spread_snaps(&mut positions);
+        let mut positions = self.paced(&dense, &window);
         let warnings = constraints.iter().flat_map(|c| c.on_dense(&mut positions, layout, spec.fps)).collect();
         if let Some(untextured) = untextured {
             let texture: Vec<Vec3> = dense.iter().zip(&untextured).map(|(with, without)| *with - *without).collect();
@@ -150,13 +149,19 @@ impl Finishing<'_> {
         }
     }
 
+    /// The dense frames of sparse poses `window` at the take's pace, their snaps spread.
+    fn paced(&self, dense: &[Vec3], window: &Range<usize>) -> Vec<Vec3> {
+        let spec = &self.model.spec;
+        let mut paced = apply_pace(dense, spec.layout.joints(), spec.stride, &self.times[window.clone()], self.frames_of(window));
+        self.spread_snaps(&mut paced);
+        paced
+    }
+
     /// Paced frames `positions` with their bones' snaps spread, when the take spreads them.
     /// Before the constraints (a key's or a start's frames stay as given) and the foot lock
-    /// (a planted foot stays where the lock puts it).
-    fn spread_snaps(&self, positions: &mut [Vec3]) {
-        if let Some(limits) = &self.turn_limits {
-            spread_snaps(positions, &self.model.spec.layout.skeleton, limits);
-        }
+    /// (a planted foot stays where the lock puts it). Returns how many frames changed.
+    fn spread_snaps(&self, positions: &mut [Vec3]) -> usize {
+        self.turn_limits.as_ref().map_or(0, |limits| spread_snaps(positions, &self.model.spec.layout.skeleton, limits))
     }
 
     /// The projected take's frames with its snaps spread once more, when the take spreads
@@ -164,9 +169,9 @@ impl Finishing<'_> {
     /// and the bridge may turn it past its limit again (Bandai's dash from seed window 2: a
     /// forearm 38 degrees a frame spread, 60 bridged).
     fn spread_again(&self, projected: &Motion) -> Option<Vec<Vec3>> {
-        let limits = self.turn_limits.as_ref()?;
+        self.turn_limits.as_ref()?;
         let mut positions = projected.positions().to_vec();
-        (spread_snaps(&mut positions, &self.model.spec.layout.skeleton, limits) > 0).then_some(positions)
+        (self.spread_snaps(&mut positions) > 0).then_some(positions)
     }
 
     /// Whether the take's feet are locked: asked for, and the model's skeleton has feet to lock.
@@ -211,9 +216,7 @@ impl Finishing<'_> {
             let mut dense = self.model.densify(&sparse[window.start * j..window.end * j], self.locgen);
             self.lay_texture(&mut dense, window);
             let frames = self.frames_of(window);
-            let mut paced = apply_pace(&dense, j, spec.stride, &self.times[window.clone()], frames.clone());
-            self.spread_snaps(&mut paced);
-            positions[frames.start * j..frames.end * j].copy_from_slice(&paced);
+            positions[frames.start * j..frames.end * j].copy_from_slice(&self.paced(&dense, window));
         }
         held.on_dense(&mut positions, layout, spec.fps);
         let mut poses: Vec<LocalPose> = Vec::new();
