@@ -77,7 +77,19 @@ const MIXAMO_NAMES: [(&str, &str); 21] = [
 /// handle above the hips, and a standing A-pose rest (arms 45 degrees down, facing +z) instead
 /// of Bandai's; the world motion is the clip's, its rotations solved against the new rest.
 fn mixamo_from_bandai(dir: &Path, renamed: &[(&str, &str)]) -> PathBuf {
-    let clip = read_bvh(&archive_text("bandai", "bandai/data/dataset-1_dance-short_normal_001.bvh"), "bandai dance").unwrap();
+    mixamo_from_bandai_in(dir, renamed, CENTIMETRE)
+}
+
+const CENTIMETRE: f32 = 0.01;
+const INCH: f32 = 0.0254;
+
+/// [`mixamo_from_bandai`] written in `unit` (metres per unit; Bandai's is the centimetre).
+fn mixamo_from_bandai_in(dir: &Path, renamed: &[(&str, &str)], unit: f32) -> PathBuf {
+    let mut clip = read_bvh(&archive_text("bandai", "bandai/data/dataset-1_dance-short_normal_001.bvh"), "bandai dance").unwrap();
+    let scale = CENTIMETRE / unit;
+    let s = &clip.skeleton;
+    let scaled = Skeleton::new(s.names().to_vec(), s.parents().to_vec(), s.offsets().iter().map(|o| *o * scale).collect(), unit).unwrap();
+    clip = Motion::from_positions(Arc::new(scaled), clip.fps, clip.positions().iter().map(|p| *p * scale).collect());
     let keep: Vec<usize> = (1..clip.joints()).collect();
     let on_hips = clip.subset(&keep);
     let s = &on_hips.skeleton;
@@ -102,10 +114,10 @@ fn mixamo_from_bandai(dir: &Path, renamed: &[(&str, &str)]) -> PathBuf {
         format!("mixamorig:{to}")
     });
     let offsets = s.names().iter().zip(&lengths).enumerate().map(|(j, (n, l))| if j == 0 { s.offsets()[0] } else { a_pose(n) * *l });
-    let rig = Arc::new(Skeleton::new(names.collect(), s.parents().to_vec(), offsets.collect(), 0.01).unwrap());
+    let rig = Arc::new(Skeleton::new(names.collect(), s.parents().to_vec(), offsets.collect(), unit).unwrap());
     let poses = solve_local_poses(&rig, on_hips.positions());
     let text = write_bvh(&Motion::from_local_poses(rig, on_hips.fps, poses), None);
-    write(dir, "mixamo-dance.bvh", &text)
+    write(dir, &format!("mixamo-dance-{}mm.bvh", unit * 1000.0), &text)
 }
 
 /// The CMU database's own skeleton (the motion-prediction set's exponential maps, 38 joints)
@@ -176,6 +188,26 @@ fn foreign_bvh_files_start_takes_on_both_models() {
             println!("{file} ({} joints, rest {}) -> {name}: {} bones, first pose {angle:.1} degrees from the source's", source.joints(), RestPose::detect(&source.skeleton, &sk).describe(), bones.len());
             assert!(angle < 10.0, "{file} on {name}: bones {angle} degrees from the source's");
         }
+    }
+}
+
+/// A BVH says nothing of its unit: the same rig written in inches (as 3ds Max writes) starts
+/// the same take as in centimetres on every model. Read by powers of ten alone, the inch
+/// file was taken in the model's own unit, 39 times too big on `models/all`, which refused it
+/// as damaged.
+#[test]
+fn a_rig_in_inches_starts_the_take_it_starts_in_centimetres() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = [CENTIMETRE, INCH].map(|unit| mixamo_from_bandai_in(dir.path(), &MIXAMO_NAMES, unit));
+    for name in ["h36m", "bandai", "all"] {
+        let m = model(name);
+        let takes = files.clone().map(|path| {
+            let o = GenerateOptions { timeline: format!("{}:2", m.spec.classes[0]).parse().unwrap(), init: InitPose::file(path.clone(), 100), ..Default::default() };
+            generate(&m, &o, &mut |_| true).unwrap_or_else(|e| panic!("{} on {name}: {e:#}", path.display())).motion
+        });
+        let apart = takes[0].positions().iter().zip(takes[1].positions()).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+        let millimetres = apart * m.spec.layout.skeleton.meters_per_unit() * 1000.0;
+        assert!(millimetres < 1.0, "on {name} the takes from centimetres and inches are {millimetres} mm apart");
     }
 }
 

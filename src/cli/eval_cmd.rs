@@ -50,6 +50,10 @@ pub struct EvalArgs {
     /// The suites' takes without the models' motion texture (`glocal generate --no-texture`).
     #[arg(long)]
     no_texture: bool,
+    /// The suites' takes with the spline between GloGen's sparse poses, no LocGen (`glocal
+    /// generate --no-locgen`).
+    #[arg(long)]
+    no_locgen: bool,
     /// The paper's GlocalNet (`synth::Preset::Paper`, as `glocal generate --paper`): cut transitions, class strength 1, no keep-alive, no seam join, no foot lock, no texture.
     #[arg(long)]
     paper: bool,
@@ -82,6 +86,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         keep_alive: !args.no_keep_alive,
         join_seams: !args.no_seam_join,
         texture: !args.no_texture,
+        locgen: !args.no_locgen,
         preset: Preset::from_paper_flag(args.paper),
         quick: args.quick,
         class_control_takes: args.class_control_takes as usize,

@@ -3,7 +3,7 @@
 //! A take whose bone turns farther in one frame than real motion does once in a thousand
 //! frames snaps (a hand-end bone turning 79 degrees at one frame of an h36m take).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 use serde::Serialize;
 
@@ -64,12 +64,14 @@ impl Snap {
 }
 
 /// Over a set of takes: how many have a bone over its real limit, how many bones are over in
-/// all, and the worst (the largest turn over its limit).
+/// all, in how many takes each bone is over (where the snaps are), and the worst (the largest
+/// turn over its limit).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct SnapTally {
     pub takes: usize,
     pub takes_over: usize,
     pub bones_over: usize,
+    pub takes_over_per_bone: BTreeMap<String, usize>,
     pub worst: Option<Snap>,
 }
 
@@ -88,6 +90,9 @@ impl SnapTally {
         let mut bones: Vec<Snap> = worst_per_bone.collect();
         bones.sort_by(|a, b| b.excess().total_cmp(&a.excess()));
         let over = bones.iter().filter(|s| s.degrees > s.limit).count();
+        for snap in &bones[..over] {
+            *self.takes_over_per_bone.entry(snap.bone.clone()).or_default() += 1;
+        }
         self.takes += 1;
         self.takes_over += usize::from(over > 0);
         self.bones_over += over;
@@ -100,9 +105,21 @@ impl SnapTally {
         bones
     }
 
-    /// `2 of 160 takes, 3 bones; worst: ...`.
+    /// `2 of 160 takes, 3 bones; most often over: ...; worst: ...`.
     pub fn describe(&self) -> String {
         let worst = self.worst.as_ref().map_or("-".to_string(), Snap::describe);
-        format!("{} of {} takes, {} bones in all; the largest over its limit: {} in {}", self.takes_over, self.takes, self.bones_over, worst, self.worst.as_ref().map_or("-", |w| w.take.as_str()))
+        format!("{} of {} takes, {} bones in all (most often over: {}); the largest over its limit: {} in {}", self.takes_over, self.takes, self.bones_over, self.most_often_over(3), worst, self.worst.as_ref().map_or("-", |w| w.take.as_str()))
+    }
+
+    /// The `n` bones over their limit in the most takes, `bone in N takes, ...`.
+    fn most_often_over(&self, n: usize) -> String {
+        let mut bones: Vec<(&String, &usize)> = self.takes_over_per_bone.iter().collect();
+        bones.sort_by(|a, b| b.1.cmp(a.1));
+        let named: Vec<String> = bones.iter().take(n).map(|(bone, takes)| format!("{bone} in {takes}")).collect();
+        if named.is_empty() {
+            "none".to_string()
+        } else {
+            named.join(", ")
+        }
     }
 }

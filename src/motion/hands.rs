@@ -33,7 +33,13 @@ pub fn keep_hands_above_floor(positions: &mut [Vec3], skeleton: &Skeleton, roles
         for ((frame, lift), side) in positions.chunks_exact_mut(joints).zip(eased(&under, fps)).zip(sides) {
             if lift > 0.0 {
                 let target = frame[wrist] + Vec3::Y * lift;
-                reach(skeleton, frame, [shoulder, elbow, wrist], target, frame[elbow] + side.unwrap_or(Vec3::ZERO));
+                // The side as far out as the arm is long, whatever the skeleton's unit: as a
+                // unit vector from the elbow it was 1 mm on h36m, where the straight arm's own
+                // few millimetres of noise bent the lifted elbow (an upper arm 25 degrees in
+                // one frame).
+                let arm = frame[elbow].distance(frame[shoulder]) + frame[wrist].distance(frame[elbow]);
+                let pole = side.map_or(frame[elbow], |side| frame[shoulder] + side * arm);
+                reach(skeleton, frame, [shoulder, elbow, wrist], target, pole);
             }
         }
     }
@@ -144,5 +150,41 @@ mod tests {
                 assert_eq!(b, a, "frame {t} is far from the push");
             }
         }
+    }
+
+    /// The standard humanoid in millimetres (as h36m's skeleton is), its right arm hanging
+    /// bent 40 degrees at the elbow, then straight but for a degree of bend, its side turning
+    /// from frame to frame, for a second under the floor, then bent again: the lifted elbow bends to the side of the bent frames around it and the upper
+    /// arm turns smoothly. With the side taken as a unit vector from the elbow (1 mm here) the
+    /// noise bent the lifted elbow to and fro, 80 degrees a frame.
+    #[test]
+    fn a_lifted_straight_arm_bends_smoothly_in_millimetres() {
+        let metres = standard_humanoid();
+        let offsets: Vec<Vec3> = metres.offsets().iter().map(|o| *o * 1000.0).collect();
+        let skeleton = Skeleton::new(metres.names().to_vec(), metres.parents().to_vec(), offsets, 0.001).unwrap();
+        let roles = JointRoles::new(&skeleton).unwrap();
+        let wrist = roles.right_hand;
+        let elbow = skeleton.parents()[wrist].unwrap();
+        let shoulder = skeleton.parents()[elbow].unwrap();
+        let rest = skeleton.rest_positions();
+        let mut hanging = rest.clone();
+        turn_below(&skeleton, &mut hanging, shoulder, Quat::from_rotation_arc((rest[elbow] - rest[shoulder]).normalize(), Vec3::NEG_Y));
+        let bent_at_elbow = |angle: f32, axis: Vec3| {
+            let mut pose = hanging.clone();
+            turn_below(&skeleton, &mut pose, elbow, Quat::from_axis_angle(axis, angle.to_radians()));
+            pose
+        };
+        let (fps, frames) = (30.0, 90);
+        // Bent 40 degrees, straightening over a third of a second, and back.
+        let bend = |t: usize| 1.0 + 39.0 * ((t.abs_diff(45) as f32 - 15.0) / 10.0).clamp(0.0, 1.0);
+        let poses: Vec<Vec<Vec3>> = (0..frames).map(|t| bent_at_elbow(bend(t), if (30..60).contains(&t) && t % 2 == 1 { Vec3::Z } else { Vec3::X })).collect();
+        let floor = hanging[wrist].y + 80.0;
+        let mut positions: Vec<Vec3> = poses.concat();
+        keep_hands_above_floor(&mut positions, &skeleton, &roles, floor, fps);
+        let joints = skeleton.len();
+        let upper: Vec<Vec3> = positions.chunks_exact(joints).map(|f| (f[elbow] - f[shoulder]).normalize()).collect();
+        let turns: Vec<f32> = upper.windows(2).map(|w| w[0].angle_between(w[1]).to_degrees()).collect();
+        let largest = turns.iter().copied().fold(0.0, f32::max);
+        assert!(largest < 5.0, "the upper arm turns {largest} degrees in one frame: {turns:?}");
     }
 }

@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use glam::Vec3;
 
-use super::rig::{entries_for, onto_model};
+use super::rig::{entries_for, nearest_plausible_unit, onto_model};
 use crate::data::bvh::read_bvh_with_unit;
 use crate::data::expmap::ExpmapFormat;
 use crate::data::features::Placement;
@@ -130,12 +130,14 @@ impl FileStart {
 /// A BVH exported in metres or centimetres (`glocal generate --units`) read as if in the
 /// model's unit: rescaled by the power of ten that makes its bones the model's length. A file
 /// on another skeleton (whose bones named as the model's are not its lengths times a power of
-/// ten) is judged by its size instead: the power of ten that makes its legs (hip to knee to
-/// ankle at rest) a person's, as the model's are, within a factor of two (a Bandai file in
-/// centimetres on the standard humanoid in metres). A rig whose legs are not found is sized by
-/// its body's reach at rest. Both leave out a root joint resting far from the body (Bandai's
-/// `joint_Root`, 4.5 m from its hips), by whose reach a CMU dance file in centimetres read as
-/// decimetres.
+/// ten) is judged by its size instead: the unit a BVH may be in (metres, centimetres,
+/// millimetres, inches, the CMU database's, [`nearest_plausible_unit`]) that makes its legs
+/// (hip to knee to ankle at rest) a person's, as the model's are, within a factor of two (a
+/// Bandai file in centimetres on the standard humanoid in metres; the same file in inches,
+/// which no power of ten fits, was read in the model's unit, 39 times too big on `models/all`,
+/// which refused it as damaged). A rig whose legs are not found is sized by its body's reach at rest. Both leave
+/// out a root joint resting far from the body (Bandai's `joint_Root`, 4.5 m from its hips),
+/// by whose reach a CMU dance file in centimetres read as decimetres.
 fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     let s = &m.skeleton;
     let mut ratios: Vec<f32> = (0..s.len())
@@ -150,12 +152,16 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
         let power = ratio.log10().round();
         ((ratio.log10() - power).abs() <= tolerance && power.abs() <= 3.0).then_some(power)
     };
-    let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02));
-    let Some(power) = by_names.or_else(|| power_of_ten(size_ratio(model, s), 0.3)) else { return Ok(m) };
-    if power == 0.0 {
+    let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02)).map(|power| s.meters_per_unit() * 10f32.powf(power));
+    let by_size = || {
+        let (unit, off) = nearest_plausible_unit(s.meters_per_unit() * size_ratio(model, s));
+        (off <= 2.0).then_some(unit)
+    };
+    let Some(unit) = by_names.or_else(by_size) else { return Ok(m) };
+    if (unit / s.meters_per_unit() - 1.0).abs() < 1e-3 {
         return Ok(m);
     }
-    let skeleton = Skeleton::new(s.names().to_vec(), s.parents().to_vec(), s.offsets().to_vec(), s.meters_per_unit() * 10f32.powf(power))?;
+    let skeleton = Skeleton::new(s.names().to_vec(), s.parents().to_vec(), s.offsets().to_vec(), unit)?;
     let mut file = m;
     file.skeleton = Arc::new(skeleton);
     in_units(&file, model.meters_per_unit())

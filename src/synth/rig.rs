@@ -53,6 +53,13 @@ fn plausible_unit(skeleton: &Skeleton, keys: &KeyJoints) -> f32 {
     let rest = skeleton.rest_positions();
     let at = |k: Key| keys.get(k).map_or(glam::Vec3::ZERO, |j| rest[j]);
     let leg = at(Key::LeftUpLeg).distance(at(Key::LeftLeg)) + at(Key::LeftLeg).distance(at(Key::LeftFoot));
-    let misfit = |unit: f32| (leg * unit / TYPICAL_LEG).ln().abs();
-    PLAUSIBLE_UNITS.into_iter().min_by(|a, b| misfit(*a).total_cmp(&misfit(*b))).unwrap_or(0.01)
+    nearest_plausible_unit(TYPICAL_LEG / leg).0
+}
+
+/// The one of [`PLAUSIBLE_UNITS`] nearest `guess` (metres per unit), and how many times
+/// further one is from the other (1 or more).
+pub(crate) fn nearest_plausible_unit(guess: f32) -> (f32, f32) {
+    let misfit = |unit: f32| (guess / unit).ln().abs();
+    let unit = PLAUSIBLE_UNITS.into_iter().min_by(|a, b| misfit(*a).total_cmp(&misfit(*b))).unwrap_or(0.01);
+    (unit, misfit(unit).exp())
 }

@@ -33,6 +33,8 @@ pub struct SuiteOptions {
     pub join_seams: bool,
     /// The models' motion texture laid over the takes' frames ([`crate::model::texture`]).
     pub texture: bool,
+    /// LocGen refines the spline between GloGen's sparse poses (off: the spline alone).
+    pub locgen: bool,
     /// Applied over the fields above: `Preset::Paper` is `glocal eval --paper`.
     pub preset: Preset,
     /// A reduced setting (fewer and shorter takes) where a suite has one.
@@ -44,7 +46,7 @@ pub struct SuiteOptions {
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, texture: true, preset: Preset::Shipped, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, texture: true, locgen: true, preset: Preset::Shipped, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
     }
 }
 
@@ -61,7 +63,7 @@ impl SuiteContext {
     /// Fails when `--model` names a folder without a readable model.json.
     pub fn new(options: SuiteOptions) -> Result<Self> {
         let o = &options;
-        let generation = o.preset.apply(GenerateOptions { transition: o.transition, class_strength: o.class_strength, keep_alive: o.keep_alive, join_seams: o.join_seams, texture: o.texture, ..Default::default() });
+        let generation = o.preset.apply(GenerateOptions { transition: o.transition, class_strength: o.class_strength, keep_alive: o.keep_alive, join_seams: o.join_seams, texture: o.texture, locgen: o.locgen, ..Default::default() });
         let datasets = match &o.model {
             Some(p) => vec![ModelSpec::read(p)?.dataset.parse()?],
             None => vec![Dataset::H36m, Dataset::Bandai],
