@@ -60,10 +60,15 @@ const ROLL_SLACK: f32 = 3.0;
 
 /// Degrees the network's planted foot may turn about the vertical from its lock before the
 /// lock pivots with it about the toe ([`pivoted`]), eased in. A pivot moves the toe's tip
-/// and the heel on the floor, which the support-point speed reads: following from 5 degrees,
-/// `all`'s Bandai classes' support speed rose from 1.45x to 1.55x real (issue 35's line
-/// 1.5x), from 15 to 1.50x, from 25 to 1.48x; a foot pivoting far still turns in its stance.
+/// and the heel over the floor, which the support-point speed reads: with every plant
+/// pivoting from 5 degrees, `all`'s Bandai classes' support speed rose from 1.45x to 1.55x
+/// real (issue 35's line 1.5x), from 25 degrees to 1.48x.
 const PIVOT_SLACK: f32 = 25.0;
+/// The shortest plant (seconds) that pivots: a body turns on the spot on a standing foot,
+/// and a running foot stands a few frames. With every plant pivoting, `all`'s dash's support
+/// point slid at a median 35 cm/s (32 without the pivot); with plants of 0.6 s or more
+/// `all`'s Bandai classes' support speed reads 1.45x real (1.47x with 0.3).
+const PIVOT_SECONDS: f32 = 0.6;
 
 /// Toe clearance (metres) at the middle of an ordinary swing (see [`lift_swings`]). On
 /// Bandai, 3 cm scaled by the other lock's weight left its skating ratio at 1.13x real; 5 cm
@@ -369,6 +374,8 @@ struct Plant {
     foot: Vec<Vec3>,
     /// The network's foot at the anchor, whose heading the lock's pivot is measured from.
     own_at_anchor: Vec<Vec3>,
+    /// Where the toe is in the foot when the plant pivots ([`PIVOT_SECONDS`]).
+    pivot_toe: Option<usize>,
     fade_in: Fade,
     fade_out: Fade,
     /// Frames to the next plant, where there is one.
@@ -383,9 +390,9 @@ struct Plant {
 
 struct Fade {
     frames: usize,
-    /// The lock as it stands at the boundary frame (pivoted, heel rolled).
+    /// The lock, flat, as it is turned at the boundary frame ([`pivoted`]).
     lock: Vec<Vec3>,
-    /// Lock minus the foot's own pose at the boundary frame, per foot joint.
+    /// Lock (heel rolled) minus the foot's own pose at the boundary frame, per foot joint.
     offset: Vec<Vec3>,
 }
 
@@ -424,11 +431,13 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
     let unit = motion.skeleton.meters_per_unit();
     let (least, most) = (BLEND_SECONDS.0 * motion.fps, BLEND_SECONDS.1 * motion.fps);
     let own = |t: usize| -> Vec<Vec3> { foot.iter().map(|&j| motion.frame(t)[j]).collect() };
+    let pivot_frames = (PIVOT_SECONDS * motion.fps).round() as usize;
     // A fade leaves the lock as it stands at the stance's boundary frame, pivoted and, after
     // the anchor, heel rolled.
-    let fade = |locked: &[Vec3], t: usize, anchor: usize| {
-        let lock = lock_at(locked, &own(t), &own(anchor), toe_at, t > anchor);
-        let offset: Vec<Vec3> = lock.iter().zip(own(t)).map(|(l, o)| *l - o).collect();
+    let fade = |locked: &[Vec3], t: usize, anchor: usize, pivot_toe: Option<usize>| {
+        let lock = pivoted(locked, &own(t), &own(anchor), pivot_toe);
+        let rolled = if t > anchor { toe_rolled(&lock, &own(t), toe_at) } else { lock.clone() };
+        let offset: Vec<Vec3> = rolled.iter().zip(own(t)).map(|(l, o)| *l - o).collect();
         let metres = offset[0].length() * unit;
         Fade { frames: (metres / BLEND_SPEED * motion.fps).clamp(least, most).round() as usize, lock, offset }
     };
@@ -442,9 +451,10 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
             let frame = motion.frame(anchor);
             let lowest = foot.iter().map(|&j| frame[j].y).fold(f32::INFINITY, f32::min);
             let locked: Vec<Vec3> = foot.iter().map(|&j| frame[j] - Vec3::Y * lowest).collect();
-            let mut fade_in = fade(&locked, start, anchor);
+            let pivot_toe = toe_at.filter(|_| end - start >= pivot_frames);
+            let mut fade_in = fade(&locked, start, anchor, pivot_toe);
             fade_in.frames = fade_in.frames.min(gap_before(k).saturating_sub(1));
-            let mut fade_out = fade(&locked, end - 1, anchor);
+            let mut fade_out = fade(&locked, end - 1, anchor, pivot_toe);
             fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
             // A lock keeps its anchor frame's foot but for its height.
@@ -452,7 +462,7 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
                 let step = motion.frame(next.anchor)[foot[0]] - frame[foot[0]];
                 glam::Vec2::new(step.x, step.z).length() * unit
             });
-            Plant { start, end, anchor, fade_in, fade_out, foot: locked, own_at_anchor: own(anchor), gap_after: next, step_after, replant }
+            Plant { start, end, anchor, fade_in, fade_out, foot: locked, own_at_anchor: own(anchor), pivot_toe, gap_after: next, step_after, replant }
         })
         .collect()
 }
@@ -698,7 +708,7 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
     let own: Vec<Vec3> = leg.foot.iter().map(|&j| frame[j]).collect();
     let (mut foot, weight, heel_roll) = match leg.plants.iter().find(|p| (p.start..p.end).contains(&t)) {
         Some(plant) => {
-            let pivoted = pivoted(&plant.foot, &own, &plant.own_at_anchor, leg.toe_at);
+            let pivoted = pivoted(&plant.foot, &own, &plant.own_at_anchor, plant.pivot_toe);
             let rolled = if t > plant.anchor { toe_rolled(&pivoted, &own, leg.toe_at) } else { pivoted.clone() };
             let heel_roll = rolled[0] - pivoted[0];
             (rolled, 1.0, heel_roll)
@@ -723,24 +733,14 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
     FootTarget { joints: foot, weight, heel_roll }
 }
 
-/// The lock `locked` at a frame of its stance where the network's foot is `own` (`at_anchor`
-/// at the anchor): pivoted, and heel rolled when `rolled`.
-fn lock_at(locked: &[Vec3], own: &[Vec3], at_anchor: &[Vec3], toe_at: Option<usize>, rolled: bool) -> Vec<Vec3> {
-    let pivoted = pivoted(locked, own, at_anchor, toe_at);
-    if rolled {
-        toe_rolled(&pivoted, own, toe_at)
-    } else {
-        pivoted
-    }
-}
-
-/// The locked foot turned about its toe and the vertical as far as the network's foot (`own`)
-/// has turned its heading since the anchor (`at_anchor`), less [`PIVOT_SLACK`]: a body turns
+/// The locked foot turned about its toe (`toe`, none for a plant that does not pivot) and the
+/// vertical as far as the network's foot (`own`) has turned its heading since the anchor
+/// (`at_anchor`), less [`PIVOT_SLACK`]: a body turns
 /// on the ball of a planted foot. Held at its anchor's heading, a foot the network pivots
 /// turned all of it in the swing after (h36m's posing from seed window 82 pivots a foot 113
 /// degrees on the spot, and the foot then turned 27 degrees a frame, limit 17).
-fn pivoted(locked: &[Vec3], own: &[Vec3], at_anchor: &[Vec3], toe_at: Option<usize>) -> Vec<Vec3> {
-    let Some(toe) = toe_at else { return locked.to_vec() };
+fn pivoted(locked: &[Vec3], own: &[Vec3], at_anchor: &[Vec3], toe: Option<usize>) -> Vec<Vec3> {
+    let Some(toe) = toe else { return locked.to_vec() };
     let heading = |foot: &[Vec3]| (foot[toe] - foot[0]).with_y(0.0).try_normalize();
     let (Some(now), Some(then)) = (heading(own), heading(at_anchor)) else { return locked.to_vec() };
     let turn = beyond(then.angle_between(now), PIVOT_SLACK.to_radians()) * then.cross(now).y.signum();
