@@ -105,7 +105,8 @@ impl SnapTally {
         bones
     }
 
-    /// `2 of 160 takes, 3 bones; most often over: ...; worst: ...`.
+    /// `2 of 160 takes, 3 bones in all (most often over: BONE in N, ...); the largest over its
+    /// limit: ... in TAKE`.
     pub fn describe(&self) -> String {
         let worst = self.worst.as_ref().map_or("-".to_string(), Snap::describe);
         format!("{} of {} takes, {} bones in all (most often over: {}); the largest over its limit: {} in {}", self.takes_over, self.takes, self.bones_over, self.most_often_over(3), worst, self.worst.as_ref().map_or("-", |w| w.take.as_str()))

@@ -58,12 +58,16 @@ const TIPTOE_ANGLES: (f32, f32) = (15.0, 30.0);
 /// heel follows ([`toe_rolled`]): a standing foot's own pitch wobbles by about this much.
 const ROLL_SLACK: f32 = 3.0;
 
-/// Degrees the network's planted foot may turn about the vertical from its lock before the
-/// lock pivots with it about the toe ([`pivoted`]), eased in. A pivot moves the toe's tip
-/// and the heel over the floor, which the support-point speed reads: with every plant
-/// pivoting from 5 degrees, `all`'s Bandai classes' support speed rose from 1.45x to 1.55x
-/// real (issue 35's line 1.5x), from 25 degrees to 1.48x.
+/// How far (degrees) the network's planted foot turns about the vertical from its lock
+/// before the lock follows it whole: the lock pivots about the toe by the turn less this,
+/// eased in from no turn ([`beyond`], [`pivoted`]). A pivot moves the toe's tip and the
+/// heel over the floor, which the support-point speed reads: with every plant pivoting and
+/// 5 degrees, `all`'s Bandai classes' support speed rose from 1.45x to 1.55x real (issue
+/// 35's line 1.5x), with 25 degrees to 1.48x.
 const PIVOT_SLACK: f32 = 25.0;
+/// A foot whose toe-to-ankle line is steeper than this share of its length horizontally (on
+/// tiptoe) has no heading to follow.
+const LEVEL_ENOUGH: f32 = 0.3;
 /// The shortest plant (seconds) that pivots: a body turns on the spot on a standing foot,
 /// and a running foot stands a few frames. With every plant pivoting, `all`'s dash's support
 /// point slid at a median 35 cm/s (32 without the pivot); with plants of 0.6 s or more
@@ -372,10 +376,10 @@ struct Plant {
     /// The stance's frame the lock keeps the foot of (its slowest).
     anchor: usize,
     foot: Vec<Vec3>,
-    /// The network's foot at the anchor, whose heading the lock's pivot is measured from.
-    own_at_anchor: Vec<Vec3>,
-    /// Where the toe is in the foot when the plant pivots ([`PIVOT_SECONDS`]).
-    pivot_toe: Option<usize>,
+    /// Per frame of the plant, how far (radians, about +Y) the network's foot has turned its
+    /// heading since the anchor ([`heading_turns`]); empty for a plant that does not pivot
+    /// ([`PIVOT_SECONDS`]).
+    turns: Vec<f32>,
     fade_in: Fade,
     fade_out: Fade,
     /// Frames to the next plant, where there is one.
@@ -424,20 +428,26 @@ impl Plant {
     fn step_share(&self) -> f32 {
         (self.step_after / FULL_LIFT_STEP).min(1.0)
     }
+
+    /// The lock at frame `t` of the plant, where the network's foot is `own`:
+    /// [`lock_at`] by the plant's turn there.
+    fn lock_at(&self, t: usize, own: &[Vec3], toe_at: Option<usize>) -> (Vec<Vec3>, Vec<Vec3>) {
+        let turn = self.turns.get(t - self.start).copied().unwrap_or(0.0);
+        lock_at(&self.foot, own, toe_at, turn, t > self.anchor)
+    }
 }
 
 /// Each stance locks the foot as it stood in the stance's anchor frame, set on the floor.
 fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bool]) -> Vec<Plant> {
     let unit = motion.skeleton.meters_per_unit();
     let (least, most) = (BLEND_SECONDS.0 * motion.fps, BLEND_SECONDS.1 * motion.fps);
-    let own = |t: usize| -> Vec<Vec3> { foot.iter().map(|&j| motion.frame(t)[j]).collect() };
     let pivot_frames = (PIVOT_SECONDS * motion.fps).round() as usize;
-    // A fade leaves the lock as it stands at the stance's boundary frame, pivoted and, after
-    // the anchor, heel rolled.
-    let fade = |locked: &[Vec3], t: usize, anchor: usize, pivot_toe: Option<usize>| {
-        let lock = pivoted(locked, &own(t), &own(anchor), pivot_toe);
-        let rolled = if t > anchor { toe_rolled(&lock, &own(t), toe_at) } else { lock.clone() };
-        let offset: Vec<Vec3> = rolled.iter().zip(own(t)).map(|(l, o)| *l - o).collect();
+    // A fade leaves the lock as it stands at the plant's boundary frame `t`, where the
+    // network's foot has turned by `turn` since the anchor.
+    let fade = |locked: &[Vec3], t: usize, turn: f32, anchor: usize| {
+        let own: Vec<Vec3> = foot.iter().map(|&j| motion.frame(t)[j]).collect();
+        let (lock, stands) = lock_at(locked, &own, toe_at, turn, t > anchor);
+        let offset: Vec<Vec3> = stands.iter().zip(&own).map(|(l, o)| *l - *o).collect();
         let metres = offset[0].length() * unit;
         Fade { frames: (metres / BLEND_SPEED * motion.fps).clamp(least, most).round() as usize, lock, offset }
     };
@@ -451,18 +461,22 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
             let frame = motion.frame(anchor);
             let lowest = foot.iter().map(|&j| frame[j].y).fold(f32::INFINITY, f32::min);
             let locked: Vec<Vec3> = foot.iter().map(|&j| frame[j] - Vec3::Y * lowest).collect();
-            let pivot_toe = toe_at.filter(|_| end - start >= pivot_frames);
-            let mut fade_in = fade(&locked, start, anchor, pivot_toe);
-            fade_in.frames = fade_in.frames.min(gap_before(k).saturating_sub(1));
-            let mut fade_out = fade(&locked, end - 1, anchor, pivot_toe);
-            fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
+            let turns = match toe_at {
+                Some(toe) if end - start >= pivot_frames => heading_turns(motion, (foot[0], foot[toe]), start..end, anchor),
+                _ => Vec::new(),
+            };
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
             // A lock keeps its anchor frame's foot but for its height.
             let step_after = stances.get(k + 1).map_or(0.0, |next| {
                 let step = motion.frame(next.anchor)[foot[0]] - frame[foot[0]];
                 glam::Vec2::new(step.x, step.z).length() * unit
             });
-            Plant { start, end, anchor, fade_in, fade_out, foot: locked, own_at_anchor: own(anchor), pivot_toe, gap_after: next, step_after, replant }
+            let turn_at = |t: usize| turns.get(t - start).copied().unwrap_or(0.0);
+            let mut fade_in = fade(&locked, start, turn_at(start), anchor);
+            fade_in.frames = fade_in.frames.min(gap_before(k).saturating_sub(1));
+            let mut fade_out = fade(&locked, end - 1, turn_at(end - 1), anchor);
+            fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
+            Plant { start, end, anchor, fade_in, fade_out, foot: locked, turns, gap_after: next, step_after, replant }
         })
         .collect()
 }
@@ -702,16 +716,16 @@ struct FootTarget {
     heel_roll: Vec3,
 }
 
-/// The foot's target this frame: the lock itself inside a stance phase (its heel rolled after
-/// the anchor), else the foot's own pose plus the fading offsets of the phases nearby.
+/// The foot's target this frame: the lock itself inside a stance phase (turned with the
+/// network's foot and its heel rolled after the anchor, [`Plant::lock_at`]), else the foot's
+/// own pose plus the fading offsets of the phases nearby.
 fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> FootTarget {
     let own: Vec<Vec3> = leg.foot.iter().map(|&j| frame[j]).collect();
     let (mut foot, weight, heel_roll) = match leg.plants.iter().find(|p| (p.start..p.end).contains(&t)) {
         Some(plant) => {
-            let pivoted = pivoted(&plant.foot, &own, &plant.own_at_anchor, plant.pivot_toe);
-            let rolled = if t > plant.anchor { toe_rolled(&pivoted, &own, leg.toe_at) } else { pivoted.clone() };
-            let heel_roll = rolled[0] - pivoted[0];
-            (rolled, 1.0, heel_roll)
+            let (turned, stands) = plant.lock_at(t, &own, leg.toe_at);
+            let heel_roll = stands[0] - turned[0];
+            (stands, 1.0, heel_roll)
         }
         None => {
             let fades: Vec<(f32, &Fade)> = leg.plants.iter().filter_map(|p| p.fade(t)).collect();
@@ -733,18 +747,48 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
     FootTarget { joints: foot, weight, heel_roll }
 }
 
-/// The locked foot turned about its toe (`toe`, none for a plant that does not pivot) and the
-/// vertical as far as the network's foot (`own`) has turned its heading since the anchor
-/// (`at_anchor`), less [`PIVOT_SLACK`]: a body turns
-/// on the ball of a planted foot. Held at its anchor's heading, a foot the network pivots
-/// turned all of it in the swing after (h36m's posing from seed window 82 pivots a foot 113
-/// degrees on the spot, and the foot then turned 27 degrees a frame, limit 17).
-fn pivoted(locked: &[Vec3], own: &[Vec3], at_anchor: &[Vec3], toe: Option<usize>) -> Vec<Vec3> {
-    let Some(toe) = toe else { return locked.to_vec() };
-    let heading = |foot: &[Vec3]| (foot[toe] - foot[0]).with_y(0.0).try_normalize();
-    let (Some(now), Some(then)) = (heading(own), heading(at_anchor)) else { return locked.to_vec() };
-    let turn = beyond(then.angle_between(now), PIVOT_SLACK.to_radians()) * then.cross(now).y.signum();
-    let about = glam::Quat::from_rotation_y(turn);
+/// The lock `locked` at a frame of its plant where the network's foot is `own` and has turned
+/// by `turn` since the anchor: turned about its toe ([`pivoted`]), and as it stands, its heel
+/// rolled after the anchor (`rolled`, [`toe_rolled`]). The fades leave the lock as the plant's
+/// frames hold it, or the foot would jump at the plant's ends.
+fn lock_at(locked: &[Vec3], own: &[Vec3], toe_at: Option<usize>, turn: f32, rolled: bool) -> (Vec<Vec3>, Vec<Vec3>) {
+    let turned = pivoted(locked, toe_at, turn);
+    let stands = if rolled { toe_rolled(&turned, own, toe_at) } else { turned.clone() };
+    (turned, stands)
+}
+
+/// Per frame of the plant `frames`, how far (radians, about +Y) the network's foot
+/// (`ankle`, `toe`) has turned its heading since `anchor`, frame by frame so that a spin
+/// past half a turn keeps counting; a frame on tiptoe ([`LEVEL_ENOUGH`]) adds no turn.
+fn heading_turns(motion: &Motion, (ankle, toe): (usize, usize), frames: Range<usize>, anchor: usize) -> Vec<f32> {
+    let heading = |t: usize| {
+        let along = motion.frame(t)[toe] - motion.frame(t)[ankle];
+        let level = along.with_y(0.0);
+        (level.length() > LEVEL_ENOUGH * along.length()).then(|| level.normalize())
+    };
+    let step = |a: usize, b: usize| match (heading(a), heading(b)) {
+        (Some(from), Some(to)) => from.cross(to).y.atan2(from.dot(to)),
+        _ => 0.0,
+    };
+    let mut turns = vec![0.0; frames.len()];
+    let at = |t: usize| t - frames.start;
+    for t in anchor + 1..frames.end {
+        turns[at(t)] = turns[at(t - 1)] + step(t - 1, t);
+    }
+    for t in (frames.start..anchor).rev() {
+        turns[at(t)] = turns[at(t + 1)] - step(t, t + 1);
+    }
+    turns
+}
+
+/// The locked foot turned about its toe and the vertical by the network's own turn since
+/// the anchor (`turn`, radians) less [`PIVOT_SLACK`], eased in: a body turns on the ball of
+/// a planted foot. Held at its anchor's heading, a foot the network pivots turned all of it
+/// in the swing after (h36m's posing from seed window 82 pivots a foot 113 degrees on the
+/// spot, and the foot then turned 27 degrees a frame, limit 17).
+fn pivoted(locked: &[Vec3], toe_at: Option<usize>, turn: f32) -> Vec<Vec3> {
+    let Some(toe) = toe_at.filter(|_| turn != 0.0) else { return locked.to_vec() };
+    let about = glam::Quat::from_rotation_y(beyond(turn.abs(), PIVOT_SLACK.to_radians()) * turn.signum());
     let pivot = locked[toe];
     locked.iter().map(|p| pivot + about * (*p - pivot)).collect()
 }
@@ -793,4 +837,26 @@ fn rigid(skeleton: &Skeleton, joints: &[usize], from: &[Vec3], mixed: &[Vec3]) -
         out[i] = out[parent] + direction * length;
     }
     out
+}
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+
+    /// A foot (ankle and toe, 15 cm apart, flat) spinning 10 degrees a frame about the
+    /// vertical for 30 frames: its turn since the first frame adds up past half a turn to
+    /// 290 degrees, as the anchor's heading against each frame's alone would not (it flips
+    /// sign at 180).
+    #[test]
+    fn a_spinning_foot_counts_its_turn_past_half_a_turn() {
+        let skeleton = Skeleton::new(vec!["ankle".into(), "toe".into()], vec![None, Some(0)], vec![Vec3::ZERO, Vec3::new(0.0, -0.05, 0.15)], 1.0).unwrap();
+        let frames = 30;
+        let positions: Vec<Vec3> = (0..frames).flat_map(|t| [Vec3::ZERO, glam::Quat::from_rotation_y((10.0 * t as f32).to_radians()) * Vec3::new(0.0, -0.05, 0.15)]).collect();
+        let motion = Motion::from_positions(Arc::new(skeleton), 30.0, positions);
+        let turns = heading_turns(&motion, (0, 1), 0..frames, 0);
+        for (t, turn) in turns.iter().enumerate() {
+            assert!((turn.to_degrees() - 10.0 * t as f32).abs() < 0.01, "frame {t}: {} degrees", turn.to_degrees());
+        }
+    }
 }

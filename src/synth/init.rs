@@ -130,14 +130,16 @@ impl FileStart {
 /// A BVH exported in metres or centimetres (`glocal generate --units`) read as if in the
 /// model's unit: rescaled by the power of ten that makes its bones the model's length. A file
 /// on another skeleton (whose bones named as the model's are not its lengths times a power of
-/// ten) is judged by its size instead: the unit a BVH may be in (metres, centimetres,
-/// millimetres, inches, the CMU database's, [`nearest_plausible_unit`]) that makes its legs
-/// (hip to knee to ankle at rest) a person's, as the model's are, within a factor of two (a
-/// Bandai file in centimetres on the standard humanoid in metres; the same file in inches,
-/// which no power of ten fits, was read in the model's unit, 39 times too big on `models/all`,
-/// which refused it as damaged). A rig whose legs are not found is sized by its body's reach at rest. Both leave
-/// out a root joint resting far from the body (Bandai's `joint_Root`, 4.5 m from its hips),
-/// by whose reach a CMU dance file in centimetres read as decimetres.
+/// ten) is judged by its size instead: the power of ten that makes its legs (hip to knee to
+/// ankle at rest) a person's, as the model's are, within a factor of two (a Bandai file in
+/// centimetres on the standard humanoid in metres), else the other units a BVH may be in
+/// (inches, the CMU database's, [`nearest_plausible_unit`]) within a factor of two. Powers of
+/// ten first: a small rig in centimetres (legs half the model's) would read nearer inches.
+/// The same Bandai file in inches, which no power of ten fits, was read in the model's unit,
+/// 39 times too big on `models/all`, which refused it as damaged. A rig whose legs are not
+/// found is sized by its body's reach at rest. Both leave out a root joint resting far from
+/// the body (Bandai's `joint_Root`, 4.5 m from its hips), by whose reach a CMU dance file in
+/// centimetres read as decimetres.
 fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
     let s = &m.skeleton;
     let mut ratios: Vec<f32> = (0..s.len())
@@ -152,10 +154,14 @@ fn in_model_units(m: Motion, model: &Skeleton) -> Result<Motion> {
         let power = ratio.log10().round();
         ((ratio.log10() - power).abs() <= tolerance && power.abs() <= 3.0).then_some(power)
     };
-    let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02)).map(|power| s.meters_per_unit() * 10f32.powf(power));
+    let in_tens = |power: f32| s.meters_per_unit() * 10f32.powf(power);
+    let by_names = ratios.get(ratios.len() / 2).and_then(|&r| power_of_ten(r, 0.02)).map(in_tens);
     let by_size = || {
-        let (unit, off) = nearest_plausible_unit(s.meters_per_unit() * size_ratio(model, s));
-        (off <= 2.0).then_some(unit)
+        let ratio = size_ratio(model, s);
+        power_of_ten(ratio, 0.3).map(in_tens).or_else(|| {
+            let (unit, off) = nearest_plausible_unit(s.meters_per_unit() * ratio);
+            (off <= 2.0).then_some(unit)
+        })
     };
     let Some(unit) = by_names.or_else(by_size) else { return Ok(m) };
     if (unit / s.meters_per_unit() - 1.0).abs() < 1e-3 {

@@ -56,10 +56,10 @@ fn plausible_unit(skeleton: &Skeleton, keys: &KeyJoints) -> f32 {
     nearest_plausible_unit(TYPICAL_LEG / leg).0
 }
 
-/// The one of [`PLAUSIBLE_UNITS`] nearest `guess` (metres per unit), and how many times
-/// further one is from the other (1 or more).
-pub(crate) fn nearest_plausible_unit(guess: f32) -> (f32, f32) {
+/// The one of [`PLAUSIBLE_UNITS`] nearest `guess` (metres per unit), and the factor between
+/// them (1 or more).
+pub(super) fn nearest_plausible_unit(guess: f32) -> (f32, f32) {
     let misfit = |unit: f32| (guess / unit).ln().abs();
-    let unit = PLAUSIBLE_UNITS.into_iter().min_by(|a, b| misfit(*a).total_cmp(&misfit(*b))).unwrap_or(0.01);
+    let unit = PLAUSIBLE_UNITS.into_iter().min_by(|a, b| misfit(*a).total_cmp(&misfit(*b))).expect("units to choose from");
     (unit, misfit(unit).exp())
 }
