@@ -432,8 +432,7 @@ impl Plant {
     /// The lock at frame `t` of the plant, where the network's foot is `own`:
     /// [`lock_at`] by the plant's turn there.
     fn lock_at(&self, t: usize, own: &[Vec3], toe_at: Option<usize>) -> (Vec<Vec3>, Vec<Vec3>) {
-        let turn = self.turns.get(t - self.start).copied().unwrap_or(0.0);
-        lock_at(&self.foot, own, toe_at, turn, t > self.anchor)
+        lock_at(&self.foot, own, toe_at, turn_at(&self.turns, self.start, t), t > self.anchor)
     }
 }
 
@@ -471,10 +470,9 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
                 let step = motion.frame(next.anchor)[foot[0]] - frame[foot[0]];
                 glam::Vec2::new(step.x, step.z).length() * unit
             });
-            let turn_at = |t: usize| turns.get(t - start).copied().unwrap_or(0.0);
-            let mut fade_in = fade(&locked, start, turn_at(start), anchor);
+            let mut fade_in = fade(&locked, start, turn_at(&turns, start, start), anchor);
             fade_in.frames = fade_in.frames.min(gap_before(k).saturating_sub(1));
-            let mut fade_out = fade(&locked, end - 1, turn_at(end - 1), anchor);
+            let mut fade_out = fade(&locked, end - 1, turn_at(&turns, start, end - 1), anchor);
             fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
             Plant { start, end, anchor, fade_in, fade_out, foot: locked, turns, gap_after: next, step_after, replant }
         })
@@ -761,24 +759,34 @@ fn lock_at(locked: &[Vec3], own: &[Vec3], toe_at: Option<usize>, turn: f32, roll
 /// (`ankle`, `toe`) has turned its heading since `anchor`, frame by frame so that a spin
 /// past half a turn keeps counting; a frame on tiptoe ([`LEVEL_ENOUGH`]) adds no turn.
 fn heading_turns(motion: &Motion, (ankle, toe): (usize, usize), frames: Range<usize>, anchor: usize) -> Vec<f32> {
-    let heading = |t: usize| {
-        let along = motion.frame(t)[toe] - motion.frame(t)[ankle];
-        let level = along.with_y(0.0);
-        (level.length() > LEVEL_ENOUGH * along.length()).then(|| level.normalize())
-    };
-    let step = |a: usize, b: usize| match (heading(a), heading(b)) {
+    let headings: Vec<Option<Vec3>> = frames
+        .clone()
+        .map(|t| {
+            let along = motion.frame(t)[toe] - motion.frame(t)[ankle];
+            let level = along.with_y(0.0);
+            (level.length() > LEVEL_ENOUGH * along.length()).then(|| level.normalize())
+        })
+        .collect();
+    // The turn from plant frame `i` to the next.
+    let step = |i: usize| match (headings[i], headings[i + 1]) {
         (Some(from), Some(to)) => from.cross(to).y.atan2(from.dot(to)),
         _ => 0.0,
     };
+    let anchor = anchor - frames.start;
     let mut turns = vec![0.0; frames.len()];
-    let at = |t: usize| t - frames.start;
-    for t in anchor + 1..frames.end {
-        turns[at(t)] = turns[at(t - 1)] + step(t - 1, t);
+    for i in anchor + 1..turns.len() {
+        turns[i] = turns[i - 1] + step(i - 1);
     }
-    for t in (frames.start..anchor).rev() {
-        turns[at(t)] = turns[at(t + 1)] - step(t, t + 1);
+    for i in (0..anchor).rev() {
+        turns[i] = turns[i + 1] - step(i);
     }
     turns
+}
+
+/// A plant's turn at frame `t` ([`heading_turns`], `turns` from frame `start`; none for a
+/// plant that does not pivot).
+fn turn_at(turns: &[f32], start: usize, t: usize) -> f32 {
+    turns.get(t - start).copied().unwrap_or(0.0)
 }
 
 /// The locked foot turned about its toe and the vertical by the network's own turn since
@@ -838,6 +846,7 @@ fn rigid(skeleton: &Skeleton, joints: &[usize], from: &[Vec3], mixed: &[Vec3]) -
     }
     out
 }
+
 #[cfg(test)]
 mod tests {
     use std::sync::Arc;
