@@ -75,11 +75,15 @@ impl Dataset {
             Dataset::Bandai => 0.01,
             // The acLSTM BVH files measure about 62 units from hips to head: centimetres.
             Dataset::CmuDance => 0.01,
-            Dataset::CmuExpmap => 0.056444,
+            Dataset::CmuExpmap => CMU_METRES_PER_UNIT,
             Dataset::Combined => 1.0,
         }
     }
 }
+
+/// The CMU motion capture database's length unit in metres: its skeleton files declare
+/// `length 0.45`, a unit of 1 / 0.45 inches.
+pub const CMU_METRES_PER_UNIT: f32 = 0.056444;
 
 impl fmt::Display for Dataset {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

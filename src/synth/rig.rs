@@ -9,11 +9,12 @@ use anyhow::{Context, Result};
 
 use crate::data::bvh::read_bvh;
 use crate::data::joint_map::{key_joints, UserJointMap};
+use crate::data::registry::CMU_METRES_PER_UNIT;
 use crate::model::spec::ModelSpec;
 use crate::motion::{Key, KeyJoints, Motion, Retarget, Skeleton};
 
 /// Units a foreign BVH may be in, metres per unit: m, cm, mm, inch, the CMU database's.
-const PLAUSIBLE_UNITS: [f32; 5] = [1.0, 0.01, 0.001, 0.0254, 0.056444];
+const PLAUSIBLE_UNITS: [f32; 5] = [1.0, 0.01, 0.001, 0.0254, CMU_METRES_PER_UNIT];
 /// A grown-up's leg, hip to ankle, in metres: what a skeleton's unit is guessed from.
 const TYPICAL_LEG: f32 = 0.85;
 
