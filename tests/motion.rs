@@ -484,17 +484,29 @@ fn the_texture_does_not_snap_a_toe() {
     assert!(textured <= limit, "the texture turns the toe {textured:.1} degrees in one frame ({plain:.1} without it, limit {limit:.1})");
 }
 
-/// h36m's posing from seed window 82 pivots its left foot 113 degrees on the spot, its ankle
-/// moving 8 cm: the lock pivots the planted foot with it about the toe. Held at its anchor's
-/// heading, the foot turned all of it in the swing after, 27 degrees in one frame (10.6 now;
-/// the training clips' limit 17.4).
+/// h36m's posing from seed window 82 pivots both feet 106-113 degrees on the spot in its first
+/// 2.2 s, turning them near the heel: the lock pivots each planted foot with it where it
+/// turned. Held at its anchor's heading, the left foot turned all of it in the swing after,
+/// 27 degrees in one frame (10.6 now; the training clips' limit 17.4); turned about the toe,
+/// the locked ankles swept 31-35 cm over the floor where the network's moved 12-28 cm (1-7
+/// now).
 #[test]
 fn a_pivoting_foot_turns_while_it_stands() {
     let m = model("h36m");
-    let toe = m.spec.layout.skeleton.index_of("LeftToeBase").unwrap();
+    let skeleton = &m.spec.layout.skeleton;
+    let toe = skeleton.index_of("LeftToeBase").unwrap();
     let limit = m.spec.bone_turn_limits["LeftToeBase"] / m.spec.fps;
     let o = GenerateOptions { timeline: "posing:12".parse().unwrap(), init: InitPose::SeedIndex(82), seed: 1, ..Default::default() };
-    let largest = largest_turn(&generate(&m, &o, &mut |_| true).unwrap().motion, toe);
+    let locked = generate(&m, &o, &mut |_| true).unwrap().motion;
+    let largest = largest_turn(&locked, toe);
     println!("the left foot's largest turn in one frame: {largest:.1} degrees (limit {limit:.1})");
     assert!(largest <= limit, "the left foot turns {largest:.1} degrees in one frame (limit {limit:.1})");
+    let own = generate(&m, &GenerateOptions { foot_lock: false, ..o }, &mut |_| true).unwrap().motion;
+    let path = |take: &Motion, ankle: usize| (1..55).map(|t| (take.frame(t)[ankle] - take.frame(t - 1)[ankle]).with_y(0.0).length()).sum::<f32>();
+    for ankle in ["LeftFoot", "RightFoot"] {
+        let j = skeleton.index_of(ankle).unwrap();
+        let (locked, own) = (path(&locked, j) / 10.0, path(&own, j) / 10.0);
+        println!("{ankle} over the pivot: {locked:.1} cm locked, {own:.1} cm the network's own");
+        assert!(locked < own, "the locked {ankle} sweeps {locked:.1} cm over the pivot, the network's own {own:.1} cm");
+    }
 }

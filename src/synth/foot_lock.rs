@@ -59,7 +59,7 @@ const TIPTOE_ANGLES: (f32, f32) = (15.0, 30.0);
 const ROLL_SLACK: f32 = 3.0;
 
 /// How far (degrees) the network's planted foot turns about the vertical from its lock
-/// before the lock follows it whole: the lock pivots about the toe by the turn less this,
+/// before the lock follows it whole: the lock pivots with it by the turn less this,
 /// eased in from no turn ([`beyond`], [`pivoted`]). A pivot moves the toe's tip and the
 /// heel over the floor, which the support-point speed reads: with every plant pivoting and
 /// 5 degrees, `all`'s Bandai classes' support speed rose from 1.45x to 1.55x real (issue
@@ -376,10 +376,9 @@ struct Plant {
     /// The stance's frame the lock keeps the foot of (its slowest).
     anchor: usize,
     foot: Vec<Vec3>,
-    /// Per frame of the plant, how far (radians, about +Y) the network's foot has turned its
-    /// heading since the anchor ([`heading_turns`]); empty for a plant that does not pivot
+    /// How the network's foot turns over the plant; none for a plant too short to pivot
     /// ([`PIVOT_SECONDS`]).
-    turns: Vec<f32>,
+    pivot: Option<Pivot>,
     fade_in: Fade,
     fade_out: Fade,
     /// Frames to the next plant, where there is one.
@@ -432,8 +431,29 @@ impl Plant {
     /// The lock at frame `t` of the plant, where the network's foot is `own`:
     /// [`lock_at`] by the plant's turn there.
     fn lock_at(&self, t: usize, own: &[Vec3], toe_at: Option<usize>) -> (Vec<Vec3>, Vec<Vec3>) {
-        lock_at(&self.foot, own, toe_at, turn_at(&self.turns, self.start, t), t > self.anchor)
+        lock_at(&self.foot, own, toe_at, turn_at(self.pivot.as_ref(), self.start, t), t > self.anchor)
     }
+}
+
+/// How the network turns a planted foot on the spot.
+struct Pivot {
+    /// Per frame of the plant, how far (radians, about +Y) the network's foot has turned its
+    /// heading since the anchor ([`heading_turns`]).
+    turns: Vec<f32>,
+    /// Where on the foot it turns, from the ankle (0) to the toe (1): where the network turned
+    /// it ([`least_moving`]) in a plant that turns past [`PIVOT_SLACK`], else the toe. A
+    /// smaller turn, eased in, barely moves the lock, and the network's foot sliding as it
+    /// stands says nothing of where it turns; about the point that slid least, the toes of
+    /// such plants swept the floor (`all`'s Bandai classes' support speed 1.45x -> 1.48x real).
+    about: f32,
+}
+
+/// A planted foot's turn at one frame: `angle` (radians, about +Y) about the point `about`
+/// of the way from its ankle to its toe.
+#[derive(Clone, Copy)]
+struct Turn {
+    angle: f32,
+    about: f32,
 }
 
 /// Each stance locks the foot as it stood in the stance's anchor frame, set on the floor.
@@ -443,7 +463,7 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
     let pivot_frames = (PIVOT_SECONDS * motion.fps).round() as usize;
     // A fade leaves the lock as it stands at the plant's boundary frame `t`, where the
     // network's foot has turned by `turn` since the anchor.
-    let fade = |locked: &[Vec3], t: usize, turn: f32, anchor: usize| {
+    let fade = |locked: &[Vec3], t: usize, turn: Turn, anchor: usize| {
         let own: Vec<Vec3> = foot.iter().map(|&j| motion.frame(t)[j]).collect();
         let (lock, stands) = lock_at(locked, &own, toe_at, turn, t > anchor);
         let offset: Vec<Vec3> = stands.iter().zip(&own).map(|(l, o)| *l - *o).collect();
@@ -460,21 +480,22 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
             let frame = motion.frame(anchor);
             let lowest = foot.iter().map(|&j| frame[j].y).fold(f32::INFINITY, f32::min);
             let locked: Vec<Vec3> = foot.iter().map(|&j| frame[j] - Vec3::Y * lowest).collect();
-            let turns = match toe_at {
-                Some(toe) if end - start >= pivot_frames => heading_turns(motion, (foot[0], foot[toe]), start..end, anchor),
-                _ => Vec::new(),
-            };
+            let pivot = toe_at.filter(|_| end - start >= pivot_frames).map(|toe| {
+                let turns = heading_turns(motion, (foot[0], foot[toe]), start..end, anchor);
+                let spins = turns.iter().any(|turn| turn.abs() > PIVOT_SLACK.to_radians());
+                Pivot { about: if spins { least_moving(motion, (foot[0], foot[toe]), start..end) } else { 1.0 }, turns }
+            });
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
             // A lock keeps its anchor frame's foot but for its height.
             let step_after = stances.get(k + 1).map_or(0.0, |next| {
                 let step = motion.frame(next.anchor)[foot[0]] - frame[foot[0]];
                 glam::Vec2::new(step.x, step.z).length() * unit
             });
-            let mut fade_in = fade(&locked, start, turn_at(&turns, start, start), anchor);
+            let mut fade_in = fade(&locked, start, turn_at(pivot.as_ref(), start, start), anchor);
             fade_in.frames = fade_in.frames.min(gap_before(k).saturating_sub(1));
-            let mut fade_out = fade(&locked, end - 1, turn_at(&turns, start, end - 1), anchor);
+            let mut fade_out = fade(&locked, end - 1, turn_at(pivot.as_ref(), start, end - 1), anchor);
             fade_out.frames = fade_out.frames.min(gap_after(k).saturating_sub(1));
-            Plant { start, end, anchor, fade_in, fade_out, foot: locked, turns, gap_after: next, step_after, replant }
+            Plant { start, end, anchor, fade_in, fade_out, foot: locked, pivot, gap_after: next, step_after, replant }
         })
         .collect()
 }
@@ -746,10 +767,10 @@ fn foot_target(skeleton: &Skeleton, frame: &[Vec3], leg: &LegLock, t: usize) -> 
 }
 
 /// The lock `locked` at a frame of its plant where the network's foot is `own` and has turned
-/// by `turn` since the anchor: turned about its toe ([`pivoted`]), and as it stands, its heel
+/// by `turn` since the anchor: turned with it ([`pivoted`]), and as it stands, its heel
 /// rolled after the anchor (`rolled`, [`toe_rolled`]). The fades leave the lock as the plant's
 /// frames hold it, or the foot would jump at the plant's ends.
-fn lock_at(locked: &[Vec3], own: &[Vec3], toe_at: Option<usize>, turn: f32, rolled: bool) -> (Vec<Vec3>, Vec<Vec3>) {
+fn lock_at(locked: &[Vec3], own: &[Vec3], toe_at: Option<usize>, turn: Turn, rolled: bool) -> (Vec<Vec3>, Vec<Vec3>) {
     let turned = pivoted(locked, toe_at, turn);
     let stands = if rolled { toe_rolled(&turned, own, toe_at) } else { turned.clone() };
     (turned, stands)
@@ -783,21 +804,37 @@ fn heading_turns(motion: &Motion, (ankle, toe): (usize, usize), frames: Range<us
     turns
 }
 
-/// A plant's turn at frame `t` ([`heading_turns`], `turns` from frame `start`; none for a
-/// plant that does not pivot).
-fn turn_at(turns: &[f32], start: usize, t: usize) -> f32 {
-    turns.get(t - start).copied().unwrap_or(0.0)
+/// A plant's turn at frame `t` (its `pivot` from frame `start`; none for a plant that does
+/// not pivot).
+fn turn_at(pivot: Option<&Pivot>, start: usize, t: usize) -> Turn {
+    pivot.map_or(Turn { angle: 0.0, about: 1.0 }, |pivot| Turn { angle: pivot.turns[t - start], about: pivot.about })
 }
 
-/// The locked foot turned about its toe and the vertical by the network's own turn since
-/// the anchor (`turn`, radians) less [`PIVOT_SLACK`], eased in: a body turns on the ball of
-/// a planted foot. Held at its anchor's heading, a foot the network pivots turned all of it
-/// in the swing after (h36m's posing from seed window 82 pivots a foot 113 degrees on the
-/// spot, and the foot then turned 27 degrees a frame, limit 17).
-fn pivoted(locked: &[Vec3], toe_at: Option<usize>, turn: f32) -> Vec<Vec3> {
-    let Some(toe) = toe_at.filter(|_| turn != 0.0) else { return locked.to_vec() };
-    let about = glam::Quat::from_rotation_y(beyond(turn.abs(), PIVOT_SLACK.to_radians()) * turn.signum());
-    let pivot = locked[toe];
+/// Where along the network's foot (`ankle` at 0 to `toe` at 1) the point lies that travels
+/// least over the floor in `frames`, in tenths: the point it turns about, on the ball of the
+/// foot or the heel. h36m's posing from seed window 82 turns its feet 106-113 degrees on the
+/// spot with the ankles travelling 12-28 cm and the toes 39-45: turned about the toe, the
+/// locked ankle swept 31-35 cm, and the hips' shift with it.
+fn least_moving(motion: &Motion, (ankle, toe): (usize, usize), frames: Range<usize>) -> f32 {
+    let travel = |share: f32| {
+        let at = |t: usize| {
+            let f = motion.frame(t);
+            (f[ankle] + (f[toe] - f[ankle]) * share).with_y(0.0)
+        };
+        frames.clone().skip(1).map(|t| at(t).distance(at(t - 1))).sum::<f32>()
+    };
+    (0..=10).map(|k| k as f32 / 10.0).min_by(|a, b| travel(*a).total_cmp(&travel(*b))).unwrap_or(1.0)
+}
+
+/// The locked foot turned about the vertical through its pivot point (`turn.about`) by the
+/// network's own turn since the anchor less [`PIVOT_SLACK`], eased in. Held at its anchor's
+/// heading, a foot the network pivots turned all of it in the swing after (h36m's posing
+/// from seed window 82 pivots a foot 113 degrees on the spot, and the foot then turned 27
+/// degrees a frame, limit 17).
+fn pivoted(locked: &[Vec3], toe_at: Option<usize>, turn: Turn) -> Vec<Vec3> {
+    let Some(toe) = toe_at.filter(|_| turn.angle != 0.0) else { return locked.to_vec() };
+    let about = glam::Quat::from_rotation_y(beyond(turn.angle.abs(), PIVOT_SLACK.to_radians()) * turn.angle.signum());
+    let pivot = locked[0] + (locked[toe] - locked[0]) * turn.about;
     locked.iter().map(|p| pivot + about * (*p - pivot)).collect()
 }
 
@@ -866,6 +903,24 @@ mod tests {
         let turns = heading_turns(&motion, (0, 1), 0..frames, 0);
         for (t, turn) in turns.iter().enumerate() {
             assert!((turn.to_degrees() - 10.0 * t as f32).abs() < 0.01, "frame {t}: {} degrees", turn.to_degrees());
+        }
+    }
+
+    /// A foot (ankle and toe, 15 cm apart) turning 90 degrees on the spot about its heel, then
+    /// about the ball of its foot: the lock turns about the point the foot turned about.
+    #[test]
+    fn a_foot_turns_about_the_point_that_stays() {
+        let skeleton = Arc::new(Skeleton::new(vec!["ankle".into(), "toe".into()], vec![None, Some(0)], vec![Vec3::ZERO, Vec3::new(0.0, -0.05, 0.15)], 1.0).unwrap());
+        let toe = Vec3::new(0.0, -0.05, 0.15);
+        for (about, expected) in [(Vec3::ZERO, 0.0), (toe.with_y(0.0), 1.0), (toe.with_y(0.0) * 0.6, 0.6)] {
+            let positions: Vec<Vec3> = (0..30)
+                .flat_map(|t| {
+                    let turn = glam::Quat::from_rotation_y((3.0 * t as f32).to_radians());
+                    [about + turn * (Vec3::ZERO - about), about + turn * (toe - about)]
+                })
+                .collect();
+            let motion = Motion::from_positions(skeleton.clone(), 30.0, positions);
+            assert_eq!(least_moving(&motion, (0, 1), 0..30), expected, "turning about {about}");
         }
     }
 }
