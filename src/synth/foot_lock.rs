@@ -906,8 +906,9 @@ mod tests {
         }
     }
 
-    /// A foot (ankle and toe, 15 cm apart) turning 90 degrees on the spot about its heel, then
-    /// about the ball of its foot: the lock turns about the point the foot turned about.
+    /// A foot (ankle and toe, 15 cm apart) turning 87 degrees on the spot about its ankle, its
+    /// toe and a point between: the point found is the one it turned about, and the lock
+    /// pivoted by it keeps that point where it stood.
     #[test]
     fn a_foot_turns_about_the_point_that_stays() {
         let skeleton = Arc::new(Skeleton::new(vec!["ankle".into(), "toe".into()], vec![None, Some(0)], vec![Vec3::ZERO, Vec3::new(0.0, -0.05, 0.15)], 1.0).unwrap());
@@ -920,7 +921,12 @@ mod tests {
                 })
                 .collect();
             let motion = Motion::from_positions(skeleton.clone(), 30.0, positions);
-            assert_eq!(least_moving(&motion, (0, 1), 0..30), expected, "turning about {about}");
+            let found = least_moving(&motion, (0, 1), 0..30);
+            assert_eq!(found, expected, "turning about {about}");
+            let locked = [Vec3::ZERO, toe];
+            let turned = pivoted(&locked, Some(1), Turn { angle: 1.5, about: found });
+            let stays = |foot: &[Vec3]| (foot[0] + (foot[1] - foot[0]) * found).with_y(0.0);
+            assert!(stays(&turned).distance(stays(&locked)) < 1e-5, "the lock turned about another point than {found}");
         }
     }
 }

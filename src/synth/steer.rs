@@ -260,7 +260,8 @@ impl Steering {
     /// take's pace is measured on. A class change's blocks are not the class's pace: a bow
     /// after a run came out of the run's momentum travelling a metre, and its first six
     /// seconds read 3.4x bowing's speed, so keep-alive leant the bow on its stillest windows
-    /// and it stood.
+    /// and it stood. (An anchored change's blocks: a cut or a blend has no easing to tell
+    /// them by, and the activity before it still counts there.)
     pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
         if self.keep_alive {
             let class = (!self.changing).then_some(class);
