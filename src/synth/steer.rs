@@ -110,8 +110,6 @@ pub(super) struct Steering {
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
     since_anchor: usize,
-    /// The last block steered was a class change's (its switch or its easing).
-    changing: bool,
     /// Blocks left of a finished class change's [`CHANGE_SETTLE_SECONDS`].
     settling: usize,
     settle_blocks: usize,
@@ -143,7 +141,6 @@ impl Steering {
             context_class: start_window.map(|(class, _)| class),
             start_window,
             since_anchor: 0,
-            changing: false,
             settling: 0,
             settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
             last_anchor: None,
@@ -175,7 +172,6 @@ impl Steering {
         let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
         let settling = !changing && self.settling > 0;
         self.settling = if changing { self.settle_blocks } else { self.settling.saturating_sub(1) };
-        self.changing = changing;
         // A loop is broken even while a keep-alive eases: leaning on a window the take leant
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
@@ -257,14 +253,9 @@ impl Steering {
     }
 
     /// The block GloGen made of it, after the pose before it (both normalised): what the
-    /// take's pace is measured on. A class change's blocks are not the class's pace: a bow
-    /// after a run came out of the run's momentum travelling a metre, and its first six
-    /// seconds read 3.4x bowing's speed, so keep-alive leant the bow on its stillest windows
-    /// and it stood. (An anchored change's blocks: a cut or a blend has no easing to tell
-    /// them by, and the activity before it still counts there.)
+    /// take's pace is measured on.
     pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
         if self.keep_alive {
-            let class = (!self.changing).then_some(class);
             self.pace.push(model, class, &raw_block(&model.spec, previous, block));
         }
     }
