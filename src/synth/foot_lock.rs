@@ -441,10 +441,13 @@ struct Pivot {
     /// heading since the anchor ([`heading_turns`]).
     turns: Vec<f32>,
     /// Where on the foot it turns, from the ankle (0) to the toe (1): where the network turned
-    /// it ([`least_moving`]) in a plant that turns past [`PIVOT_SLACK`], else the toe. A
-    /// smaller turn, eased in, barely moves the lock, and the network's foot sliding as it
-    /// stands says nothing of where it turns; about the point that slid least, the toes of
-    /// such plants swept the floor (`all`'s Bandai classes' support speed 1.45x -> 1.48x real).
+    /// it ([`least_moving`]) in a plant that turns past twice [`PIVOT_SLACK`], a body turning
+    /// on the spot, else the toe. A smaller turn, eased in, barely moves the lock, and the
+    /// network's foot sliding as it stands says nothing of where it turns: about the point
+    /// that slid least, the toes of such plants swept the floor (every plant: `all`'s Bandai
+    /// classes' support speed 1.45x -> 1.48x real), and a Bandai walk's stance turned about
+    /// its heel slid its planted toe 1.7 cm by toe-off (past the slack alone), where a
+    /// walking foot bears on its ball.
     about: f32,
 }
 
@@ -482,7 +485,7 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
             let locked: Vec<Vec3> = foot.iter().map(|&j| frame[j] - Vec3::Y * lowest).collect();
             let pivot = toe_at.filter(|_| end - start >= pivot_frames).map(|toe| {
                 let turns = heading_turns(motion, (foot[0], foot[toe]), start..end, anchor);
-                let spins = turns.iter().any(|turn| turn.abs() > PIVOT_SLACK.to_radians());
+                let spins = turns.iter().any(|turn| turn.abs() > 2.0 * PIVOT_SLACK.to_radians());
                 Pivot { about: if spins { least_moving(motion, (foot[0], foot[toe]), start..end) } else { 1.0 }, turns }
             });
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
@@ -846,18 +849,22 @@ fn pivoted(locked: &[Vec3], toe_at: Option<usize>, turn: Turn) -> Vec<Vec3> {
 fn toe_rolled(locked: &[Vec3], own: &[Vec3], toe_at: Option<usize>) -> Vec<Vec3> {
     let mut out = locked.to_vec();
     let Some(toe) = toe_at else { return out };
-    let pitch = |foot: &[Vec3]| (foot[0] - foot[toe]).try_normalize().map_or(0.0, |d| d.y.clamp(-1.0, 1.0).asin());
     // A foot with its toe above its ankle rests on its heel (legs out in front on a floor
     // seat): it has no toe on the floor to roll about.
-    if pitch(locked) < 0.0 {
+    if pitch(locked, toe) < 0.0 {
         return out;
     }
-    let rise = beyond(pitch(own) - pitch(locked), ROLL_SLACK.to_radians());
+    let rise = beyond(pitch(own, toe) - pitch(locked, toe), ROLL_SLACK.to_radians());
     let heel = locked[0] - locked[toe];
     if let Some(axis) = heel.cross(Vec3::Y).try_normalize().filter(|_| rise > 0.0) {
         out[0] = locked[toe] + glam::Quat::from_axis_angle(axis, rise) * heel;
     }
     out
+}
+
+/// How far (radians) the foot's heel is above its toe: its ankle-to-toe line's pitch.
+fn pitch(foot: &[Vec3], toe: usize) -> f32 {
+    (foot[0] - foot[toe]).try_normalize().map_or(0.0, |d| d.y.clamp(-1.0, 1.0).asin())
 }
 
 /// How far `x` is beyond `slack`, easing in from 0 at 0 with a continuous slope.
