@@ -8,12 +8,8 @@
 
 use glam::Vec3;
 
-use super::spec::InbetweenSpec;
+use super::spec::{InbetweenSpec, GAP_CHANNELS};
 use crate::data::features::{FeatureLayout, Normalizer, Placement};
-
-/// Channels after the features: 1 on given frames (context and key), and the frame's share
-/// of the way through the gap.
-pub const GAP_CHANNELS: usize = 2;
 
 /// The frames strictly between `last` and `key` (`joints` each) on the straight line from
 /// one to the other, joint by joint.

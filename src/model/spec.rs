@@ -177,11 +177,15 @@ pub struct LocGenSpec {
     pub keep_sparse_poses: bool,
 }
 
+/// Channels of the in-betweener's input after each step's features: 1 on given frames
+/// (context and key), and the frame's share of the way through the gap.
+pub const GAP_CHANNELS: usize = 2;
+
 /// The in-betweener ([`super::inbetween`]): fills the frames between a known pose and a key
 /// with a residual on their linear interpolation, reading the frames before the gap.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct InbetweenSpec {
-    /// Per step: the interpolated features, then [`super::inbetween::GAP_CHANNELS`] more.
+    /// Per step: the interpolated features, then [`GAP_CHANNELS`] more.
     pub block: BlockConfig,
     /// Known frames read before the gap (the last one is the gap's start).
     pub context: usize,
@@ -412,7 +416,7 @@ fn validate_block(field: &str, b: &BlockConfig, in_dim: usize, dim: usize, cond:
 }
 
 fn validate_inbetween(spec: &InbetweenSpec, dim: usize) -> Result<(), SpecError> {
-    validate_block("inbetween.block", &spec.block, dim + super::inbetween::GAP_CHANNELS, dim, 0)?;
+    validate_block("inbetween.block", &spec.block, dim + GAP_CHANNELS, dim, 0)?;
     whole_in_range("inbetween.context", spec.context, 2, MAX_LOCGEN_WINDOW)?;
     whole_in_range("inbetween.max_gap", spec.max_gap, 1, MAX_LOCGEN_WINDOW)?;
     whole_in_range("inbetween.after", spec.after, 0, MAX_LOCGEN_WINDOW)?;

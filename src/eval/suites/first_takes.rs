@@ -2,7 +2,7 @@
 //! multi-activity takes an animator makes first (walking into sitting down, standing up from a
 //! floor seat, a walk started from a file), each as `glocal generate` makes it with the shipped
 //! model and default options, measured as exported: feet up (the lowest foot joint more than
-//! 5 cm above the export's floor, [`Motion::floor_height`]), the longest float, the locked
+//! 5 cm above the export's floor, [`crate::motion::Motion::floor_height`]), the longest float, the locked
 //! contacts off that floor (where the studio draws their markers), and the largest bone turn
 //! in one frame against the real test clips' p99.9 ([`crate::eval::snaps`]).
 
@@ -13,6 +13,7 @@ use serde::Serialize;
 use serde_json::{json, Value};
 
 use super::context::SuiteContext;
+use super::feet_up::feet_on_the_floor;
 use super::random_takes::{self, random_takes};
 use crate::data::registry::Dataset;
 use crate::data::write::write_atomic;
@@ -21,12 +22,7 @@ use crate::eval::snaps::{Snap, SnapLimits, SnapTally};
 use crate::eval::table::{fixed_or, Markdown, Table};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;
-use crate::motion::contacts::{lowest_foot_heights, runs};
-use crate::motion::{JointRoles, Motion, Side};
 use crate::synth::{generate, GenerateOptions, InitPose};
-
-/// A lowest foot joint this far above the floor (metres) is up.
-pub(super) const FEET_UP_M: f32 = 0.05;
 
 /// Where a first take starts.
 enum Start {
@@ -98,12 +94,12 @@ const COMBINED: [Recipe; 9] = [
 pub struct FirstTake {
     pub command: String,
     pub seconds: f32,
-    /// Fraction of frames whose lowest foot joint is more than [`FEET_UP_M`] above the floor.
+    /// Fraction of frames whose lowest foot joint is more than [`super::feet_up::FEET_UP_M`] above the floor.
     pub feet_up: f64,
     /// The longest run of such frames, seconds.
     pub longest_float_s: f32,
     /// Fraction of the frames of locked contacts (per foot) whose foot is more than
-    /// [`FEET_UP_M`] above the floor: markers drawn on the floor under a hovering foot.
+    /// [`super::feet_up::FEET_UP_M`] above the floor: markers drawn on the floor under a hovering foot.
     pub contacts_off_floor: f64,
     /// The bones that turn farther than their real p99.9 in one frame, farthest over first (or
     /// the nearest bone, when none does).
@@ -170,27 +166,6 @@ fn archive_file(entry: &str, ctx: &SuiteContext) -> Result<PathBuf> {
         write_atomic(&path, bytes)?;
     }
     Ok(path)
-}
-
-/// Feet up (fraction of frames), the longest float (s) and the locked contacts' frames off the
-/// floor (fraction), over the export's floor.
-pub(super) fn feet_on_the_floor(m: &Motion, contacts: &crate::motion::contacts::FootContacts) -> Result<(f64, f32, f64)> {
-    let roles = JointRoles::new(&m.skeleton)?;
-    let unit = m.skeleton.meters_per_unit();
-    let floor = m.floor_height();
-    let up = |h: f32| (h - floor) * unit > FEET_UP_M;
-    let floating: Vec<bool> = lowest_foot_heights(m, &roles).into_iter().map(up).collect();
-    let feet_up = floating.iter().filter(|&&f| f).count() as f64 / floating.len().max(1) as f64;
-    let longest = runs(&floating).iter().map(|r| r.len()).max().unwrap_or(0) as f32 / m.fps;
-    let (mut planted, mut off) = (0usize, 0usize);
-    for side in Side::BOTH {
-        let foot = roles.leg(side).foot_joints(&m.skeleton);
-        for (t, _) in contacts.side(side).iter().enumerate().filter(|(_, &c)| c) {
-            planted += 1;
-            off += usize::from(up(foot.iter().map(|&j| m.frame(t)[j].y).fold(f32::INFINITY, f32::min)));
-        }
-    }
-    Ok((feet_up, longest, off as f64 / planted.max(1) as f64))
 }
 
 /// The first takes' table.

@@ -7,6 +7,7 @@ mod class_generation;
 mod cmu_euclid;
 mod constraints;
 pub mod context;
+mod feet_up;
 mod first_takes;
 mod h36m_mmd;
 mod inbetween;

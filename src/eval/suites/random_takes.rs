@@ -13,7 +13,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use super::first_takes::{feet_on_the_floor, FEET_UP_M};
+use super::feet_up::{feet_on_the_floor, FEET_UP_M};
 use crate::eval::table::{fixed_or, Markdown};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::GlocalModel;

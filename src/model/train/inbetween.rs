@@ -11,8 +11,8 @@ use rand::{Rng, SeedableRng};
 use super::stage::{frame_errors, skeleton_weighted_loss, ResidualSpread, StageTraining, TrainingData, ValWindow};
 use crate::model::block::Seq2SeqBlock;
 use crate::model::corpus::{sample_window, Track};
-use crate::model::inbetween::{bend_ends, fill_frames, gap_gain, gap_window, BEND_SECONDS, GAP_CHANNELS};
-use crate::model::spec::InbetweenSpec;
+use crate::model::inbetween::{bend_ends, fill_frames, gap_gain, gap_window, BEND_SECONDS};
+use crate::model::spec::{InbetweenSpec, GAP_CHANNELS};
 
 /// The root feature of the heading's change since the frame before.
 const TURN_FEATURE: usize = 3;
