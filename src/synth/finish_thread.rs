@@ -17,7 +17,7 @@ use std::thread::{Scope, ScopedJoinHandle};
 use anyhow::{anyhow, Result};
 
 use super::finish::ChunkFinish;
-use super::generate::{Generated, TakeEvents};
+use super::generated::{Generated, TakeEvents};
 use super::plan::SegmentSpan;
 use crate::model::glocal::GlocalModel;
 

@@ -13,13 +13,14 @@ use super::finish::{above_the_legs, chunks, ChunkFinish, Finishing, Stretch, Tex
 use super::finish_thread::{FinishingThread, Shown};
 use super::course::HoldCourse;
 use super::foot_lock::Travel;
+use super::generated::{Generated, TakeEvents};
 use super::given::{GivenFloor, GivenStart};
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
 use super::keys::{filled_gaps, learnt_travel, place_keys, KeyConstraint, PlacedKey};
 use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
-use super::plan::{BlockPlan, PlannedBlock, SegmentSpan, SparseTimeline, TakeConstraint};
+use super::plan::{BlockPlan, PlannedBlock, SparseTimeline, TakeConstraint};
 use super::reuse::{block_prints, settled_poses, take_print, Checkpoint, Resume, RolloutState, TakeCache, TakeRecord};
 use super::steer::Steering;
 use crate::model::block::BlockWorkspace;
@@ -29,48 +30,6 @@ use crate::model::glogen::GloGen;
 use crate::model::rollout::{rollout_blocks, RolloutSteps};
 use crate::model::spec::MAX_CLASS_STRENGTH;
 use crate::model::target::{target_condition, Target};
-use crate::motion::contacts::FootContacts;
-use crate::motion::cycle::Cycle;
-use crate::motion::Motion;
-
-pub struct Generated {
-    pub motion: Motion,
-    pub segments: Vec<SegmentSpan>,
-    /// GloGen's encoder embedding of each generated block's input (the t-SNE path); empty
-    /// for a block of held frames, which GloGen did not make.
-    pub block_embeddings: Vec<Vec<f32>>,
-    /// Class (segment) of each block.
-    pub block_classes: Vec<usize>,
-    /// Per foot and frame, whether the foot stands on the floor.
-    pub contacts: FootContacts,
-    /// What the take could not do as asked (a path faster than its class walks), for the
-    /// user to see.
-    pub warnings: Vec<String>,
-    /// A looping take's cycle: where it was cut and how far one play of it travels.
-    pub cycle: Option<Cycle>,
-}
-
-/// What a caller sees of a take while it is made.
-pub trait TakeEvents {
-    /// The fraction done; false cancels.
-    fn progress(&mut self, fraction: f32) -> bool;
-
-    /// Whether [`TakeEvents::frames`] is wanted (the take so far is a copy).
-    fn wants_frames(&self) -> bool {
-        false
-    }
-
-    /// The take so far, each time more of its frames are final: the finished take begins
-    /// with these frames, bit for bit.
-    fn frames(&mut self, _so_far: Generated) {}
-}
-
-/// A progress callback alone.
-impl<F: FnMut(f32) -> bool> TakeEvents for F {
-    fn progress(&mut self, fraction: f32) -> bool {
-        self(fraction)
-    }
-}
 
 /// Generates a take as its timeline lays it out, from its start to its end (a loop is cut
 /// from one, [`super::looping`]). `progress` gets the fraction done and returns false to

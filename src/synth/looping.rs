@@ -4,7 +4,8 @@
 
 use anyhow::{bail, Result};
 
-use super::generate::{continuous_take, Generated};
+use super::generate::continuous_take;
+use super::generated::Generated;
 use super::options::GenerateOptions;
 use super::plan::SegmentSpan;
 use crate::model::glocal::GlocalModel;

@@ -6,6 +6,7 @@ mod course;
 pub mod export;
 pub mod foot_lock;
 pub mod generate;
+mod generated;
 mod finish;
 mod finish_thread;
 mod given;
@@ -57,7 +58,8 @@ pub(crate) fn raised_cosine(x: f32) -> f32 {
     }
 }
 
-pub use generate::{generate_reusing, Generated, TakeEvents};
+pub use generate::generate_reusing;
+pub use generated::{Generated, TakeEvents};
 pub use reuse::TakeCache;
 pub use take::{generate, generate_with};
 pub use options::{GenerateOptions, KeyMethod, Transition, DEFAULT_TRANSITION_SECONDS};

@@ -2,7 +2,8 @@
 
 use anyhow::Result;
 
-use super::generate::{generate_reusing, Generated, TakeEvents};
+use super::generate::generate_reusing;
+use super::generated::{Generated, TakeEvents};
 use super::looping::generate_loop;
 use super::options::GenerateOptions;
 use super::reuse::TakeCache;
