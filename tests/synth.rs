@@ -69,6 +69,33 @@ fn keep_alive_holds_a_long_segment() {
     assert!(stalled.iter().any(|&r| r < 0.3), "without keep-alive the take was expected to stall: {stalled:.2?}");
 }
 
+/// A wave asked for after another activity keeps waving: a class change's own blocks (the
+/// other activity's momentum, a run slowing down) counted in the new class's pace, and the
+/// wave's own fast first seconds were answered late, so keep-alive read the wave as rushing
+/// and went on calming it once still. `all`'s byebye from four other
+/// classes' seeds waved at 0.42-0.67x its class's speed from 6 s into the segment on (0.81-1.10x
+/// now).
+#[test]
+fn a_gesture_after_another_activity_keeps_its_pace() {
+    let m = model("all");
+    let class = m.spec.class_index("byebye").unwrap();
+    let k = m.spec.classes.len();
+    let ratios: Vec<(String, f32)> = [0, 8, 16, 24]
+        .into_iter()
+        .map(|variant| {
+            let other = m.spec.classes[(class + 1 + variant % (k - 1)) % k].clone();
+            let o = GenerateOptions { init: InitPose::SeedClass { class: other.clone(), variant }, ..opts("byebye:10") }.varied(1 + variant as u64);
+            let motion = generate(&m, &o, &mut |_| true).unwrap().motion;
+            // The take opens on the seed's own poses, then the segment.
+            let seed = m.spec.block_len * m.spec.stride;
+            let late = motion.slice(seed + (6.0 * m.spec.fps) as usize, motion.frames());
+            (other, mean_joint_speed(&late) / m.spec.class_speed[class])
+        })
+        .collect();
+    println!("byebye's speed from 6 s into the segment, over its class's, after each seed: {ratios:.2?}");
+    assert!(ratios.iter().all(|(_, r)| (0.6..1.6).contains(r)), "byebye's speed from 6 s into the segment, over its class's, after each seed: {ratios:.2?}");
+}
+
 #[test]
 fn pace_stretches_the_same_poses() {
     let m = model("h36m");

@@ -28,7 +28,8 @@ pub(super) struct Pace {
 #[derive(Clone)]
 pub(super) struct RecentPace {
     reference: Vec<(f32, f32)>,
-    blocks: VecDeque<(usize, f32, f32)>,
+    /// The last blocks' steps, each with its class (none for a block of a class change).
+    blocks: VecDeque<(Option<usize>, f32, f32)>,
     span: usize,
 }
 
@@ -58,8 +59,9 @@ impl RecentPace {
         Self { reference, blocks: VecDeque::with_capacity(span + 1), span }
     }
 
-    /// One more block of `class`: its sparse poses (raw features) after the pose before it.
-    pub fn push(&mut self, model: &GlocalModel, class: usize, poses: &[f32]) {
+    /// One more block of `class` (none for a block of a class change, whose pace is the
+    /// change's, not the class's): its sparse poses (raw features) after the pose before it.
+    pub fn push(&mut self, model: &GlocalModel, class: Option<usize>, poses: &[f32]) {
         self.blocks.push_back(block_steps(model, class, poses));
         if self.blocks.len() > self.span {
             self.blocks.pop_front();
@@ -76,7 +78,7 @@ impl RecentPace {
     /// The last [`PACE_SECONDS`]' pace in `class`, once they are all of `class`.
     pub fn of(&self, class: usize) -> Option<Pace> {
         let (whole, pose) = *self.reference.get(class)?;
-        let full = self.blocks.len() == self.span && self.blocks.iter().all(|(c, _, _)| *c == class);
+        let full = self.blocks.len() == self.span && self.blocks.iter().all(|(c, _, _)| *c == Some(class));
         if !full || whole <= 0.0 || pose <= 0.0 {
             return None;
         }
@@ -87,7 +89,7 @@ impl RecentPace {
 
 /// A block of `class` as the pace keeps it: its mean joint step with the body's travel and
 /// without.
-fn block_steps(model: &GlocalModel, class: usize, poses: &[f32]) -> (usize, f32, f32) {
+fn block_steps(model: &GlocalModel, class: Option<usize>, poses: &[f32]) -> (Option<usize>, f32, f32) {
     let layout = &model.spec.layout;
     (class, layout.mean_joint_step(poses), layout.mean_pose_step(poses))
 }

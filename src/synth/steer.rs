@@ -25,6 +25,17 @@ const CHANGE_CLASS_STRENGTH: f32 = 2.75;
 /// the old class's momentum.
 const CHANGE_SETTLE_SECONDS: f32 = 4.0;
 
+/// Seconds after a class change's easing over which a take whose last seconds ran fast is
+/// leant on calm windows only while its block still moves (twice the pace's window, the
+/// first of which it reads from the change's own blocks' end). The new class's first
+/// seconds run fast (a wave after another activity at 1.3x its class's speed, the change
+/// and keep-alive's urging), and leant on calm windows with plain conditioning however
+/// still it already was, the wave died down to 0.6x; `all`'s bow then stood at its
+/// segment's end where a run began (Bandai's reroll joins 1.41x the real seam ratio, limit
+/// 1.3). Over a whole take of one class the same rule slowed h36m's ten-minute phoning to
+/// 0.46x its class's speed and let Bandai's bow repeat itself.
+const CHANGE_PACE_SECONDS: f32 = 12.0;
+
 /// A block whose poses move less than this fraction of its class's typical motion (the mean
 /// over the seed bank) has stalled: deterministic regression drifts towards the mean pose
 /// over minutes, so keep-alive re-anchors it.
@@ -110,9 +121,14 @@ pub(super) struct Steering {
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
     since_anchor: usize,
+    /// The last block steered was a class change's (its switch or its easing).
+    changing: bool,
     /// Blocks left of a finished class change's [`CHANGE_SETTLE_SECONDS`].
     settling: usize,
     settle_blocks: usize,
+    /// Blocks left of a finished class change's [`CHANGE_PACE_SECONDS`].
+    after_change: usize,
+    change_pace_blocks: usize,
     last_anchor: Option<usize>,
     anchors: StdRng,
     keep_alive: bool,
@@ -141,8 +157,11 @@ impl Steering {
             context_class: start_window.map(|(class, _)| class),
             start_window,
             since_anchor: 0,
+            changing: false,
             settling: 0,
             settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
+            after_change: 0,
+            change_pace_blocks: (CHANGE_PACE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
             last_anchor: None,
             anchors: anchor_draws(opts.seed),
             keep_alive: opts.keep_alive,
@@ -164,7 +183,7 @@ impl Steering {
         // Slow when either measure says so (a drifting stand reads fast with its travel in);
         // fast by the whole body's speed, which the finished take keeps.
         let slow_take = recent.is_some_and(|p| p.whole.min(p.pose) < PACE_SLOW);
-        let fast_take = recent.is_some_and(|p| p.whole > PACE_FAST);
+        let fast_take = recent.is_some_and(|p| p.whole > PACE_FAST) && (self.after_change == 0 || motion >= STALL_BELOW);
         let slow_block = motion < STALL_BELOW && !recent.is_some_and(|p| p.whole > RESTING_ABOVE);
         let rushing = motion > RUSH_ABOVE || fast_take;
         let stalled = may_keep_alive && (slow_block || slow_take || rushing);
@@ -172,6 +191,8 @@ impl Steering {
         let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
         let settling = !changing && self.settling > 0;
         self.settling = if changing { self.settle_blocks } else { self.settling.saturating_sub(1) };
+        self.changing = changing;
+        self.after_change = if changing { self.change_pace_blocks } else { self.after_change.saturating_sub(1) };
         // A loop is broken even while a keep-alive eases: leaning on a window the take leant
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
@@ -253,9 +274,13 @@ impl Steering {
     }
 
     /// The block GloGen made of it, after the pose before it (both normalised): what the
-    /// take's pace is measured on.
+    /// take's pace is measured on. A class change's blocks are not the class's pace: a bow
+    /// after a run came out of the run's momentum travelling a metre, and its first six
+    /// seconds read 3.4x bowing's speed, so keep-alive leant the bow on its stillest windows
+    /// and it stood.
     pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
         if self.keep_alive {
+            let class = (!self.changing).then_some(class);
             self.pace.push(model, class, &raw_block(&model.spec, previous, block));
         }
     }
