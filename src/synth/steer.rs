@@ -26,8 +26,8 @@ const CHANGE_CLASS_STRENGTH: f32 = 2.75;
 const CHANGE_SETTLE_SECONDS: f32 = 4.0;
 
 /// Seconds after a class change's easing over which a take whose last seconds ran fast is
-/// leant on calm windows only while its block still moves (twice the pace's window, the
-/// first of which it reads from the change's own blocks' end). The new class's first
+/// leant on calm windows only while its block still moves (twice the pace's 6 s, which it
+/// reads from the blocks after the change only, [`Steering::record`]). The new class's first
 /// seconds run fast (a wave after another activity at 1.3x its class's speed, the change
 /// and keep-alive's urging), and leant on calm windows with plain conditioning however
 /// still it already was, the wave died down to 0.6x; `all`'s bow then stood at its
@@ -181,7 +181,8 @@ impl Steering {
         let may_keep_alive = self.keep_alive && self.since_anchor >= KEEP_ALIVE_GAP;
         let recent = self.pace.of(plan.target);
         // Slow when either measure says so (a drifting stand reads fast with its travel in);
-        // fast by the whole body's speed, which the finished take keeps.
+        // fast by the whole body's speed, which the finished take keeps, but soon after a
+        // class change only while the block still moves ([`CHANGE_PACE_SECONDS`]).
         let slow_take = recent.is_some_and(|p| p.whole.min(p.pose) < PACE_SLOW);
         let fast_take = recent.is_some_and(|p| p.whole > PACE_FAST) && (self.after_change == 0 || motion >= STALL_BELOW);
         let slow_block = motion < STALL_BELOW && !recent.is_some_and(|p| p.whole > RESTING_ABOVE);
