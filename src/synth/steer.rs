@@ -121,13 +121,11 @@ pub(super) struct Steering {
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
     since_anchor: usize,
-    /// The last block steered was a class change's (its switch or its easing).
-    changing: bool,
-    /// Blocks left of a finished class change's [`CHANGE_SETTLE_SECONDS`].
-    settling: usize,
+    /// Blocks steered since the last one of a class change (its switch or its easing): 0 when
+    /// the last block steered was one, `usize::MAX` before any. A change's
+    /// [`CHANGE_SETTLE_SECONDS`] and [`CHANGE_PACE_SECONDS`] count from it.
+    since_change: usize,
     settle_blocks: usize,
-    /// Blocks left of a finished class change's [`CHANGE_PACE_SECONDS`].
-    after_change: usize,
     change_pace_blocks: usize,
     last_anchor: Option<usize>,
     anchors: StdRng,
@@ -157,10 +155,8 @@ impl Steering {
             context_class: start_window.map(|(class, _)| class),
             start_window,
             since_anchor: 0,
-            changing: false,
-            settling: 0,
+            since_change: usize::MAX,
             settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
-            after_change: 0,
             change_pace_blocks: (CHANGE_PACE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
             last_anchor: None,
             anchors: anchor_draws(opts.seed),
@@ -184,16 +180,14 @@ impl Steering {
         // fast by the whole body's speed, which the finished take keeps, but soon after a
         // class change only while the block still moves ([`CHANGE_PACE_SECONDS`]).
         let slow_take = recent.is_some_and(|p| p.whole.min(p.pose) < PACE_SLOW);
-        let fast_take = recent.is_some_and(|p| p.whole > PACE_FAST) && (self.after_change == 0 || motion >= STALL_BELOW);
+        let fast_take = recent.is_some_and(|p| p.whole > PACE_FAST) && (self.since_change >= self.change_pace_blocks || motion >= STALL_BELOW);
         let slow_block = motion < STALL_BELOW && !recent.is_some_and(|p| p.whole > RESTING_ABOVE);
         let rushing = motion > RUSH_ABOVE || fast_take;
         let stalled = may_keep_alive && (slow_block || slow_take || rushing);
         let switching = plan.ease_blocks > 0 && self.context_class != Some(plan.target);
         let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
-        let settling = !changing && self.settling > 0;
-        self.settling = if changing { self.settle_blocks } else { self.settling.saturating_sub(1) };
-        self.changing = changing;
-        self.after_change = if changing { self.change_pace_blocks } else { self.after_change.saturating_sub(1) };
+        let settling = !changing && self.since_change < self.settle_blocks;
+        self.since_change = if changing { 0 } else { self.since_change.saturating_add(1) };
         // A loop is broken even while a keep-alive eases: leaning on a window the take leant
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
@@ -281,7 +275,7 @@ impl Steering {
     /// and it stood.
     pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
         if self.keep_alive {
-            let class = (!self.changing).then_some(class);
+            let class = (self.since_change > 0).then_some(class);
             self.pace.push(model, class, &raw_block(&model.spec, previous, block));
         }
     }
