@@ -459,6 +459,9 @@ struct Turn {
     about: f32,
 }
 
+/// Where a foot turns that the network does not turn on the spot ([`Pivot::about`]).
+const AT_THE_TOE: f32 = 1.0;
+
 /// Each stance locks the foot as it stood in the stance's anchor frame, set on the floor.
 fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bool]) -> Vec<Plant> {
     let unit = motion.skeleton.meters_per_unit();
@@ -486,7 +489,7 @@ fn plants(motion: &Motion, foot: &[usize], toe_at: Option<usize>, contacts: &[bo
             let pivot = toe_at.filter(|_| end - start >= pivot_frames).map(|toe| {
                 let turns = heading_turns(motion, (foot[0], foot[toe]), start..end, anchor);
                 let spins = turns.iter().any(|turn| turn.abs() > 2.0 * PIVOT_SLACK.to_radians());
-                Pivot { about: if spins { least_moving(motion, (foot[0], foot[toe]), start..end) } else { 1.0 }, turns }
+                Pivot { about: if spins { least_moving(motion, (foot[0], foot[toe]), start..end) } else { AT_THE_TOE }, turns }
             });
             let next = (k + 1 < stances.len()).then(|| gap_after(k));
             // A lock keeps its anchor frame's foot but for its height.
@@ -810,7 +813,7 @@ fn heading_turns(motion: &Motion, (ankle, toe): (usize, usize), frames: Range<us
 /// A plant's turn at frame `t` (its `pivot` from frame `start`; none for a plant that does
 /// not pivot).
 fn turn_at(pivot: Option<&Pivot>, start: usize, t: usize) -> Turn {
-    pivot.map_or(Turn { angle: 0.0, about: 1.0 }, |pivot| Turn { angle: pivot.turns[t - start], about: pivot.about })
+    pivot.map_or(Turn { angle: 0.0, about: AT_THE_TOE }, |pivot| Turn { angle: pivot.turns[t - start], about: pivot.about })
 }
 
 /// Where along the network's foot (`ankle` at 0 to `toe` at 1) the point lies that travels
