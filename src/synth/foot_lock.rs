@@ -822,14 +822,12 @@ fn turn_at(pivot: Option<&Pivot>, start: usize, t: usize) -> Turn {
 /// spot with the ankles travelling 12-28 cm and the toes 39-45: turned about the toe, the
 /// locked ankle swept 31-35 cm, and the hips' shift with it.
 fn least_moving(motion: &Motion, (ankle, toe): (usize, usize), frames: Range<usize>) -> f32 {
+    let feet: Vec<(Vec3, Vec3)> = frames.map(|t| (motion.frame(t)[ankle].with_y(0.0), motion.frame(t)[toe].with_y(0.0))).collect();
     let travel = |share: f32| {
-        let at = |t: usize| {
-            let f = motion.frame(t);
-            (f[ankle] + (f[toe] - f[ankle]) * share).with_y(0.0)
-        };
-        frames.clone().skip(1).map(|t| at(t).distance(at(t - 1))).sum::<f32>()
+        let at = |(ankle, toe): (Vec3, Vec3)| ankle + (toe - ankle) * share;
+        feet.windows(2).map(|w| at(w[1]).distance(at(w[0]))).sum::<f32>()
     };
-    (0..=10).map(|k| k as f32 / 10.0).min_by(|a, b| travel(*a).total_cmp(&travel(*b))).unwrap_or(1.0)
+    (0..=10).map(|k| k as f32 / 10.0).min_by(|a, b| travel(*a).total_cmp(&travel(*b))).unwrap_or(AT_THE_TOE)
 }
 
 /// The locked foot turned about the vertical through its pivot point (`turn.about`) by the
