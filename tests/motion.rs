@@ -502,10 +502,11 @@ fn a_pivoting_foot_turns_while_it_stands() {
     println!("the left foot's largest turn in one frame: {largest:.1} degrees (limit {limit:.1})");
     assert!(largest <= limit, "the left foot turns {largest:.1} degrees in one frame (limit {limit:.1})");
     let own = generate(&m, &GenerateOptions { foot_lock: false, ..o }, &mut |_| true).unwrap().motion;
-    let path = |take: &Motion, ankle: usize| (1..55).map(|t| (take.frame(t)[ankle] - take.frame(t - 1)[ankle]).with_y(0.0).length()).sum::<f32>();
+    let cm = 100.0 * skeleton.meters_per_unit();
+    let path = |take: &Motion, ankle: usize| cm * (1..55).map(|t| (take.frame(t)[ankle] - take.frame(t - 1)[ankle]).with_y(0.0).length()).sum::<f32>();
     for ankle in ["LeftFoot", "RightFoot"] {
         let j = skeleton.index_of(ankle).unwrap();
-        let (locked, own) = (path(&locked, j) / 10.0, path(&own, j) / 10.0);
+        let (locked, own) = (path(&locked, j), path(&own, j));
         println!("{ankle} over the pivot: {locked:.1} cm locked, {own:.1} cm the network's own");
         assert!(locked < own, "the locked {ankle} sweeps {locked:.1} cm over the pivot, the network's own {own:.1} cm");
     }

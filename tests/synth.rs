@@ -72,9 +72,8 @@ fn keep_alive_holds_a_long_segment() {
 /// A wave asked for after another activity keeps waving: a class change's own blocks (the
 /// other activity's momentum, a run slowing down) counted in the new class's pace, and the
 /// wave's own fast first seconds were answered late, so keep-alive read the wave as rushing
-/// and went on calming it once still. `all`'s byebye from four other
-/// classes' seeds waved at 0.42-0.67x its class's speed from 6 s into the segment on (0.81-1.10x
-/// now).
+/// and went on calming it once still. `all`'s byebye from four other classes' seeds waved at
+/// 0.42-0.67x its class's speed from 6 s into the segment on (0.81-1.10x now).
 #[test]
 fn a_gesture_after_another_activity_keeps_its_pace() {
     let m = model("all");
