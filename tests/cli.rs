@@ -113,18 +113,22 @@ fn a_wrong_contrast_is_refused_before_the_model_is_touched() {
     assert_eq!(std::fs::read(model.join("model.json")).unwrap(), before, "model.json changed");
 }
 
-/// The shipped models' bones' turn limits are what the README's `glocal calibrate
-/// --turn-limits-only` writes from the data: on a copy of the h36m model, model.json comes out
-/// byte for byte the shipped one.
+/// The shipped models' bones' turn limits and styles' speeds are what the README's `glocal
+/// calibrate --clips-only` writes from the data: on a copy of the h36m model and of `all`
+/// without them, model.json comes out byte for byte the shipped one.
 #[test]
-fn the_shipped_turn_limits_come_from_the_readme_command() {
-    let (dir, model) = model_copy("h36m");
-    let shipped = shipped_model("h36m");
-    let mut spec: serde_json::Value = serde_json::from_slice(&std::fs::read(model.join("model.json")).unwrap()).unwrap();
-    spec.as_object_mut().unwrap().remove("bone_turn_limits");
-    std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
-    ok(glocal_in(dir.path(), &["calibrate", "--model", model.to_str().unwrap(), "--turn-limits-only"]), "calibrate --turn-limits-only");
-    assert!(std::fs::read(model.join("model.json")).unwrap() == std::fs::read(shipped.join("model.json")).unwrap(), "model.json differs from the shipped one");
+fn the_shipped_figures_of_the_clips_come_from_the_readme_command() {
+    for name in ["h36m", "all"] {
+        let (dir, model) = model_copy(name);
+        let shipped = shipped_model(name);
+        let mut spec: serde_json::Value = serde_json::from_slice(&std::fs::read(model.join("model.json")).unwrap()).unwrap();
+        for field in ["bone_turn_limits", "style_speed"] {
+            spec.as_object_mut().unwrap().remove(field);
+        }
+        std::fs::write(model.join("model.json"), serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
+        ok(glocal_in(dir.path(), &["calibrate", "--model", model.to_str().unwrap(), "--clips-only"]), "calibrate --clips-only");
+        assert!(std::fs::read(model.join("model.json")).unwrap() == std::fs::read(shipped.join("model.json")).unwrap(), "{name}: model.json differs from the shipped one");
+    }
 }
 
 /// h36m's shares of its motion texture are what the README's `glocal calibrate --strengths

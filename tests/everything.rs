@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use glocal::eval::constraints::frame_jerk;
 use glocal::eval::motion::{Measure, Pool, COMMON_FPS};
+use glocal::model::corpus::mean_joint_speed;
 use glocal::model::glocal::GlocalModel;
 use glocal::motion::{standard_humanoid, JointRoles};
 use glocal::synth::class_map::ClassMap;
@@ -60,6 +61,22 @@ fn styles_change_the_take_and_activities_of_every_dataset_follow_each_other() {
     let mixed = take(&model, "sitting:3,salsa:3,bow/proud:2,basketball:3", "sitting");
     assert!(mixed.positions().iter().all(|p| p.is_finite()));
     assert!(mixed.seconds() > 10.0);
+}
+
+/// A style asked for by name keeps the pace of its clips (model.json's `style_speed`): a
+/// network's byebye moves about 2x between styles whose clips differ 35x (before, from 6 s
+/// on: active 0.42x its clips' speed, normal 2.3x, proud 2.9x).
+#[test]
+fn a_style_asked_for_keeps_the_pace_of_its_clips() {
+    let model = GlocalModel::load(&shipped("all")).unwrap();
+    for style in ["active", "normal", "proud"] {
+        let wave = take(&model, &format!("byebye/{style}:12"), "byebye");
+        let settled = wave.slice((6.0 * wave.fps) as usize, wave.frames());
+        let clips = model.spec.style_speed["byebye"][style];
+        let ratio = mean_joint_speed(&settled) / clips;
+        println!("byebye/{style}: {ratio:.2}x its clips' speed from 6 s on");
+        assert!((0.6..=1.6).contains(&ratio), "byebye/{style} at {ratio:.2}x its clips' speed");
+    }
 }
 
 /// A class the calibration gave its own guidance (`glocal calibrate`; `all`'s CMU dances and

@@ -30,10 +30,10 @@ pub struct CalibrateArgs {
     /// own.
     #[arg(long, value_delimiter = ',', value_parser = parse_contrast)]
     contrast: Vec<(String, String)>,
-    /// Write only the bones' turn limits (model.json's `bone_turn_limits`, from the training
-    /// clips; a full calibration writes them too) and leave the guidance as it is.
-    #[arg(long, conflicts_with_all = ["contrast", "strengths"])]
-    turn_limits_only: bool,
+    /// Write only what is read off the training clips alone (model.json's `bone_turn_limits`
+    /// and `style_speed`; a full calibration writes them too) and leave the guidance as it is.
+    #[arg(long, alias = "turn-limits-only", conflicts_with_all = ["contrast", "strengths"])]
+    clips_only: bool,
 }
 
 fn parse_contrast(pair: &str) -> Result<(String, String), String> {
@@ -52,8 +52,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     eprintln!("calibrate: {} training clips", model.spec.dataset);
     let corpus = Corpus::for_model(model.spec.dataset.parse()?, &data, &model.spec, &args.model)?;
     let limits = turn_limits(&corpus, model.spec.fps);
-    model = model.with_bone_turn_limits(limits)?;
-    if args.turn_limits_only {
+    model = model.with_bone_turn_limits(limits)?.with_style_speeds(corpus.style_speeds())?;
+    if args.clips_only {
         return write(&model.spec, &args);
     }
     // The texture is calibrated from all of it.

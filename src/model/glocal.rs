@@ -98,6 +98,11 @@ impl GlocalModel {
         self.with_spec(|spec| spec.bone_turn_limits = limits)
     }
 
+    /// The model with each style's speed replaced ([`ModelSpec::style_speed`]).
+    pub fn with_style_speeds(self, speeds: BTreeMap<String, BTreeMap<String, f32>>) -> Result<Self, Error> {
+        self.with_spec(|spec| spec.style_speed = speeds)
+    }
+
     pub fn has_locgen(&self) -> bool {
         self.locgen.is_some()
     }

@@ -248,6 +248,13 @@ pub struct ModelSpec {
     pub dense_norm: Normalizer,
     /// Mean joint speed of each class in the training data, units per second.
     pub class_speed: Vec<f32>,
+    /// Per class whose clips come in more than one style, the mean joint speed of each
+    /// style's clips, units per second (`crate::model::corpus::Corpus::style_speeds`): the
+    /// pace a segment that asks for a style keeps (`crate::synth::pace`). A style moves a
+    /// network's wave about 2x where its clips differ 35x. Written at training and by `glocal
+    /// calibrate`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub style_speed: BTreeMap<String, BTreeMap<String, f32>>,
     /// Whether the foot lock suits this model's takes (measured with `glocal eval --suite
     /// motion`); a model whose locked takes jerk more than they gain can opt out. Both shipped
     /// models lock (Bandai since its lock splits the contacts its network's feet slide through).
@@ -520,6 +527,16 @@ impl ModelSpec {
         if let Some(k) = self.class_speed.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             return Err(E::field(&format!("class_speed[{k}]"), format!("is {}; it must be a finite speed of 0 or more", self.class_speed[k])));
         }
+        for (class, speeds) in &self.style_speed {
+            for (style, &speed) in speeds {
+                if !self.classes.contains(class) || !self.styles.contains(style) {
+                    return Err(E::field("style_speed", format!("names '{}/{}'; both must be the model's, a class and a style", clipped(class), clipped(style))));
+                }
+                if !(speed.is_finite() && speed >= 0.0) {
+                    return Err(E::field(&format!("style_speed.{class}.{style}"), format!("is {speed}; it must be a finite speed of 0 or more")));
+                }
+            }
+        }
         if !self.class_sources.is_empty() && self.class_sources.len() != self.classes.len() {
             return Err(E::field("class_sources", format!("has {} entries for {} classes", self.class_sources.len(), self.classes.len())));
         }
@@ -683,6 +700,14 @@ impl ModelSpec {
         self.class_strengths.get(&self.classes[class]).copied().unwrap_or(self.class_strength)
     }
 
+    /// How fast `class` moves in `style` against its speed over all its clips
+    /// ([`Self::style_speed`]); none where the model has no speed of that style.
+    pub fn style_pace(&self, class: usize, style: usize) -> Option<f32> {
+        let speed = self.style_speed.get(self.classes.get(class)?)?.get(self.styles.get(style)?)?;
+        let all = *self.class_speed.get(class)?;
+        (all > 0.0).then(|| speed / all)
+    }
+
     /// Per class, the share of its texture a take gets ([`Self::texture_gains`]).
     pub fn texture_gain_per_class(&self) -> Vec<f32> {
         self.classes.iter().map(|c| self.texture_gains.get(c).copied().unwrap_or(1.0)).collect()
@@ -743,8 +768,8 @@ mod tests {
         }
     }
 
-    fn shipped_h36m_json() -> Value {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/h36m/model.json");
+    fn shipped_json(model: &str) -> Value {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(model).join("model.json");
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
     }
 
@@ -758,7 +783,7 @@ mod tests {
     /// ask for; a class without one takes the model's.
     #[test]
     fn class_strengths_name_a_class_and_a_strength_in_range() {
-        let mut model = shipped_h36m_json();
+        let mut model = shipped_json("h36m");
         let with = |model: &mut Value, strengths: Value| with_field(model, "class_strengths", strengths);
         let spec = with(&mut model, serde_json::json!({"walking": 3.5})).unwrap();
         assert_eq!(spec.class_strength_of(spec.class_index("walking").unwrap()), 3.5);
@@ -773,7 +798,7 @@ mod tests {
     /// a class without one gets all of it.
     #[test]
     fn texture_gains_name_a_class_and_a_share() {
-        let mut model = shipped_h36m_json();
+        let mut model = shipped_json("h36m");
         let with = |model: &mut Value, gains: Value| with_field(model, "texture_gains", gains);
         let spec = with(&mut model, serde_json::json!({"walking": 0.25})).unwrap();
         let gains = spec.texture_gain_per_class();
@@ -788,7 +813,7 @@ mod tests {
     /// bone) and is a turn a second in range; it is read a frame at the model's rate.
     #[test]
     fn bone_turn_limits_name_a_bone_and_a_turn_in_range() {
-        let mut model = shipped_h36m_json();
+        let mut model = shipped_json("h36m");
         let with = |model: &mut Value, limits: Value| with_field(model, "bone_turn_limits", limits);
         let spec = with(&mut model, serde_json::json!({"LeftHand": 500.0})).unwrap();
         let per_frame = spec.turn_limits_per_frame();
@@ -801,11 +826,27 @@ mod tests {
         }
     }
 
+    /// A style's speed names one of the model's classes and styles and is a speed; a style
+    /// asked for is read against its class's.
+    #[test]
+    fn style_speeds_name_a_class_and_a_style() {
+        let mut model = shipped_json("all");
+        let with = |model: &mut Value, speeds: Value| with_field(model, "style_speed", speeds);
+        let spec = with(&mut model, serde_json::json!({"byebye": {"sad": 0.05}})).unwrap();
+        let (byebye, sad) = (spec.class_index("byebye").unwrap(), spec.styles.iter().position(|s| s == "sad").unwrap());
+        assert!((spec.style_pace(byebye, sad).unwrap() - 0.05 / spec.class_speed[byebye]).abs() < 1e-6);
+        assert_eq!(spec.style_pace(byebye, 0), None);
+        for (bad, says) in [(serde_json::json!({"byebye": {"sleepy": 0.1}}), "'byebye/sleepy'"), (serde_json::json!({"flying": {"sad": 0.1}}), "'flying/sad'"), (serde_json::json!({"byebye": {"sad": -1.0}}), "style_speed.byebye.sad")] {
+            let e = with(&mut model, bad).unwrap_err().to_string();
+            assert!(e.contains("style_speed") && e.contains(says), "{e}");
+        }
+    }
+
     /// A contrast pairs two of the model's classes, different ones, on a GloGen with guidance;
     /// anything else is one line naming the field.
     #[test]
     fn class_contrasts_pair_two_classes_of_a_guided_model() {
-        let mut model = shipped_h36m_json();
+        let mut model = shipped_json("h36m");
         let with = |model: &mut Value, contrasts: Value| with_field(model, "class_contrasts", contrasts);
         let spec = with(&mut model, serde_json::json!({"sitting": "sittingdown"})).unwrap();
         let sittingdown = spec.class_index("sittingdown").unwrap();
@@ -826,7 +867,7 @@ mod tests {
     /// (`residual_fade` only when set; a GloGen saved before either flag is absolute).
     #[test]
     fn pose_base_reads_and_writes_model_json_flags() {
-        let model = shipped_h36m_json();
+        let model = shipped_json("h36m");
         for (flags, base) in [(None, PoseBase::Absolute), (Some((false, false)), PoseBase::Absolute), (Some((true, false)), PoseBase::Residual), (Some((false, true)), PoseBase::ResidualFade)] {
             let mut glogen = model["glogen"].clone();
             let fields = glogen.as_object_mut().unwrap();

@@ -136,7 +136,7 @@ impl StudioApp {
                 // A model with styles: the segment's own, or its class's usual one.
                 let shown = seg.style.clone().unwrap_or_else(|| "usual style".into());
                 egui::ComboBox::from_label("style").selected_text(shown).width(110.0).height(400.0).show_ui(ui, |ui| {
-                    ui.selectable_value(&mut seg.style, None, "usual style").on_hover_text("The style most of this activity's training clips have");
+                    ui.selectable_value(&mut seg.style, None, "usual style").on_hover_text("The style most of this activity's training clips have, at the pace of all its clips (a style chosen by name keeps the pace of its own clips: a sad wave is slower than an active one)");
                     for s in styles {
                         ui.selectable_value(&mut seg.style, Some(s.clone()), s);
                     }

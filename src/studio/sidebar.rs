@@ -249,7 +249,7 @@ impl StudioApp {
             let has_turn_limits = self.engine.model.as_ref().is_some_and(|m| !m.spec.bone_turn_limits.is_empty());
             ui.add_enabled(has_turn_limits, egui::Checkbox::new(&mut self.editing.doc.options.spread_snaps, "Spread snaps"))
                 .on_hover_text("A bone that turns farther in one frame than the activity's capture ever does (a hand flicking round) has the turn spread over the frames around it. Off: every bone as the network made it, for comparison")
-                .on_disabled_hover_text("This model's model.json has no turn limits (glocal calibrate --turn-limits-only writes them)");
+                .on_disabled_hover_text("This model's model.json has no turn limits (glocal calibrate --clips-only writes them)");
         });
         ui.horizontal(|ui| {
             let mut seed = self.editing.doc.options.seed;

@@ -363,7 +363,7 @@ impl RolloutSteps for TakeSteps<'_, '_> {
         if moved_before {
             self.state.steering.amend_last(self.model, &sparse[context - dim..context], &sparse[context..]);
         }
-        self.state.steering.record(self.model, self.plans[b].target, &sparse[sparse.len() - dim..], block);
+        self.state.steering.record(self.model, &self.plans[b], &sparse[sparse.len() - dim..], block);
     }
 
     fn appended(&mut self, b: usize, glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut [f32]) -> Result<()> {

@@ -2,7 +2,9 @@
 //! take's every stretch near its class's speed. Keep-alive's per-block test sees one block;
 //! a gesture that rests a block and then rushes two passes it block by block and still runs
 //! a ten-second stretch at 2.7x its class's speed (Bandai's bowing), and one that stalls
-//! every other block sits at 0.4x (h36m's phoning).
+//! every other block sits at 0.4x (h36m's phoning). A segment that asks for a style keeps
+//! the pace of that style's clips: a network's byebye moves about 2x between styles whose
+//! clips differ 35x (sad 0.02 m/s, active 0.71).
 
 use std::collections::VecDeque;
 
@@ -23,13 +25,18 @@ pub(super) struct Pace {
     pub pose: f32,
 }
 
+/// What a block's pace is held to: its class, and the style its segment asks for by name.
+pub(super) type PaceKey = (usize, Option<usize>);
+
 /// Per class, how far its joints move per sparse step at its training speed (with and
 /// without travel), and the take's last blocks' own steps.
 #[derive(Clone)]
 pub(super) struct RecentPace {
     reference: Vec<(f32, f32)>,
-    /// The last blocks' steps, each with its class (none for a block of a class change).
-    blocks: VecDeque<(Option<usize>, f32, f32)>,
+    /// Per class and style, its speed against the class's ([`crate::model::spec::ModelSpec::style_pace`]).
+    style_paces: Vec<Vec<Option<f32>>>,
+    /// The last blocks' steps, each with its key (none for a block of a class change).
+    blocks: VecDeque<(Option<PaceKey>, f32, f32)>,
     span: usize,
 }
 
@@ -56,13 +63,20 @@ impl RecentPace {
             .collect();
         let block_seconds = step_seconds * spec.block_len as f32;
         let span = (PACE_SECONDS / block_seconds).round().max(1.0) as usize;
-        Self { reference, blocks: VecDeque::with_capacity(span + 1), span }
+        let style_paces = (0..spec.classes.len()).map(|c| (0..spec.styles.len()).map(|s| spec.style_pace(c, s)).collect()).collect();
+        Self { reference, style_paces, blocks: VecDeque::with_capacity(span + 1), span }
     }
 
-    /// One more block of `class` (none for a block of a class change, whose pace is the
+    /// How fast `key`'s blocks should move against their class's training speed: 1, or the
+    /// speed of the style asked for.
+    pub fn scale(&self, (class, style): PaceKey) -> f32 {
+        style.and_then(|s| self.style_paces.get(class)?.get(s).copied().flatten()).unwrap_or(1.0)
+    }
+
+    /// One more block of `key` (none for a block of a class change, whose pace is the
     /// change's, not the class's): its sparse poses (raw features) after the pose before it.
-    pub fn push(&mut self, model: &GlocalModel, class: Option<usize>, poses: &[f32]) {
-        self.blocks.push_back(block_steps(model, class, poses));
+    pub fn push(&mut self, model: &GlocalModel, key: Option<PaceKey>, poses: &[f32]) {
+        self.blocks.push_back(block_steps(model, key, poses));
         if self.blocks.len() > self.span {
             self.blocks.pop_front();
         }
@@ -75,10 +89,11 @@ impl RecentPace {
         }
     }
 
-    /// The last [`PACE_SECONDS`]' pace in `class`, once they are all of `class`.
-    pub fn of(&self, class: usize) -> Option<Pace> {
-        let (whole, pose) = *self.reference.get(class)?;
-        let full = self.blocks.len() == self.span && self.blocks.iter().all(|(c, _, _)| *c == Some(class));
+    /// The last [`PACE_SECONDS`]' pace against `key`'s, once they are all of `key`.
+    pub fn of(&self, key: PaceKey) -> Option<Pace> {
+        let (whole, pose) = *self.reference.get(key.0)?;
+        let (whole, pose) = (whole * self.scale(key), pose * self.scale(key));
+        let full = self.blocks.len() == self.span && self.blocks.iter().all(|(k, _, _)| *k == Some(key));
         if !full || whole <= 0.0 || pose <= 0.0 {
             return None;
         }
@@ -87,9 +102,9 @@ impl RecentPace {
     }
 }
 
-/// A block of `class` as the pace keeps it: its mean joint step with the body's travel and
+/// A block of `key` as the pace keeps it: its mean joint step with the body's travel and
 /// without.
-fn block_steps(model: &GlocalModel, class: Option<usize>, poses: &[f32]) -> (Option<usize>, f32, f32) {
+fn block_steps(model: &GlocalModel, key: Option<PaceKey>, poses: &[f32]) -> (Option<PaceKey>, f32, f32) {
     let layout = &model.spec.layout;
-    (class, layout.mean_joint_step(poses), layout.mean_pose_step(poses))
+    (key, layout.mean_joint_step(poses), layout.mean_pose_step(poses))
 }

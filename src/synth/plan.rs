@@ -45,6 +45,9 @@ pub struct BlockPlan {
     /// The block's segment holds more sparse poses than a block: an activity, not a passing
     /// moment (h36m's 2 s sittingdown before a sit) that a change may let go by.
     pub lasting: bool,
+    /// The style the block's segment asks for by name (none where it leaves its class's usual
+    /// one): keep-alive keeps the pace of that style's clips ([`crate::synth::pace`]).
+    pub style: Option<usize>,
 }
 
 /// The sparse poses of each segment and where its boundaries fall.
@@ -57,6 +60,8 @@ pub(super) struct SparseTimeline {
     /// Per segment: its style (a model with styles: the segment's own, else its class's usual
     /// one; none otherwise).
     pub(super) styles: Vec<Option<usize>>,
+    /// Per segment: the style it asks for by name, if it does.
+    pub(super) asked_styles: Vec<Option<usize>>,
     /// Per segment: the transition into it in sparse steps, before and after its boundary
     /// (for the first segment, from the initial poses' class). Each half is counted at its
     /// own side's pace: a slow segment before a fast one would otherwise have its second of
@@ -71,7 +76,8 @@ pub(super) struct SparseTimeline {
 impl SparseTimeline {
     pub(super) fn new(spec: &ModelSpec, opts: &GenerateOptions) -> Result<Self> {
         let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
-        let styles = opts.timeline.validate_styles(&spec.styles, &spec.dataset)?.into_iter().zip(&classes).map(|(s, &c)| s.or_else(|| spec.usual_styles.get(c).copied())).collect();
+        let asked_styles = opts.timeline.validate_styles(&spec.styles, &spec.dataset)?;
+        let styles = asked_styles.iter().zip(&classes).map(|(s, &c)| s.or_else(|| spec.usual_styles.get(c).copied())).collect();
         crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
         let step_of = |pace: f32| spec.stride as f32 * pace / spec.fps;
         let segments = &opts.timeline.segments;
@@ -93,7 +99,7 @@ impl SparseTimeline {
         for (i, &k) in segment_of.iter().enumerate() {
             frames.push(frames[i] + spec.stride as f64 * paces[k] as f64);
         }
-        Ok(Self { segment_of, counts, classes, styles, transition_steps, frames, step_seconds })
+        Ok(Self { segment_of, counts, classes, styles, asked_styles, transition_steps, frames, step_seconds })
     }
 
     /// Sparse poses of the take, the seed's last pose included.
@@ -162,7 +168,7 @@ impl SparseTimeline {
                 let ease_blocks = ease_of(segment);
                 let produced = t + b * t..t + (b + 1) * t;
                 let keys = (0..key_poses.len()).filter(|&k| produced.contains(&key_poses[k])).collect();
-                BlockPlan { class, target, ease_blocks, keys, run: 1, lasting: self.counts[segment] > t }
+                BlockPlan { class, target, ease_blocks, keys, run: 1, lasting: self.counts[segment] > t, style: self.asked_styles[segment] }
             })
             .collect::<Vec<_>>();
         for b in (0..plans.len().saturating_sub(1)).rev() {

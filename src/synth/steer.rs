@@ -173,9 +173,13 @@ impl Steering {
     /// and the take so far (`sparse`, normalised) ask, and returns the block's guidance.
     pub fn block(&mut self, plan: &BlockPlan, input: &mut [f32], sparse: &[f32]) -> f32 {
         let (dim, t) = (self.dim, self.block_len);
-        let motion = pose_motion(input, dim) / self.bank.typical[plan.target].max(f32::EPSILON);
+        // A style asked for by name is held to its own clips' pace.
+        let key = (plan.target, plan.style);
+        let scale = self.pace.scale(key);
+        let typical = self.bank.typical[plan.target] * scale;
+        let motion = pose_motion(input, dim) / typical.max(f32::EPSILON);
         let may_keep_alive = self.keep_alive && self.since_anchor >= KEEP_ALIVE_GAP;
-        let recent = self.pace.of(plan.target);
+        let recent = self.pace.of(key);
         // Slow when either measure says so (a drifting stand reads fast with its travel in);
         // fast by the whole body's speed, which the finished take keeps, but soon after a
         // class change only while the block still moves ([`CHANGE_PACE_SECONDS`]).
@@ -197,7 +201,7 @@ impl Steering {
         // keep-alive's windows drawn near the take, tried and not kept, `all`'s ten-minute
         // phoning repeated one 3 s stretch exactly for eight minutes unseen).
         let settled = &sparse[..sparse.len().saturating_sub(t / 2 * dim)];
-        let repeats = |poses: &[f32]| repeats_earlier(poses, &self.bank.spread, t / 2, t, LOOP_TOLERANCE * self.bank.typical_step[plan.target]);
+        let repeats = |poses: &[f32]| repeats_earlier(poses, &self.bank.spread, t / 2, t, LOOP_TOLERANCE * scale * self.bank.typical_step[plan.target]);
         let looping = may_keep_alive && (self.easing.is_none() || leaning) && (repeats(sparse) || repeats(settled));
         // A class change waits for the easing into the class before it, unless that would
         // leave its segment, longer than a block, no block of its own: a 6 s walk at pace 2
@@ -215,7 +219,6 @@ impl Steering {
             } else {
                 (KEEP_ALIVE_EASE, self.anchors.random_range(KEEP_ALIVE_STRENGTH))
             };
-            let typical = self.bank.typical[plan.target];
             // A loop is broken by any other window; a lively one thrown into a still take
             // made Bandai's bowing burst to 3-4x its typical motion.
             let wanted = if switching || !stalled { 0.0..=f32::INFINITY } else if rushing { 0.0..=typical } else { typical..=f32::INFINITY };
@@ -273,10 +276,10 @@ impl Steering {
     /// after a run came out of the run's momentum travelling a metre, and its first six
     /// seconds read 3.4x bowing's speed, so keep-alive leant the bow on its stillest windows
     /// and it stood.
-    pub fn record(&mut self, model: &GlocalModel, class: usize, previous: &[f32], block: &[f32]) {
+    pub fn record(&mut self, model: &GlocalModel, plan: &BlockPlan, previous: &[f32], block: &[f32]) {
         if self.keep_alive {
-            let class = (self.since_change > 0).then_some(class);
-            self.pace.push(model, class, &raw_block(&model.spec, previous, block));
+            let key = (self.since_change > 0).then_some((plan.target, plan.style));
+            self.pace.push(model, key, &raw_block(&model.spec, previous, block));
         }
     }
 
@@ -424,7 +427,7 @@ mod tests {
         let mut steering = Steering::new(&model, &opts);
         let mut context = model.seed_of_class(walking, 0).unwrap().features.clone();
         spec.sparse_norm.normalize(&mut context);
-        let plan = BlockPlan { class: model.class_vector(sitting), target: sitting, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true };
+        let plan = BlockPlan { class: model.class_vector(sitting), target: sitting, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true, style: None };
         let strengths: Vec<f32> = (0..6).map(|_| steering.block(&plan, &mut context.clone(), &context)).collect();
         let (held, own) = (CHANGE_CLASS_STRENGTH.max(spec.class_strength), spec.class_strength);
         assert!(held > own, "the change's guidance {held} is no stronger than the model's {own}");
@@ -446,7 +449,7 @@ mod tests {
             let mut steering = Steering::new(&model, opts);
             let mut context = model.seed_of_class(sitting, 0).unwrap().features.clone();
             spec.sparse_norm.normalize(&mut context);
-            let plan = BlockPlan { class: model.class_vector(target), target, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true };
+            let plan = BlockPlan { class: model.class_vector(target), target, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true, style: None };
             steering.block(&plan, &mut context.clone(), &context)
         };
         assert!(spec.class_contrasts.contains_key("walk-left"), "models/all/model.json steers walk-left apart");

@@ -26,10 +26,16 @@ const TAKES: usize = 4;
 /// from the seed's own style (as class control is scored after 2 s from another class's seed).
 const SETTLE_SECONDS: [f32; 2] = [0.0, 2.0];
 
+/// Seconds of the takes a style's settled pace is read on, and from when: after the pace's
+/// first 6 s (the seed's own motion and the style's taking over).
+const SETTLED_SECONDS: f32 = 12.0;
+const SETTLED_FROM: f32 = 6.0;
+
 /// Each Bandai class's generated joint speed in each style against its training clips of that
 /// style (Bandai's byebye waves at 0.02 m/s sad and 0.71 active: judged per style, a class's
-/// speed over all its clips says little). Returns (class, style, generated / training) rows.
-fn speed_markdown(corpus: &Corpus, classes: &[String], bandai_classes: &[usize], styles: &[usize], speeds: &[Vec<f32>], md: &mut Markdown) -> Vec<(String, String, f32)> {
+/// speed over all its clips says little), the takes read `when`. Returns (class, style,
+/// generated / training) rows.
+fn speed_markdown(corpus: &Corpus, classes: &[String], bandai_classes: &[usize], styles: &[usize], speeds: &[Vec<f32>], when: &str, md: &mut Markdown) -> Vec<(String, String, f32)> {
     let mut rows = Vec::new();
     let mut ratios = Vec::new();
     // The style-training clips' speed per class and tag: a Bandai clip's tag is its style.
@@ -44,7 +50,7 @@ fn speed_markdown(corpus: &Corpus, classes: &[String], bandai_classes: &[usize],
     }
     let within = ratios.iter().filter(|r| (0.6..=1.6).contains(*r)).count();
     md.text(&format!(
-        "\nJoint speed of each class in each style, generated over its training clips of that style: {within} of {} within 0.6-1.6x; byebye by style: {}.\n",
+        "\nJoint speed of each class in each style, generated ({when}) over its training clips of that style: {within} of {} within 0.6-1.6x; byebye by style: {}.\n",
         ratios.len(),
         rows.iter().filter(|r| r.0 == "byebye").map(|r| format!("{} {:.2}", r.1, r.2)).collect::<Vec<_>>().join(", ")
     ));
@@ -93,8 +99,10 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     let mut hits = vec![vec![vec![0usize; styles.len()]; bandai_classes.len()]; SETTLE_SECONDS.len()];
     // Per class and style: takes whose class was recognised after the transition.
     let mut class_hits = vec![vec![0usize; styles.len()]; bandai_classes.len()];
-    // Joint speed (m/s) of each class's generated takes in each style, summed over the takes.
+    // Joint speed (m/s) of each class's generated takes in each style, averaged over the
+    // takes: from right after the seed, and settled.
     let mut speeds = vec![vec![0.0f32; styles.len()]; bandai_classes.len()];
+    let mut settled_speeds = speeds.clone();
     let seed_frames = spec.block_len * spec.stride;
     let settle_frames = SETTLE_SECONDS.map(|s| (s * spec.fps).round() as usize);
     let seconds = (seed_frames + settle_frames[1] + cfg.frames + 2 * spec.stride) as f32 / spec.fps;
@@ -111,6 +119,10 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
                 let settled = class_clf.clip(&take.motion, seed_frames + settle_frames[1]);
                 class_hits[row][label] += usize::from(class_clf.predict(&[settled])?[0] == class);
                 speeds[row][label] += mean_joint_speed(&take.motion.slice(seed_frames, take.motion.frames())) / TAKES as f32;
+                let long = GenerateOptions { timeline: Timeline { segments: vec![Segment { seconds: SETTLED_SECONDS, ..opts.timeline.segments[0].clone() }] }, ..opts };
+                let take = generate(&model, &long, &mut |_| true)?.motion;
+                let from = (SETTLED_FROM * take.fps).round() as usize;
+                settled_speeds[row][label] += mean_joint_speed(&take.slice(from, take.frames())) / TAKES as f32;
             }
         }
     }
@@ -129,7 +141,8 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     table.row(["all Bandai classes".to_string(), f(overall[0], 3), f(overall[1], 3), f(kept_overall, 3)]);
     md.table(table);
     let per_style: Vec<Vec<f64>> = hits.iter().map(|by_class| (0..styles.len()).map(|l| by_class.iter().map(|h| h[l]).sum::<usize>() as f64 / (by_class.len() * TAKES) as f64).collect()).collect();
-    let speed_rows = speed_markdown(&corpus, &spec.classes, &bandai_classes, &styles, &speeds, &mut md);
+    let speed_rows = speed_markdown(&corpus, &spec.classes, &bandai_classes, &styles, &speeds, "right after the seed", &mut md);
+    let settled_rows = speed_markdown(&corpus, &spec.classes, &bandai_classes, &styles, &settled_speeds, &format!("{SETTLED_SECONDS} s takes from {SETTLED_FROM} s on"), &mut md);
     let listed = |accuracies: &[f64]| styles.iter().zip(accuracies).map(|(&s, a)| format!("{} {a:.2}", corpus.styles[s])).collect::<Vec<_>>().join(", ");
     md.text(&format!("\nPer style, right after the seed: {}; after 2 s: {}.\n", listed(&per_style[0]), listed(&per_style[1])));
     Ok((md, json!({
@@ -137,6 +150,6 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         "reference_classifier": {"test_accuracy": reference.record.test_accuracy, "test_windows": reference.record.test_windows, "held_out_content": HELD_OUT_CONTENT},
         "settle_seconds": SETTLE_SECONDS,
         "per_class": bandai_classes.iter().enumerate().map(|(row, &c)| json!({"class": spec.classes[c], "accuracy": hits.iter().map(|h| accuracy(&h[row])).collect::<Vec<_>>()})).collect::<Vec<_>>(),
-        "per_style": per_style, "accuracy": overall, "class_kept": kept, "class_kept_overall": kept_overall, "speed_per_style": speed_rows,
+        "per_style": per_style, "accuracy": overall, "class_kept": kept, "class_kept_overall": kept_overall, "speed_per_style": speed_rows, "settled_speed_per_style": settled_rows,
     })))
 }

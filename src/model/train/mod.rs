@@ -572,6 +572,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         sparse_norm,
         dense_norm,
         class_speed: corpus.class_speeds(),
+        style_speed: corpus.style_speeds(),
         foot_lock: true,
         carry_by_feet: carries_by_feet(opts.dataset),
         hold_course: holds_course(opts.dataset),
