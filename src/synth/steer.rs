@@ -115,15 +115,16 @@ pub(super) struct Steering {
     bank: Arc<AnchorBank>,
     pace: RecentPace,
     easing: Option<Easing>,
-    /// The class the context was last anchored on (or started from).
+    /// The class the context was last anchored on, cut to (or started from).
     context_class: Option<usize>,
     /// The seed window the take starts from, as (class, its index among the class's
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
     since_anchor: usize,
-    /// Blocks steered since the last one of a class change (its switch or its easing): 0 when
-    /// the last block steered was one, `usize::MAX` before any. A change's
-    /// [`CHANGE_SETTLE_SECONDS`] and [`CHANGE_PACE_SECONDS`] count from it.
+    /// Blocks steered since the last one of a class change (an anchored change's switch or
+    /// easing, the first block of a class cut or blended to without one): 0 when the last
+    /// block steered was one, `usize::MAX` before any. A change's [`CHANGE_SETTLE_SECONDS`]
+    /// and [`CHANGE_PACE_SECONDS`] count from it.
     since_change: usize,
     settle_blocks: usize,
     change_pace_blocks: usize,
@@ -190,8 +191,14 @@ impl Steering {
         let stalled = may_keep_alive && (slow_block || slow_take || rushing);
         let switching = plan.ease_blocks > 0 && self.context_class != Some(plan.target);
         let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
-        let settling = !changing && self.since_change < self.settle_blocks;
-        self.since_change = if changing { 0 } else { self.since_change.saturating_add(1) };
+        // A cut or a blend has no easing: its change is the first block of the new class, which
+        // still carries the class before (its pace the change's, not the class's).
+        let cut = plan.ease_blocks == 0 && self.context_class != Some(plan.target);
+        if cut {
+            self.context_class = Some(plan.target);
+        }
+        let settling = !changing && plan.ease_blocks > 0 && self.since_change < self.settle_blocks;
+        self.since_change = if changing || cut { 0 } else { self.since_change.saturating_add(1) };
         // A loop is broken even while a keep-alive eases: leaning on a window the take leant
         // on before, from a similar pose, replays that stretch. (While a class change eases,
         // the search would decide nothing.)
