@@ -23,8 +23,8 @@ use rand::{Rng, SeedableRng};
 
 use self::checkpoint::{checkpoint, publish, Checkpoint, Legacy};
 pub use self::checkpoint::save_weights;
-use self::inbetween::inbetween_residual_scale;
-use self::stage::{locgen_residual_scale, stage_training, StageTraining, TrainingData};
+use self::inbetween::{inbetween_residual_scale, InbetweenTraining};
+use self::stage::{locgen_residual_scale, GloGenTraining, LocGenTraining, StageTraining, TrainingData};
 use self::styles::{style_corpus, style_indices, StyleInputs};
 use self::widen::load_fine_tuned;
 use super::adamw::AdamW;
@@ -329,6 +329,15 @@ pub fn train(opts: &TrainOptions, on_progress: &mut dyn FnMut(&Progress), cancel
     let trainer = stage_training(TrainingData { opts, corpus, spec: &frozen_spec, norm: &norm });
     run.steps(&block, trainer.as_ref(), &mut spec, on_progress, cancel)?;
     Ok(spec)
+}
+
+/// The training of `data.opts.stage`.
+fn stage_training<'a>(data: TrainingData<'a>) -> Box<dyn StageTraining + 'a> {
+    match data.opts.stage {
+        Stage::Glogen => Box::new(GloGenTraining(data)),
+        Stage::Locgen => Box::new(LocGenTraining(data)),
+        Stage::Inbetween => Box::new(InbetweenTraining(data)),
+    }
 }
 
 /// What a run reads before it writes anything: the data, the model fine-tuned from, the

@@ -9,7 +9,7 @@ use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::{Stage, TrainOptions};
+use super::TrainOptions;
 use crate::data::features::{FeatureLayout, Normalizer, Placement, ROOT_FEATURES};
 use crate::model::block::{BlockWorkspace, Seq2SeqBlock};
 use crate::model::corpus::{interpolated_window, sample_window, Corpus, Track};
@@ -54,15 +54,6 @@ pub(super) struct TrainingData<'a> {
     pub corpus: &'a Corpus,
     pub spec: &'a ModelSpec,
     pub norm: &'a Normalizer,
-}
-
-/// The training of `data.opts.stage`.
-pub(super) fn stage_training<'a>(data: TrainingData<'a>) -> Box<dyn StageTraining + 'a> {
-    match data.opts.stage {
-        Stage::Glogen => Box::new(GloGenTraining(data)),
-        Stage::Locgen => Box::new(LocGenTraining(data)),
-        Stage::Inbetween => Box::new(super::inbetween::InbetweenTraining(data)),
-    }
 }
 
 impl TrainingData<'_> {
@@ -161,7 +152,7 @@ pub(super) fn frame_errors(windows: &[ValWindow], predicted: impl Iterator<Item 
 }
 
 /// GloGen: blocks of sparse poses, rolled out on its own outputs for `rollout_blocks` blocks.
-struct GloGenTraining<'a>(TrainingData<'a>);
+pub(super) struct GloGenTraining<'a>(pub TrainingData<'a>);
 
 impl GloGenTraining<'_> {
     /// `1 + blocks` blocks of sparse poses from `frame`: (the first block, the rest), normalised.
@@ -335,7 +326,7 @@ impl StageTraining for GloGenTraining<'_> {
 }
 
 /// LocGen: the residual on a dense window interpolated between the sparse poses.
-struct LocGenTraining<'a>(TrainingData<'a>);
+pub(super) struct LocGenTraining<'a>(pub TrainingData<'a>);
 
 impl LocGenTraining<'_> {
     /// The interpolated window from `frame` and the real one, normalised.
