@@ -2,11 +2,12 @@
 //! readers that name the file and the problem.
 
 use glocal::data::archive::DataRoot;
+use glocal::data::loading;
 use glocal::data::registry::{self, Dataset, DatasetClips};
 use glocal::model::corpus::Corpus;
 
 fn load(d: Dataset) -> DatasetClips {
-    registry::load(d, &DataRoot::resolve(None)).unwrap_or_else(|e| panic!("{d}: {e:#}"))
+    loading::load(d, &DataRoot::resolve(None)).unwrap_or_else(|e| panic!("{d}: {e:#}"))
 }
 
 fn per_class(d: &DatasetClips) -> Vec<(String, usize, usize)> {
@@ -103,7 +104,7 @@ fn bone_lengths_are_constant() {
 fn missing_or_corrupt_archives_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let root = DataRoot::resolve(Some(dir.path()));
-    let err = format!("{:#}", registry::load(Dataset::Bandai, &root).unwrap_err());
+    let err = format!("{:#}", registry::load_archive(Dataset::Bandai, &root).unwrap_err());
     assert!(err.contains("bandai.tar.zst") && err.contains("missing"), "{err}");
 
     // A copy with one byte changed fails its checksum.
@@ -113,7 +114,7 @@ fn missing_or_corrupt_archives_are_named() {
     let mid = bytes.len() / 2;
     bytes[mid] ^= 0xff;
     std::fs::write(dir.path().join("bandai.tar.zst"), bytes).unwrap();
-    let err = format!("{:#}", registry::load(Dataset::Bandai, &root).unwrap_err());
+    let err = format!("{:#}", registry::load_archive(Dataset::Bandai, &root).unwrap_err());
     assert!(err.contains("bandai.tar.zst is corrupt"), "{err}");
 }
 

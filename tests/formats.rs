@@ -90,7 +90,7 @@ fn cmu_dance_bvh_round_trip_every_clip() {
 fn registry_reads_every_bvh_clip() {
     let root = DataRoot::resolve(None);
     for (dataset, clips, joints) in [(Dataset::Bandai, 174, 22), (Dataset::CmuDance, 43, 43)] {
-        let loaded = registry::load(dataset, &root).unwrap();
+        let loaded = registry::load_archive(dataset, &root).unwrap();
         assert!(loaded.skipped.is_empty(), "{dataset}: {:?}", loaded.skipped);
         assert_eq!(loaded.clips.len(), clips, "{dataset}");
         assert!(loaded.clips.iter().all(|c| c.motion.joints() == joints && c.motion.local_poses.is_some()));

@@ -28,7 +28,7 @@ const BLUE: [u8; 3] = [60, 140, 235];
 fn walk() -> Arc<Motion> {
     static WALK: OnceLock<Arc<Motion>> = OnceLock::new();
     WALK.get_or_init(|| {
-        let clips = registry::load(Dataset::Bandai, &DataRoot::resolve(None)).unwrap_or_else(|e| panic!("cannot load bandai: {e:#}"));
+        let clips = registry::load_archive(Dataset::Bandai, &DataRoot::resolve(None)).unwrap_or_else(|e| panic!("cannot load bandai: {e:#}"));
         let clip = clips
             .clips
             .iter()

@@ -7,7 +7,8 @@ use serde::Serialize;
 
 use crate::data::archive::DataRoot;
 use crate::data::combined;
-use crate::data::registry::{self, Dataset, DatasetClips, Skipped};
+use crate::data::loading;
+use crate::data::registry::{Dataset, DatasetClips, Skipped};
 
 /// Which dataset, where, and how to print.
 #[derive(Args, Debug)]
@@ -80,7 +81,7 @@ pub fn run(command: DataCommand) -> Result<()> {
     match command {
         DataCommand::Stats(DatasetArgs { dataset, data, json }) => {
             let dataset: Dataset = dataset.parse()?;
-            let loaded = registry::load(dataset, &DataRoot::resolve(data.as_deref()))?;
+            let loaded = loading::load(dataset, &DataRoot::resolve(data.as_deref()))?;
             let s = stats(&loaded);
             if json {
                 say!("{}", serde_json::to_string_pretty(&s)?);
@@ -129,7 +130,7 @@ pub fn bench_load(args: &DatasetArgs) -> Result<()> {
     let (dataset, json): (Dataset, bool) = (args.dataset.parse()?, args.json);
     let root = DataRoot::resolve(args.data.as_deref());
     let start = Instant::now();
-    let loaded = registry::load(dataset, &root)?;
+    let loaded = loading::load(dataset, &root)?;
     let seconds = start.elapsed().as_secs_f64();
     let s = stats(&loaded);
     if json {

@@ -89,7 +89,7 @@ pub fn load(root: &DataRoot) -> Result<(DatasetClips, Vec<SourceCheck>)> {
     let mut styles = vec![NEUTRAL.to_string()];
     let (mut clips, mut skipped, mut checks) = (Vec::new(), Vec::new(), Vec::new());
     for dataset in Dataset::ARCHIVES {
-        let loaded = registry::load(dataset, root)?;
+        let loaded = registry::load_archive(dataset, root)?;
         let joint_map = (dataset == Dataset::CmuExpmap).then(|| UserJointMap { entries: CMU_EXPMAP_KEYS.iter().map(|&(j, k)| (format!("joint{j}"), k)).collect() });
         let moved: Vec<(Clip, ClipCheck)> = loaded
             .clips

@@ -9,6 +9,7 @@ pub mod features;
 pub mod floor;
 pub mod input;
 pub mod joint_map;
+pub mod loading;
 pub mod npy;
 pub mod registry;
 pub mod write;

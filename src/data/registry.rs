@@ -156,13 +156,14 @@ impl DatasetClips {
     }
 }
 
-/// Loads every clip of a dataset from its archive.
-pub fn load(dataset: Dataset, root: &DataRoot) -> Result<DatasetClips> {
+/// Loads every clip of one of [`Dataset::ARCHIVES`] from its archive (any dataset, the
+/// combined one too: [`super::loading::load`]).
+pub fn load_archive(dataset: Dataset, root: &DataRoot) -> Result<DatasetClips> {
     match dataset {
         Dataset::H36m | Dataset::CmuExpmap => load_expmap(dataset, root),
         Dataset::Bandai => load_bandai(root),
         Dataset::CmuDance => load_cmu_dance(root),
-        Dataset::Combined => Ok(super::combined::load(root)?.0),
+        Dataset::Combined => anyhow::bail!("{dataset} has no archive of its own: it is made from the others"),
     }
 }
 

@@ -11,6 +11,7 @@ use rand::Rng;
 
 use crate::data::archive::DataRoot;
 use crate::data::features::{interpolate, FeatureLayout, Interpolation, Normalizer};
+use crate::data::loading;
 use crate::data::registry::{self, Dataset, Split};
 use super::spec::ModelSpec;
 use crate::motion::{bone_turns, peak_accelerations, quantile, JointRoles, Motion, Skeleton, SHORT_BONE_FRACTION, SNAP_QUANTILE};
@@ -63,7 +64,7 @@ impl Corpus {
     /// Loads a dataset. `min_clips` drops classes with fewer training clips (Bandai's
     /// one-clip contents cannot be learned or evaluated).
     pub fn load(dataset: Dataset, root: &DataRoot, stride: usize, min_clips: usize) -> Result<Self> {
-        let loaded = registry::load(dataset, root)?;
+        let loaded = loading::load(dataset, root)?;
         let Some(first) = loaded.clips.first() else { bail!("{dataset} has no readable clips") };
         let skeleton = first.motion.skeleton.clone();
         let roles = JointRoles::new(&skeleton).with_context(|| format!("{dataset}'s skeleton ({})", first.file))?;

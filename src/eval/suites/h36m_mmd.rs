@@ -43,7 +43,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     let find = |n: &str| names.iter().position(|x| x == n).and_then(|s| spec.source_joints.iter().position(|j| *j == s));
     let hips = (find("LeftUpLeg").context("no LeftUpLeg")?, find("RightUpLeg").context("no RightUpLeg")?);
     log("h36m-mmd: loading h36m");
-    let loaded = registry::load(Dataset::H36m, &opts.data)?;
+    let loaded = registry::load_archive(Dataset::H36m, &opts.data)?;
     let unit = spec.source_skeleton.meters_per_unit();
     let skel = spec.layout.skeleton.clone();
     let (s, t) = (spec.stride, spec.block_len);
