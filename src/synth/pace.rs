@@ -33,7 +33,8 @@ pub(super) type PaceKey = (usize, Option<usize>);
 #[derive(Clone)]
 pub(super) struct RecentPace {
     reference: Vec<(f32, f32)>,
-    /// Per class and style, its speed against the class's ([`crate::model::spec::ModelSpec::style_pace`]).
+    /// Per class and style, its speed against the class's
+    /// ([`crate::model::spec::ModelSpec::style_pace`]).
     style_paces: Vec<Vec<Option<f32>>>,
     /// The last blocks' steps, each with its key (none for a block of a class change).
     blocks: VecDeque<(Option<PaceKey>, f32, f32)>,
@@ -92,7 +93,8 @@ impl RecentPace {
     /// The last [`PACE_SECONDS`]' pace against `key`'s, once they are all of `key`.
     pub fn of(&self, key: PaceKey) -> Option<Pace> {
         let (whole, pose) = *self.reference.get(key.0)?;
-        let (whole, pose) = (whole * self.scale(key), pose * self.scale(key));
+        let scale = self.scale(key);
+        let (whole, pose) = (whole * scale, pose * scale);
         let full = self.blocks.len() == self.span && self.blocks.iter().all(|(k, _, _)| *k == Some(key));
         if !full || whole <= 0.0 || pose <= 0.0 {
             return None;
