@@ -9,7 +9,8 @@ use clap::Args;
 use crate::data::archive::DataRoot;
 use crate::eval::calibrate::{calibrate, LIVELY_SHARE};
 use crate::model::corpus::Corpus;
-use crate::model::glocal::GlocalModel;
+use crate::model::glocal::{GlocalModel, SEEDS_FILE};
+use crate::model::train::{set_seed_styles, write_seeds};
 use crate::model::spec::ModelSpec;
 
 #[derive(Args, Debug)]
@@ -31,7 +32,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_delimiter = ',', value_parser = parse_contrast)]
     contrast: Vec<(String, String)>,
     /// Write only what is read off the training clips alone (model.json's `bone_turn_limits`
-    /// and `style_speed`; a full calibration writes them too) and leave the guidance as it is.
+    /// and `style_speed`, seeds.json's styles; a full calibration writes them too) and leave
+    /// the guidance as it is.
     #[arg(long, alias = "turn-limits-only", conflicts_with_all = ["contrast", "strengths"])]
     clips_only: bool,
 }
@@ -53,6 +55,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let corpus = Corpus::for_model(model.spec.dataset.parse()?, &data, &model.spec, &args.model)?;
     let limits = turn_limits(&corpus, model.spec.fps);
     model = model.with_bone_turn_limits(limits)?.with_style_speeds(corpus.style_speeds())?;
+    write_seed_styles(&model, &corpus, &args)?;
     if args.clips_only {
         return write(&model.spec, &args);
     }
@@ -84,6 +87,19 @@ fn turn_limits(corpus: &Corpus, fps: f32) -> BTreeMap<String, f32> {
     let row = |(bone, limit): (&String, &f32)| format!("{bone} {:.0} ({:.1} a frame)", limit, limit / fps);
     say!("bones' turn limits, degrees a second: {}", limits.iter().map(row).collect::<Vec<_>>().join(", "));
     limits
+}
+
+/// The model's seed bank with each window's style, where it lacked them (unless only a dry
+/// run is asked for).
+fn write_seed_styles(model: &GlocalModel, corpus: &Corpus, args: &CalibrateArgs) -> Result<()> {
+    let mut seeds = model.seeds.clone();
+    set_seed_styles(&mut seeds, corpus, &model.spec);
+    let styled = seeds.iter().filter(|s| s.style.is_some()).count();
+    if seeds.iter().zip(&model.seeds).any(|(a, b)| a.style != b.style) && !args.dry_run {
+        write_seeds(&args.model, &seeds)?;
+        say!("wrote {} ({styled} of {} windows with their clip's style)", args.model.join(SEEDS_FILE).display(), seeds.len());
+    }
+    Ok(())
 }
 
 /// `spec` into the model's model.json, unless only a dry run is asked for.

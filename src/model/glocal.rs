@@ -286,8 +286,8 @@ fn read_seed_bank(path: &Path, spec: &ModelSpec) -> Result<Vec<Seed>, Error> {
     let width = spec.block_len * spec.layout.dim();
     let mismatch = |problem: String| Error::Mismatch { path: path.to_path_buf(), problem };
     for (k, seed) in seeds.iter().enumerate() {
-        if seed.features.len() != width || seed.class >= spec.classes.len() {
-            return Err(mismatch(format!("seed {k} does not fit the model ({} sparse poses of {} features, {} classes)", spec.block_len, spec.layout.dim(), spec.classes.len())));
+        if seed.features.len() != width || seed.class >= spec.classes.len() || seed.style.is_some_and(|s| s >= spec.styles.len()) {
+            return Err(mismatch(format!("seed {k} does not fit the model ({} sparse poses of {} features, {} classes, {} styles)", spec.block_len, spec.layout.dim(), spec.classes.len(), spec.styles.len())));
         }
         if let Some(i) = seed.features.iter().position(|v| !(v.is_finite() && v.abs() <= MAX_SEED_FEATURE)) {
             return Err(mismatch(format!("seed {k}: feature {i} is {:e}; a seed's features are finite and within ±{MAX_SEED_FEATURE:e}", seed.features[i])));

@@ -735,6 +735,10 @@ pub struct Seed {
     pub clip: String,
     pub frame: usize,
     pub features: Vec<f32>,
+    /// Its clip's style (index into [`ModelSpec::styles`]; a model with styles only): a take
+    /// asking for a style eases onto a window of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub style: Option<usize>,
 }
 
 #[cfg(test)]

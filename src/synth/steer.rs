@@ -98,8 +98,11 @@ const LOOP_TOLERANCE: f32 = 0.25;
 /// its `blocks` blocks (the seam join keeps the easing from popping).
 #[derive(Clone)]
 struct Easing {
-    /// A class change (not a keep-alive).
+    /// A class or style change (not a keep-alive).
     change: bool,
+    /// A class change: its blocks are the change's, not the class's pace, and get the
+    /// change's guidance (a style change within a class does not).
+    new_class: bool,
     anchor: Vec<f32>,
     step: usize,
     blocks: usize,
@@ -117,6 +120,9 @@ pub(super) struct Steering {
     easing: Option<Easing>,
     /// The class the context was last anchored on, cut to (or started from).
     context_class: Option<usize>,
+    /// The style of the window the context last changed class or style on (or started
+    /// from), if known.
+    context_style: Option<usize>,
     /// The seed window the take starts from, as (class, its index among the class's
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
@@ -154,6 +160,7 @@ impl Steering {
             pace: RecentPace::new(model),
             easing: None,
             context_class: start_window.map(|(class, _)| class),
+            context_style: start_window.and_then(|(class, k)| model.seeds.iter().filter(|s| s.class == class).nth(k)?.style),
             start_window,
             since_anchor: 0,
             since_change: usize::MAX,
@@ -189,13 +196,17 @@ impl Steering {
         let slow_block = motion < STALL_BELOW && !recent.is_some_and(|p| p.whole > RESTING_ABOVE);
         let rushing = motion > RUSH_ABOVE || fast_take;
         let stalled = may_keep_alive && (slow_block || slow_take || rushing);
-        let switching = plan.ease_blocks > 0 && self.context_class != Some(plan.target);
-        let changing = switching || self.easing.as_ref().is_some_and(|e| e.change);
+        // A style asked for by name that the context is not in is changed to as a class is,
+        // where the class has windows of it.
+        let restyling = plan.style.is_some_and(|s| self.context_style != Some(s) && self.bank.has_style(plan.target, s));
+        let new_class = plan.ease_blocks > 0 && self.context_class != Some(plan.target);
+        let switching = new_class || (plan.ease_blocks > 0 && restyling);
+        let changing = new_class || self.easing.as_ref().is_some_and(|e| e.new_class);
         // A cut or a blend has no easing: its change is the first block of the new class, which
         // still carries the class before (its pace the change's, not the class's).
         let cut = plan.ease_blocks == 0 && self.context_class != Some(plan.target);
         if cut {
-            self.context_class = Some(plan.target);
+            (self.context_class, self.context_style) = (Some(plan.target), plan.style);
         }
         let settling = !changing && plan.ease_blocks > 0 && self.since_change < self.settle_blocks;
         self.since_change = if changing || cut { 0 } else { self.since_change.saturating_add(1) };
@@ -231,7 +242,10 @@ impl Steering {
             let wanted = if switching || !stalled { 0.0..=f32::INFINITY } else if rushing { 0.0..=typical } else { typical..=f32::INFINITY };
             let start = self.start_window.and_then(|(class, k)| (class == plan.target).then_some(k));
             let avoid: Vec<usize> = self.last_anchor.into_iter().chain(start).collect();
-            self.easing = self.bank.pick(plan.target, wanted, &mut self.anchors, &avoid).map(|(k, anchor)| {
+            self.easing = self.bank.pick(plan.target, plan.style, wanted, &mut self.anchors, &avoid).map(|(k, anchor)| {
+                if switching {
+                    self.context_style = self.bank.styles[plan.target][k];
+                }
                 self.last_anchor = Some(k);
                 // A class change ends on the new class's window. A keep-alive leans towards its
                 // window by its random strength (0.6-1.0): a take far below its class's motion
@@ -240,7 +254,7 @@ impl Steering {
                 // (leaning every slow take that hard raised Bandai's mean jerk from 1.21x to
                 // 1.34x real). A loop the lean makes is caught by [`repeats_earlier`].
                 let reach = if switching { (blocks - 1).max(1) } else if motion < FROZEN_BELOW || slow_take { blocks } else { blocks + 1 };
-                Easing { change: switching, anchor, step: 0, blocks, reach, strength }
+                Easing { change: switching, new_class, anchor, step: 0, blocks, reach, strength }
             });
             self.context_class = Some(plan.target);
             self.since_anchor = 0;
@@ -307,6 +321,8 @@ fn anchor_draws(seed: u64) -> StdRng {
 struct AnchorBank {
     /// Per class: (normalised window, its motion), in seed-bank order.
     windows: Vec<Vec<(Vec<f32>, f32)>>,
+    /// Per class: each window's style, if known.
+    styles: Vec<Vec<Option<usize>>>,
     /// Per class: the mean motion of its windows (normalised features).
     typical: Vec<f32>,
     /// Per class: the mean step between its windows' poses in the skeleton's units, which
@@ -324,29 +340,38 @@ impl AnchorBank {
     fn new(model: &GlocalModel) -> Self {
         let dim = model.spec.layout.dim();
         let mut windows = vec![Vec::new(); model.spec.classes.len()];
+        let mut styles = vec![Vec::new(); model.spec.classes.len()];
         for seed in &model.seeds {
             let mut window = seed.features.clone();
             model.spec.sparse_norm.normalize(&mut window);
             if let Some(w) = windows.get_mut(seed.class) {
                 let motion = pose_motion(&window, dim);
                 w.push((window, motion));
+                styles[seed.class].push(seed.style);
             }
         }
         let spread = model.spec.sparse_norm.std.clone();
         let mean = |values: Vec<f32>| if values.is_empty() { 0.0 } else { values.iter().sum::<f32>() / values.len() as f32 };
         let typical = windows.iter().map(|w| mean(w.iter().map(|(_, m)| *m).collect())).collect();
         let typical_step = windows.iter().map(|w| mean(w.iter().map(|(window, _)| skeleton_step(window, &spread)).collect())).collect();
-        Self { windows, typical, typical_step, spread }
+        Self { windows, styles, typical, typical_step, spread }
+    }
+
+    /// Whether `class` has a window of `style`.
+    fn has_style(&self, class: usize, style: usize) -> bool {
+        self.styles.get(class).is_some_and(|s| s.contains(&Some(style)))
     }
 
     /// A random window of `class` whose motion is in `wanted` (a keep-alive wants a window
     /// that moves: re-anchoring a stalled take on a still window of the class keeps it still;
-    /// a rushing one wants a calm window), none of `avoid` where there is a choice, with its
-    /// index.
-    fn pick(&self, class: usize, wanted: std::ops::RangeInclusive<f32>, rng: &mut StdRng, avoid: &[usize]) -> Option<(usize, Vec<f32>)> {
+    /// a rushing one wants a calm window), of `style` where some of those are, none of `avoid`
+    /// where there is a choice, with its index.
+    fn pick(&self, class: usize, style: Option<usize>, wanted: std::ops::RangeInclusive<f32>, rng: &mut StdRng, avoid: &[usize]) -> Option<(usize, Vec<f32>)> {
         let windows: Vec<(usize, &(Vec<f32>, f32))> = self.windows.get(class)?.iter().enumerate().collect();
         let fitting: Vec<&(usize, &(Vec<f32>, f32))> = windows.iter().filter(|(_, (_, m))| wanted.contains(m)).collect();
-        let pool = if fitting.is_empty() { windows.iter().collect() } else { fitting };
+        let pool: Vec<_> = if fitting.is_empty() { windows.iter().collect() } else { fitting };
+        let styled: Vec<_> = pool.iter().copied().filter(|(k, _)| style.is_some() && self.styles[class][*k] == style).collect();
+        let pool = if styled.is_empty() { pool } else { styled };
         let fresh: Vec<_> = pool.iter().filter(|(k, _)| !avoid.contains(k)).collect();
         let &(k, (window, _)) = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
         Some((k, window.clone()))
@@ -464,5 +489,31 @@ mod tests {
         assert_eq!(first_strength(&guided, "walk-back"), CHANGE_CLASS_STRENGTH.max(spec.class_strength));
         // Asked for plain conditioning, no push is made: the change's guidance as for any class.
         assert_eq!(first_strength(&plain, "walk-left"), CHANGE_CLASS_STRENGTH);
+    }
+
+    /// A take asking for a style its start window is not in eases onto a window of that
+    /// style of its class, as onto another class's, with the take's own guidance (a style
+    /// change within a class is not a class change); asking for the start window's own style,
+    /// or for none, it does not.
+    #[test]
+    fn a_style_the_context_is_not_in_is_eased_onto() {
+        let model = GlocalModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/all")).unwrap();
+        let spec = &model.spec;
+        let byebye = spec.class_index("byebye").unwrap();
+        let style = |name: &str| spec.styles.iter().position(|s| s == name);
+        let opts = GenerateOptions { init: InitPose::SeedClass { class: "byebye".into(), variant: 0 }, keep_alive: false, ..Default::default() };
+        let start = model.seed_of_class(byebye, 0).unwrap();
+        assert_eq!(start.style, style("active"), "models/all/seeds.json: byebye's first window is active's");
+        let first_block = |asked: Option<usize>| {
+            let mut steering = Steering::new(&model, &opts);
+            let mut context = start.features.clone();
+            spec.sparse_norm.normalize(&mut context);
+            let plan = BlockPlan { class: model.class_vector(byebye), target: byebye, ease_blocks: 2, keys: Vec::new(), run: 6, lasting: true, style: asked };
+            let strength = steering.block(&plan, &mut context.clone(), &context);
+            (steering.easing.is_some(), steering.context_style, strength)
+        };
+        assert_eq!(first_block(style("happy")), (true, style("happy"), spec.class_strength_of(byebye)));
+        assert_eq!(first_block(style("active")), (false, style("active"), spec.class_strength_of(byebye)));
+        assert_eq!(first_block(None).0, false);
     }
 }

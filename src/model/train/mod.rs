@@ -651,10 +651,33 @@ pub fn write_seed_bank(dir: &Path, spec: &ModelSpec, corpus: &Corpus) -> Result<
         for (clip, frame) in picked.into_iter().map(|i| candidates[i]) {
             let track = &corpus.train[clip];
             let features = spec.layout.encode_motion(&track.motion, frame, spec.stride, spec.block_len);
-            seeds.push(Seed { class, clip: track.file.clone(), frame, features });
+            seeds.push(Seed { class, clip: track.file.clone(), frame, features, style: None });
         }
     }
-    write_atomic(&dir.join(SEEDS_FILE), serde_json::to_string(&seeds)?.as_bytes())
+    set_seed_styles(&mut seeds, corpus, spec);
+    write_seeds(dir, &seeds)
+}
+
+/// Each seed's style, read from its clip in `corpus` (a bank written before windows kept
+/// their style gains them; `glocal calibrate` writes them); none where the model has no
+/// styles.
+pub fn set_seed_styles(seeds: &mut [Seed], corpus: &Corpus, spec: &ModelSpec) {
+    let style_of: BTreeMap<&str, usize> = corpus
+        .train
+        .iter()
+        .filter_map(|t| {
+            let name = &corpus.styles[t.style?];
+            Some((t.file.as_str(), spec.styles.iter().position(|s| s == name)?))
+        })
+        .collect();
+    for seed in seeds {
+        seed.style = style_of.get(seed.clip.as_str()).copied();
+    }
+}
+
+/// `seeds` as the model folder `dir`'s seed bank.
+pub fn write_seeds(dir: &Path, seeds: &[Seed]) -> Result<()> {
+    write_atomic(&dir.join(SEEDS_FILE), serde_json::to_string(seeds)?.as_bytes())
 }
 
 /// PyTorch's default recurrent/linear initialisation, uniform in ±1/sqrt(fan), from our own
