@@ -57,10 +57,8 @@ pub(super) struct SparseTimeline {
     /// Per segment: sparse poses and class.
     pub(super) counts: Vec<usize>,
     pub(super) classes: Vec<usize>,
-    /// Per segment: its style (a model with styles: the segment's own, else its class's usual
-    /// one; none otherwise).
-    pub(super) styles: Vec<Option<usize>>,
-    /// Per segment: the style it asks for by name, if it does.
+    /// Per segment: the style it asks for by name, if it does (its poses are conditioned on
+    /// its class's usual one otherwise, [`Self::plan`]).
     pub(super) asked_styles: Vec<Option<usize>>,
     /// Per segment: the transition into it in sparse steps, before and after its boundary
     /// (for the first segment, from the initial poses' class). Each half is counted at its
@@ -77,7 +75,6 @@ impl SparseTimeline {
     pub(super) fn new(spec: &ModelSpec, opts: &GenerateOptions) -> Result<Self> {
         let classes = opts.timeline.validate(&spec.classes, opts.pace)?;
         let asked_styles = opts.timeline.validate_styles(&spec.styles, &spec.dataset)?;
-        let styles = asked_styles.iter().zip(&classes).map(|(s, &c)| s.or_else(|| spec.usual_styles.get(c).copied())).collect();
         crate::synth::timeline::check_transition(opts.transition_seconds, "transition length")?;
         let step_of = |pace: f32| spec.stride as f32 * pace / spec.fps;
         let segments = &opts.timeline.segments;
@@ -99,7 +96,7 @@ impl SparseTimeline {
         for (i, &k) in segment_of.iter().enumerate() {
             frames.push(frames[i] + spec.stride as f64 * paces[k] as f64);
         }
-        Ok(Self { segment_of, counts, classes, styles, asked_styles, transition_steps, frames, step_seconds })
+        Ok(Self { segment_of, counts, classes, asked_styles, transition_steps, frames, step_seconds })
     }
 
     /// Sparse poses of the take, the seed's last pose included.
@@ -144,6 +141,8 @@ impl SparseTimeline {
                 0
             }
         };
+        // Each segment's style: its own, else its class's usual one (a model with styles).
+        let styles: Vec<Option<usize>> = self.asked_styles.iter().zip(&self.classes).map(|(s, &c)| s.or_else(|| model.spec.usual_styles.get(c).copied())).collect();
         let mut plans = (0..blocks)
             .map(|b| {
                 let mut class = vec![0.0; model.class_vector(0).len()];
@@ -156,7 +155,7 @@ impl SparseTimeline {
                         None => vec![(self.segment_at(i), 1.0)],
                     };
                     for (k, w) in mix {
-                        for label in model.spec.label_indices(self.classes[k], self.styles[k]) {
+                        for label in model.spec.label_indices(self.classes[k], styles[k]) {
                             if let Some(v) = class.get_mut(label) {
                                 *v += w / t as f32;
                             }

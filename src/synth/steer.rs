@@ -155,13 +155,14 @@ impl Steering {
             InitPose::SeedClass { class, variant } => spec.class_index(class).ok().and_then(|c| Some((c, model.class_seed_index(c, *variant)?))),
             InitPose::File { .. } => None,
         };
+        let bank = AnchorBank::new(model);
         Self {
-            bank: Arc::new(AnchorBank::new(model)),
             pace: RecentPace::new(model),
             easing: None,
             context_class: start_window.map(|(class, _)| class),
-            context_style: start_window.and_then(|(class, k)| model.seeds.iter().filter(|s| s.class == class).nth(k)?.style),
+            context_style: start_window.and_then(|(class, k)| *bank.styles.get(class)?.get(k)?),
             start_window,
+            bank: Arc::new(bank),
             since_anchor: 0,
             since_change: usize::MAX,
             settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
