@@ -40,6 +40,39 @@ fn a_take_starts_in_its_first_activity() {
     assert_ne!(takes[0], takes[2], "seed 0 is a different start");
 }
 
+/// A take whose first segment asks for a style starts on a seed window of its activity in
+/// that style, where the activity has one (from byebye's first window, an active wave,
+/// byebye/happy waved at 2.0x its clips' speed over its first seconds; from a happy one,
+/// 1.3x); the JSON take and the command's summary name each segment's style.
+#[test]
+fn a_styled_take_starts_in_its_style_and_its_segments_name_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model = glocal::model::glocal::GlocalModel::load(&crate_dir.join("models/all")).unwrap();
+    let (byebye, happy) = (model.spec.class_index("byebye").unwrap(), model.spec.styles.iter().position(|s| s == "happy").unwrap());
+    let variant = model.class_seed_variant_in_style(byebye, happy).expect("a happy byebye window");
+    assert_ne!(variant, 0, "byebye's first window is already happy: the test shows nothing");
+    let window = model.seeds.iter().enumerate().filter(|(_, s)| s.class == byebye).nth(variant).unwrap().0;
+    let generate = |name: &str, init: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec!["generate", "--model", "models/all", "--timeline", "byebye/happy:3,bow:2", "--json", "--out", out.to_str().unwrap()];
+        args.extend_from_slice(init);
+        let run = glocal_in(crate_dir, &args);
+        assert!(run.status.success(), "generate: {}", String::from_utf8_lossy(&run.stderr));
+        (std::fs::read(&out).unwrap(), String::from_utf8(run.stdout).unwrap())
+    };
+    let (default, summary) = generate("default.json", &[]);
+    let seed = format!("seed:{window}");
+    assert_eq!(default, generate("happy.json", &["--init", &seed]).0, "the default start is not byebye's first happy window");
+    assert_ne!(default, generate("first.json", &["--init", "seed:byebye"]).0);
+    let take: serde_json::Value = serde_json::from_slice(&default).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(summary.lines().last().unwrap()).unwrap();
+    for segments in [&take["segments"], &summary["segments"]] {
+        assert_eq!(segments[0]["style"], "happy", "{segments}");
+        assert!(segments[1].get("style").is_none(), "bow asked for no style: {segments}");
+    }
+}
+
 /// Outside the checkout, with no --model, the command line finds the shipped model the way
 /// the studio does; and `--project` generates on the project's own model (a Bandai project
 /// with Bandai's classes), not on h36m.

@@ -168,7 +168,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     let model = GlocalModel::load(&model_dir)?;
     let mut request = match (document, &args.timeline) {
         (Some(document), _) => document.request(),
-        (None, Some(timeline)) => Request { options: options_from_args(&args, timeline)?, joint_map: None },
+        (None, Some(timeline)) => Request { options: options_from_args(&args, timeline, &model)?, joint_map: None },
         (None, None) => bail!("--timeline or --project is needed"),
     };
     // Every file the take reads: the output may be none of them.
@@ -219,7 +219,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     } else {
         say!("{} frames at {} fps ({:.2} s) in {:.1} ms -> {}", m.frames(), m.fps, m.seconds(), elapsed.as_secs_f64() * 1e3, output.out.display());
         for s in &segments {
-            say!("  {:<14} frames {:>6} .. {:>6}", s.name, s.start_frame, s.end_frame);
+            say!("  {:<14} frames {:>6} .. {:>6}", s.label(), s.start_frame, s.end_frame);
         }
         if let Some(cycle) = &cycle {
             say!("{cycle}");
@@ -228,17 +228,29 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     Ok(())
 }
 
+/// Where a take starts unless told: in its first activity, on the first of its seed windows
+/// in the style the first segment asks for where the class has one (a take would otherwise
+/// spend its first seconds easing out of another style's window), else on its first.
+fn first_activity_start(timeline: &Timeline, model: &GlocalModel) -> InitPose {
+    let Some(first) = timeline.segments.first() else { return InitPose::SeedClass { class: String::new(), variant: 0 } };
+    let spec = &model.spec;
+    let in_style = || {
+        let style = spec.styles.iter().position(|s| Some(s) == first.style.as_ref())?;
+        model.class_seed_variant_in_style(spec.class_index(&first.class).ok()?, style)
+    };
+    InitPose::SeedClass { class: first.class.clone(), variant: in_style().unwrap_or(0) }
+}
+
 /// The generation options the command line's flags ask for.
-fn options_from_args(args: &GenerateArgs, timeline: &str) -> Result<GenerateOptions> {
+fn options_from_args(args: &GenerateArgs, timeline: &str, model: &GlocalModel) -> Result<GenerateOptions> {
     let timeline: Timeline = timeline.parse()?;
     let timeline = match &args.style {
         Some(style) => timeline.with_style(style),
         None => timeline,
     };
-    // A take starts in its first activity unless told otherwise.
     let init = match &args.init {
         Some(init) => parse_init(init)?,
-        None => InitPose::SeedClass { class: timeline.segments.first().map(|s| s.class.clone()).unwrap_or_default(), variant: 0 },
+        None => first_activity_start(&timeline, model),
     };
     Ok(GenerateOptions {
         timeline,

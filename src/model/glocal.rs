@@ -127,6 +127,12 @@ impl GlocalModel {
         (count > 0).then(|| variant % count)
     }
 
+    /// The first of `class`'s seed-bank windows in `style` as its variant (counted as
+    /// [`Self::class_seed_index`] counts), if the class has one.
+    pub fn class_seed_variant_in_style(&self, class: usize, style: usize) -> Option<usize> {
+        self.seeds.iter().filter(|s| s.class == class).position(|s| s.style == Some(style))
+    }
+
     /// The conditioning vector of `class`, in its usual style on a model with styles (whose
     /// GloGen never saw a class without one); all zeros when the model was trained without
     /// classes.

@@ -51,7 +51,7 @@ impl StudioApp {
                 "frame {frame} / {}   {:.2} s   {}",
                 t.motion.frames().saturating_sub(1),
                 frame as f32 / t.motion.fps,
-                seg.map_or("", |s| s.name.as_str())
+                seg.map_or_else(String::new, |s| s.label())
             );
             painter.text(rect.left_top() + egui::vec2(12.0, 10.0), Align2::LEFT_TOP, label, FontId::monospace(13.0), text_color);
             if let Some(why) = self.stale_reason() {

@@ -53,7 +53,7 @@ pub struct Kept {
 /// Where each segment of `opts`'s timeline falls in the take, before anything is generated
 /// (the spans [`super::generate`] reports).
 pub fn planned_spans(spec: &ModelSpec, opts: &GenerateOptions) -> Result<Vec<SegmentSpan>> {
-    Ok(SparseTimeline::new(spec, opts)?.planned_spans(&spec.classes))
+    Ok(SparseTimeline::new(spec, opts)?.planned_spans(spec))
 }
 
 /// Frames of the transition into segment `k` on each side of its boundary.

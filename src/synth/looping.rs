@@ -46,7 +46,9 @@ pub fn generate_loop(model: &GlocalModel, opts: &GenerateOptions, progress: &mut
     let take = continuous_take(model, &longer, progress)?;
     let (motion, cycle) = closed_cycle(&take.motion, &CycleSearch { starts, lengths })?;
     let range = cycle.start..cycle.start + cycle.frames;
-    let name = take.segments.first().map_or_else(|| segment.class.clone(), |s| s.name.clone());
-    let segments = vec![SegmentSpan { class: take.segments.first().map_or(0, |s| s.class), name, start_frame: 0, end_frame: cycle.frames }];
+    let segments = match take.segments.first() {
+        Some(first) => vec![SegmentSpan { start_frame: 0, end_frame: cycle.frames, ..first.clone() }],
+        None => vec![SegmentSpan { class: 0, name: segment.class.clone(), start_frame: 0, end_frame: cycle.frames, style: segment.style.clone() }],
+    };
     Ok(Generated { motion, segments, contacts: take.contacts.slice(range), cycle: Some(cycle), ..take })
 }

@@ -25,6 +25,20 @@ pub struct SegmentSpan {
     pub name: String,
     pub start_frame: usize,
     pub end_frame: usize,
+    /// The style the segment asks for by name (none where it takes its class's usual one):
+    /// exports name it beside the class (`walking/tired`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub style: Option<String>,
+}
+
+impl SegmentSpan {
+    /// The segment as the timeline names it: `CLASS` or `CLASS/STYLE`.
+    pub fn label(&self) -> String {
+        match &self.style {
+            Some(style) => format!("{}/{style}", self.name),
+            None => self.name.clone(),
+        }
+    }
 }
 
 /// What one GloGen block is asked for, decided from the timeline before the rollout.
@@ -184,13 +198,13 @@ impl SparseTimeline {
     }
 
     /// Where each segment falls in the paced take, each sparse pose at its nearest frame.
-    pub(super) fn planned_spans(&self, names: &[String]) -> Vec<SegmentSpan> {
+    pub(super) fn planned_spans(&self, spec: &ModelSpec) -> Vec<SegmentSpan> {
         let starts: Vec<usize> = self.frames.iter().map(|t| t.round() as usize).collect();
-        self.segment_spans(names, &starts, self.take_frames())
+        self.segment_spans(spec, &starts, self.take_frames())
     }
 
     /// Where each segment falls in the paced take.
-    fn segment_spans(&self, names: &[String], interval_starts: &[usize], frames: usize) -> Vec<SegmentSpan> {
+    fn segment_spans(&self, spec: &ModelSpec, interval_starts: &[usize], frames: usize) -> Vec<SegmentSpan> {
         let mut segments = Vec::new();
         let mut first_sparse = 0;
         let last = interval_starts.len() - 1;
@@ -198,7 +212,8 @@ impl SparseTimeline {
             let start_frame = interval_starts[first_sparse.min(last)];
             let end_frame = if k + 1 == self.counts.len() { frames } else { interval_starts[(first_sparse + n).min(last)] };
             let class = self.classes[k];
-            segments.push(SegmentSpan { class, name: names[class].clone(), start_frame, end_frame });
+            let style = self.asked_styles[k].and_then(|s| spec.styles.get(s).cloned());
+            segments.push(SegmentSpan { class, name: spec.classes[class].clone(), start_frame, end_frame, style });
             first_sparse += n;
         }
         segments

@@ -15,6 +15,7 @@ take against the same generation exported as JSON with Mixamo names:
   chest's side-to-side line at rest the hip sockets' (as motion/retarget/body.rs reads them);
 - where the take's foot is planted, the rig's foot is within 2 cm of the floor;
 - no mapped bone keeps an identity track while the take's joint moves;
+- a pose marker of the Action names each segment where it starts;
 - the add-on's Export FBX re-imports with the same frame count and every bone's turn from its
   rest pose within 0.5 degrees;
 - a glocal error (a wrong class) is reported as one line and the armature keeps its actions.
@@ -309,7 +310,19 @@ def run_rig(rig, timeline, seed, take, out_dir, failures):
     if before.name not in bpy.data.actions or action_state(before) != state:
         failures.append(f"{label}: the armature's earlier action changed")
     check_generated(arm, keys, take, label, failures)
+    check_markers(arm.animation_data.action, take, label, failures)
     check_fbx(arm, out_dir, label, failures)
+
+
+def check_markers(action, take, label, failures):
+    """A pose marker names each segment of the take at its first frame (Blender's frames
+    count from 1)."""
+    want = [(s["name"] + (f"/{s['style']}" if s.get("style") else ""), s["start_frame"] + 1) for s in take["segments"]]
+    got = [(m.name, m.frame) for m in sorted(action.pose_markers, key=lambda m: m.frame)]
+    if got != want or len(want) < 2:
+        failures.append(f"{label}: pose markers {got}, the take's segments {want}")
+    else:
+        print(f"{label}: pose markers {got}")
 
 
 def check_styles(model, failures):

@@ -56,10 +56,12 @@ def _xyz(v):
 
 class Take:
     """A BVH take: joint names, frame rate, and per frame each joint's world rotation (its
-    turn from the rest pose, 3x3) and position, in Blender's world axes."""
+    turn from the rest pose, 3x3) and position, in Blender's world axes; `segments` are
+    (label, first frame) pairs where glocal said them (a BVH has none of its own)."""
 
     def __init__(self, names, fps, rotations, positions):
         self.names, self.fps, self.rotations, self.positions = names, fps, rotations, positions
+        self.segments = []
 
     @property
     def frames(self):

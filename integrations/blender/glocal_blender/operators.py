@@ -156,8 +156,13 @@ def take_seconds(timeline):
 
 def put_on_armature(scene, arm, take, name, progress):
     """The take as a new Action on `arm` (its previous action kept, with a fake user so it is
-    saved), the scene's frame rate and range set to the take's."""
+    saved), a pose marker naming each segment where it starts, the scene's frame rate and
+    range set to the take's."""
     new = action.new_action(arm, take, name, progress)
+    # Markers of the Action, not the scene: they go with the take (the Action Editor shows
+    # them with View > Show Pose Markers) and leave the user's own scene markers alone.
+    for label, first in take.segments:
+        new.pose_markers.new(label).frame = first + 1
     if arm.animation_data is None:
         arm.animation_data_create()
     previous = arm.animation_data.action

@@ -52,13 +52,16 @@ class Run:
         return time.monotonic() - self.started
 
     def result(self):
-        """The take read back, or raises RuntimeError with glocal's error as one line."""
+        """The take read back with its segments, or raises RuntimeError with glocal's error
+        as one line."""
         out, err = self.process.communicate()
         try:
             if self.process.returncode != 0:
                 raise RuntimeError(error_line(err) or f"glocal exited with status {self.process.returncode}")
             with open(self.take_path) as f:
-                return bvh_io.read_take(f.read())
+                take = bvh_io.read_take(f.read())
+            take.segments = segments(out)
+            return take
         finally:
             self.folder.cleanup()
 
@@ -74,3 +77,12 @@ def error_line(stderr):
     errors = [l for l in lines if l.lower().startswith("error")]
     line = (errors or lines or [""])[-1]
     return line[len("error:"):].strip() if line.lower().startswith("error:") else line
+
+
+def segments(stdout):
+    """(label, first frame) of each segment, from the summary `glocal generate --json` prints
+    last: `walking` or `walking/tired`, frames counted from 0."""
+    lines = [l for l in stdout.splitlines() if l.strip()]
+    summary = json.loads(lines[-1]) if lines else {}
+    spans = summary.get("segments", []) if isinstance(summary, dict) else []
+    return [(s["name"] + (f"/{s['style']}" if s.get("style") else ""), int(s["start_frame"])) for s in spans]
