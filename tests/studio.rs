@@ -980,4 +980,8 @@ fn a_segment_takes_a_style_on_the_model_of_everything() {
     h.run_ok();
     wait(&mut h, "the take in its style", |a| a.take().is_some_and(|t| t.options.timeline.segments[0].style.as_deref() == Some("happy")) && !a.is_busy());
     assert_eq!(h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "style").value().as_deref(), Some("happy"), "the combo shows the style picked");
+    // The block names its style as the command line does.
+    h.get_by_label(&format!("Segment 1: {first}")).hover();
+    h.run_ok();
+    assert!(shows(&h, &format!("Segment 1: {first}/happy · ")), "the block does not name its style");
 }

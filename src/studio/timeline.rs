@@ -439,11 +439,14 @@ impl Pass<'_> {
     }
 }
 
-/// A segment block's text: its class (with a question mark when the model lacks it),
-/// duration (and the take's, `made`, where the rounding to whole sparse steps at its pace
+/// A segment block's text: its class (with a question mark when the model lacks it) and the
+/// style it asks for, as the command line spells them (`walking/tired`), duration (and the take's, `made`, where the rounding to whole sparse steps at its pace
 /// changed it), pace and transition.
 fn segment_label(seg: &crate::synth::Segment, k: usize, known: bool, made: Option<f32>) -> String {
-    let name = if known { seg.class.clone() } else { format!("{}?", seg.class) };
+    let mut name = if known { seg.class.clone() } else { format!("{}?", seg.class) };
+    if let Some(style) = &seg.style {
+        name.push_str(&format!("/{style}"));
+    }
     let mut length = format!("{:.1}s", seg.seconds);
     if let Some(made) = made.filter(|m| (m - seg.seconds).abs() >= 0.05) {
         length.push_str(&format!(" (makes {made:.2}s)"));
