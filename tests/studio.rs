@@ -383,6 +383,13 @@ fn by_class_starts_from_a_pose_of_that_class() {
     let glocal::synth::InitPose::SeedClass { class, variant } = h.state().project().options.init.clone() else { panic!("not a class start") };
     assert_eq!(class, "sitting");
     assert_ne!(variant, 0, "the class's first seed window (the start of a clip, standing) is not its typical one");
+    // The tab names the window the start is (its clip names its style on Bandai's data).
+    let model = h.state().model_info().unwrap();
+    let sitting_class = model.spec.class_index("sitting").unwrap();
+    let window = model.seeds.iter().filter(|s| s.class == sitting_class).nth(variant).unwrap();
+    let named = format!("{} @ {}", window.clip, window.frame);
+    h.run_ok();
+    assert!(shows(&h, &named), "the tab does not name the start window {named}");
     wait(&mut h, "the sitting start", |a| a.take().is_some_and(|t| t.options.init == a.project().options.init) && !a.is_busy());
     let sitting = hip_height(&h.state().take().unwrap().motion, 0);
     assert!(sitting < 0.75 * standing, "a sitting start has the hips low: {sitting:.0} against {standing:.0} standing");

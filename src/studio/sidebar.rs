@@ -148,6 +148,11 @@ impl StudioApp {
         let n = model.seeds.iter().filter(|s| s.class == new_class).count().max(1);
         ui.add(Slider::new(&mut new_rank, 0..=n - 1).text("variant"))
             .on_hover_text("0 is the class's most typical pose; higher numbers are less typical examples");
+        // The window the start is, whose clip names its style on Bandai's data.
+        let variant = model.typical_variant(new_class, new_rank);
+        if let Some(s) = model.seeds.iter().filter(|s| s.class == new_class).nth(variant) {
+            ui.label(RichText::new(format!("{} @ {}", s.clip, s.frame)).weak());
+        }
         if (new_class, new_rank) != (class, rank) || !matches!(self.editing.doc.options.init, InitPose::SeedClass { .. }) {
             self.set_init_class(new_class, new_rank);
         }
