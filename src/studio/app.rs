@@ -123,7 +123,7 @@ impl StudioApp {
 
     /// Classes whose seeds the seed map hides (clicked off in its key).
     pub fn hidden_on_map(&self) -> &std::collections::BTreeSet<String> {
-        &self.panels.hidden_on_map
+        &self.panels.map.hidden_classes
     }
 
     pub fn frame(&self) -> usize {
@@ -278,9 +278,9 @@ impl eframe::App for StudioApp {
             on_panel_background(ui, |ui| egui::ScrollArea::vertical().show(ui, |ui| self.side_panel(ui)));
         });
         self.panels.show_side = show_side;
-        let mut show_map = self.panels.show_map;
+        let mut show_map = self.panels.map.shown;
         egui::Panel::right("map").frame(frame).resizable(true).default_size(330.0f32.min(width * 0.25)).min_size(200.0).max_size((width * 0.35).max(200.0)).show_collapsible(ui, &mut show_map, |ui| self.map_panel(ui));
-        self.panels.show_map = show_map;
+        self.panels.map.shown = show_map;
         egui::CentralPanel::no_frame().show(ui, |ui| self.central(ui));
         self.windows(&ctx);
         self.confirm_ui(&ctx);

@@ -15,6 +15,21 @@ use crate::synth::InitPose;
 /// The most of the map panel's height its key takes.
 const KEY_SHARE: f32 = 0.45;
 
+/// How the seed map panel is shown.
+pub struct MapView {
+    pub(super) shown: bool,
+    /// Classes whose seeds the map hides (clicked off in its key), by name.
+    pub(super) hidden_classes: std::collections::BTreeSet<String>,
+    /// The height the map's key took last frame (the map gets the rest).
+    pub(super) key_height: f32,
+}
+
+impl Default for MapView {
+    fn default() -> Self {
+        Self { shown: true, hidden_classes: Default::default(), key_height: 0.0 }
+    }
+}
+
 impl StudioApp {
     pub(super) fn map_panel(&mut self, ui: &mut egui::Ui) {
         ui.add_space(4.0);
@@ -47,8 +62,8 @@ impl StudioApp {
         };
         // The key below the map takes the height its content took last frame, at most
         // KEY_SHARE of the panel's (on a small window it scrolls rather than crowd out the map).
-        let key_height = self.panels.map_key_height.min(ui.available_height() * KEY_SHARE);
-        let hidden = &self.panels.hidden_on_map;
+        let key_height = self.panels.map.key_height.min(ui.available_height() * KEY_SHARE);
+        let hidden = &self.panels.map.hidden_classes;
         let resp = Plot::new("seed_map")
             .height((ui.available_height() - key_height - ui.spacing().item_spacing.y).max(0.0))
             .data_aspect(1.0)
@@ -79,10 +94,10 @@ impl StudioApp {
                     plot_take_path(plot, t, current_block);
                 }
             });
-        let hidden = &mut self.panels.hidden_on_map;
+        let hidden = &mut self.panels.map.hidden_classes;
         let key = egui::ScrollArea::vertical().id_salt("seed_map_key").max_height(key_height).show(ui, |ui| map_key(ui, classes, &by_class, hidden));
-        self.panels.map_key_height = key.content_size.y;
-        let shown = |i: usize| !self.panels.hidden_on_map.contains(&classes[seeds[i].class]);
+        self.panels.map.key_height = key.content_size.y;
+        let shown = |i: usize| !self.panels.map.hidden_classes.contains(&classes[seeds[i].class]);
         if let Some(i) = clicked_seed(&resp, &map.points, shown) {
             self.editing.doc.options.init = InitPose::SeedIndex(i);
             self.panels.init_tab = InitTab::Seed;

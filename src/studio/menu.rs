@@ -125,7 +125,7 @@ impl StudioApp {
 
     fn view_menu(&mut self, ui: &mut egui::Ui) {
         ui.checkbox(&mut self.panels.show_side, "Settings panel");
-        ui.checkbox(&mut self.panels.show_map, "Seed map panel");
+        ui.checkbox(&mut self.panels.map.shown, "Seed map panel");
         ui.checkbox(&mut self.panels.compare, "Overlay the previous take (white)");
         ui.separator();
         let v = &mut self.editing.doc.view;

@@ -10,6 +10,7 @@ use super::project::same_file;
 use super::retarget::RigState;
 use super::timeline::TimelineState;
 use crate::synth::class_map::ClassMap;
+use super::map_panel::MapView;
 use crate::synth::export::ExportOptions;
 use crate::synth::InitPose;
 
@@ -101,11 +102,7 @@ pub struct Panels {
     /// The classes carried over at the last model switch, and whether its window is open.
     pub(super) mapping: Option<MappingNote>,
     pub(super) show_mapping: bool,
-    pub(super) show_map: bool,
-    /// Classes whose seeds the map hides (clicked off in its key), by name.
-    pub(super) hidden_on_map: std::collections::BTreeSet<String>,
-    /// The height the map's key took last frame (the map gets the rest).
-    pub(super) map_key_height: f32,
+    pub(super) map: MapView,
     pub(super) show_side: bool,
     pub(super) show_help: bool,
     pub(super) show_log: bool,
@@ -132,9 +129,7 @@ impl Panels {
             title: String::new(),
             mapping: None,
             show_mapping: false,
-            show_map: true,
-            hidden_on_map: Default::default(),
-            map_key_height: 0.0,
+            map: MapView::default(),
             show_side: true,
             show_help: false,
             show_log: false,
