@@ -83,6 +83,9 @@ def segments(stdout):
     """(label, first frame) of each segment, from the summary `glocal generate --json` prints
     last: `walking` or `walking/tired`, frames counted from 0."""
     lines = [l for l in stdout.splitlines() if l.strip()]
-    summary = json.loads(lines[-1]) if lines else {}
-    spans = summary.get("segments", []) if isinstance(summary, dict) else []
-    return [(s["name"] + (f"/{s['style']}" if s.get("style") else ""), int(s["start_frame"])) for s in spans]
+    try:
+        spans = json.loads(lines[-1])["segments"] if lines else []
+        return [(s["name"] + (f"/{s['style']}" if s.get("style") else ""), int(s["start_frame"])) for s in spans]
+    except (ValueError, KeyError, TypeError):
+        # A take without markers rather than no take: the markers only name its parts.
+        return []
