@@ -15,21 +15,6 @@ use crate::synth::InitPose;
 /// The most of the map panel's height its key takes.
 const KEY_SHARE: f32 = 0.45;
 
-/// How the seed map panel is shown.
-pub struct MapView {
-    pub(super) shown: bool,
-    /// Classes whose seeds the map hides (clicked off in its key), by name.
-    pub(super) hidden_classes: std::collections::BTreeSet<String>,
-    /// The height the map's key took last frame (the map gets the rest).
-    pub(super) key_height: f32,
-}
-
-impl Default for MapView {
-    fn default() -> Self {
-        Self { shown: true, hidden_classes: Default::default(), key_height: 0.0 }
-    }
-}
-
 impl StudioApp {
     pub(super) fn map_panel(&mut self, ui: &mut egui::Ui) {
         ui.add_space(4.0);

@@ -10,7 +10,6 @@ use super::project::same_file;
 use super::retarget::RigState;
 use super::timeline::TimelineState;
 use crate::synth::class_map::ClassMap;
-use super::map_panel::MapView;
 use crate::synth::export::ExportOptions;
 use crate::synth::InitPose;
 
@@ -80,6 +79,21 @@ pub struct Fields {
 
 /// The furthest "from frame" the UI accepts for an initial-pose file (a day at 120 fps).
 pub const MAX_INIT_FRAME: usize = 120 * 86_400;
+
+/// How the seed map panel is shown.
+pub struct MapView {
+    pub(super) shown: bool,
+    /// Classes whose seeds the map hides (clicked off in its key), by name.
+    pub(super) hidden_classes: std::collections::BTreeSet<String>,
+    /// The height the map's key took last frame (the map gets the rest).
+    pub(super) key_height: f32,
+}
+
+impl Default for MapView {
+    fn default() -> Self {
+        Self { shown: true, hidden_classes: Default::default(), key_height: 0.0 }
+    }
+}
 
 /// The panels' state.
 pub struct Panels {
