@@ -44,7 +44,6 @@ pub const DEFINITIONS: &str = "Definitions (all at 30 fps, metres; the floor of 
 - **joint speed**: mean speed of all joints (m/s); the ratio is generated over real, per class.
 - **exact repeat**: in one long single-class take per class, the longest stretch (s) of poses whose pairwise joint distances (heading-invariant) all match those at some lag >= 1 s within 5 mm, counted when longer than 1 s; real: each whole test clip.";
 
-
 /// A GloGen block's grid at [`COMMON_FPS`]: frames per block and per sparse interval.
 #[derive(Clone, Copy, Debug)]
 pub struct BlockGrid {
@@ -387,7 +386,6 @@ fn metres(m: &Motion) -> Vec<Vec3> {
     let unit = m.skeleton.meters_per_unit();
     m.positions().iter().map(|p| *p * unit).collect()
 }
-
 
 /// The peak of each whole 2 s window of `per_frame` in `[start, end)` that overlaps none of
 /// the `excluded` ranges.

@@ -207,13 +207,9 @@ impl StudioApp {
         Some(format!("Range {a}–{} ({} frames)", b.saturating_sub(1), b - a))
     }
 
-
     pub fn classes(&self) -> &[String] {
         self.engine.classes()
     }
-
-
-
 }
 
 /// The panels' usual frame without its fill: the window is cleared to the same colour

@@ -227,4 +227,3 @@ impl StudioApp {
         self.engine.cancel();
     }
 }
-

@@ -164,4 +164,3 @@ impl GenerateOptions {
         self.class_strength.unwrap_or_else(|| spec.class_strength_of(class))
     }
 }
-

@@ -418,7 +418,6 @@ fn joint_distance2(a: &[f32], b: &[f32], spread: &[f32]) -> f32 {
     a[joints.clone()].iter().zip(&b[joints.clone()]).zip(&spread[joints]).map(|((a, b), s)| ((a - b) * s).powi(2)).sum()
 }
 
-
 /// Whether the last `span` poses of `sparse` (normalised) repeat a stretch of the take at
 /// least `min_lag` poses earlier: the root-mean-square distance between the joints of
 /// corresponding poses, in the skeleton's units (`spread`: the features' standard

@@ -601,7 +601,6 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
     Ok(spec)
 }
 
-
 /// Whether a new model of `dataset` has its body carried by its feet
 /// ([`ModelSpec::carry_by_feet`]): Bandai's network slides its stance feet with the body (its
 /// run's at 57 cm/s on the floor against the real 19), and so does `all`'s with Bandai's
@@ -700,4 +699,3 @@ pub fn seeded_init(varmap: &VarMap, seed: u64, gates: usize) -> Result<()> {
     }
     Ok(())
 }
-

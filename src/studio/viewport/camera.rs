@@ -92,7 +92,6 @@ impl Viewport {
         (Mat4::perspective_rh(FOV_Y, aspect.max(1e-3), near, far) * view, eye)
     }
 
-
     /// Fits the view: with follow-root, around the current poses; else the whole take.
     pub(super) fn frame_scene(&mut self, scene: &Scene, follow_point: Vec3) {
         let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
