@@ -293,7 +293,7 @@ fn note_rounded_durations(opts: &GenerateOptions, segments: &[SegmentSpan], fps:
     for (asked, got) in opts.timeline.segments.iter().zip(segments) {
         let seconds = (got.end_frame - got.start_frame) as f32 / fps;
         if (seconds - asked.seconds).abs() > 1.5 / fps {
-            eprintln!("note: segment '{}' lasts {seconds:.2} s, not {} s: durations are rounded to whole sparse steps", asked.class, asked.seconds);
+            eprintln!("note: segment '{}' lasts {seconds:.2} s, not {} s: durations are rounded to whole sparse steps", got.label(), asked.seconds);
         }
     }
 }
