@@ -16,6 +16,7 @@ take against the same generation exported as JSON with Mixamo names:
 - where the take's foot is planted, the rig's foot is within 2 cm of the floor;
 - no mapped bone keeps an identity track while the take's joint moves;
 - a pose marker of the Action names each segment where it starts;
+- Continue the animation starts the take from the armature's own last seconds, where it stood;
 - the add-on's Export FBX re-imports with the same frame count and every bone's turn from its
   rest pose within 0.5 degrees;
 - a glocal error (a wrong class) is reported as one line and the armature keeps its actions.
@@ -312,6 +313,7 @@ def run_rig(rig, timeline, seed, take, out_dir, failures):
     check_generated(arm, keys, take, label, failures)
     check_markers(arm.animation_data.action, take, label, failures)
     check_fbx(arm, out_dir, label, failures)
+    check_continue(arm, label, failures)
 
 
 def check_markers(action, take, label, failures):
@@ -323,6 +325,70 @@ def check_markers(action, take, label, failures):
         failures.append(f"{label}: pose markers {got}, the take's segments {want}")
     else:
         print(f"{label}: pose markers {got}")
+
+
+def check_continue(arm, label, failures):
+    """Generate with Continue the animation: the new take begins with the armature's own
+    motion of the seconds before the current frame, standing and facing where it did: over
+    those frames (but the last sparse step, over which the take joins on) every bone but the
+    toes within 1 degree on average and 5 at worst, the root within 2 cm. A toe comes back up to 48 degrees off
+    on the Mixamo-named rig (printed; the Rigify metarig's within 0.1): a file's toes are read
+    as carried by their foot (`motion::retarget`, `with_toes_to_tips` is for generated takes
+    only: a capture's toe markers whip with the foot), and the take's toes then turn to their
+    tips as the model's own do. From a frame too early
+    it is refused in one line and the armature keeps its action."""
+    from glocal_blender import properties
+    select_only(arm)
+    scene, settings = bpy.context.scene, bpy.context.scene.glocal
+    info = properties.model_info(settings.model)
+    fps = scene.render.fps / scene.render.fps_base
+    old = arm.animation_data.action
+    bones = [b.name for b in arm.pose.bones if b.bone.use_deform or b.parent is None]
+    toes = {n for n in bones if "toe" in n.lower()}
+
+    def pose(action, frame):
+        arm.animation_data.action = action
+        scene.frame_set(frame)
+        world = arm.matrix_world
+        return {n: (world @ arm.pose.bones[n].tail - world @ arm.pose.bones[n].head).normalized() for n in bones}, world @ arm.pose.bones[bones[0]].head
+
+    current = scene.frame_start + round(info["start_seconds"] * fps) + 20
+    scene.frame_set(current)
+    settings.continue_action = True
+    try:
+        if "FINISHED" not in bpy.ops.glocal.generate(timeline="walking:3"):
+            failures.append(f"{label}: Continue the animation did not generate")
+            return
+        new = arm.animation_data.action
+        # The take's first frame is one sparse step into the armature's seconds; its frame
+        # `joins` is the current frame.
+        joins = round(info["start_seconds"] * fps) - round(info["stride"] / info["fps"] * fps) + 1
+        # Over its last sparse step the take joins on: the seconds before it are the armature's.
+        step = round(info["stride"] / info["fps"] * fps)
+        angles, toe_angles, apart = [], [], 0.0
+        for k in range(1, joins - step):
+            (after, root_after), (before, root_before) = pose(new, k), pose(old, current - joins + k)
+            for n in bones:
+                if before[n].length > 0 and after[n].length > 0:
+                    (toe_angles if n in toes else angles).append(degrees(before[n].angle(after[n])))
+            apart = max(apart, (root_after - root_before).length)
+        mean = sum(angles) / len(angles)
+        toe = max(toe_angles, default=0.0)
+        print(f"{label}: continued from frame {current}: its frames 1-{joins - step - 1} against the animation's, bones but the toes mean {mean:.2f} deg, worst {max(angles):.2f}; toes worst {toe:.1f}; root at most {100 * apart:.2f} cm apart")
+        if mean > 1.0 or max(angles) > 5.0 or apart > 0.02:
+            failures.append(f"{label}: the continued take is {mean:.2f} deg (worst {max(angles):.2f}) and {100 * apart:.2f} cm from the animation it continues")
+        arm.animation_data.action = new
+        scene.frame_set(scene.frame_start + 2)
+        try:
+            bpy.ops.glocal.generate(timeline="walking:3")
+            failures.append(f"{label}: continuing from frame {scene.frame_current} was not refused")
+        except RuntimeError as e:
+            message = str(e).strip()
+            print(f"{label}: too early reported as: {message}")
+            if len(message.splitlines()) != 1 or "needs it from frame" not in message or arm.animation_data.action != new:
+                failures.append(f"{label}: too early a frame: {message!r}, action {arm.animation_data.action.name}")
+    finally:
+        settings.continue_action = False
 
 
 def check_styles(model, failures):

@@ -7,7 +7,7 @@ Both files are in world space (the armature object's location, rotation and scal
 so a rig imported lying in its own y-up space with a 0.01 scale (as Mixamo FBX files come in)
 stands up and measures in metres for glocal like any other.
 """
-from math import radians
+from math import atan2, degrees, radians
 
 from mathutils import Matrix, Vector
 
@@ -20,6 +20,62 @@ AXES = {"X": Vector((1, 0, 0)), "Y": Vector((0, 1, 0)), "Z": Vector((0, 0, 1))}
 def rig_bvh(arm):
     """The armature's rest pose as a one-frame BVH: a joint at every bone's head, an end
     site at every leaf bone's tail. An armature with several root bones is refused."""
+    lines, order = _hierarchy(arm)
+    # The one frame is the rest pose: the root where its offset puts it, nothing turned.
+    root = TO_BVH @ (arm.matrix_world @ order[0].head_local)
+    rotations = " ".join(["0"] * 3 * len(order))
+    lines.extend(["MOTION", "Frames: 1", "Frame Time: 0.04", f"{_xyz(root)} {rotations}"])
+    return "\n".join(lines) + "\n"
+
+
+def posed_bvh(arm, scene, frames):
+    """The armature as the scene poses it at each of `frames` (scene frame numbers), on the
+    rest hierarchy of [`rig_bvh`], at the scene's frame rate: each joint's turn from its rest
+    pose, the root's head where it stands."""
+    lines, order = _hierarchy(arm)
+    fps = scene.render.fps / scene.render.fps_base
+    lines.extend(["MOTION", f"Frames: {len(frames)}", f"Frame Time: {1.0 / fps:.8f}"])
+    world = arm.matrix_world
+    rest = {b.name: (world @ b.matrix_local).to_3x3().normalized() for b in order}
+    current = scene.frame_current
+    for f in frames:
+        scene.frame_set(f)
+        # Each bone's turn from its rest pose, in the file's axes (a joint's world turn in a BVH).
+        turns = {b.name: TO_BVH @ (world @ arm.pose.bones[b.name].matrix).to_3x3().normalized() @ rest[b.name].inverted() @ FROM_BVH for b in order}
+        values = [_xyz(TO_BVH @ (world @ arm.pose.bones[order[0].name].head))]
+        for bone in order:
+            local = turns[bone.name] if bone.parent is None else turns[bone.parent.name].inverted() @ turns[bone.name]
+            # Channels Z X Y: the turn is Rz Rx Ry, Blender's Euler order YXZ.
+            e = local.to_euler("YXZ")
+            values.append(f"{degrees(e.z):.6f} {degrees(e.x):.6f} {degrees(e.y):.6f}")
+        lines.append(" ".join(values))
+    scene.frame_set(current)
+    return "\n".join(lines) + "\n"
+
+
+def root_turn(arm, scene, frame):
+    """The armature's root bone at scene `frame`: its world turn from its rest pose and its
+    head, in Blender's world (as [`read_take`] gives a take's joints)."""
+    current = scene.frame_current
+    scene.frame_set(frame)
+    root = next(b for b in arm.data.bones if b.parent is None)
+    world = arm.matrix_world
+    turn = (world @ arm.pose.bones[root.name].matrix).to_3x3().normalized() @ (world @ root.matrix_local).to_3x3().normalized().inverted()
+    head = world @ arm.pose.bones[root.name].head
+    scene.frame_set(current)
+    return turn, head
+
+
+def heading(turn):
+    """The angle about Blender's vertical (z) by which `turn` points the horizontal -y axis,
+    radians."""
+    forward = turn @ Vector((0, -1, 0))
+    return atan2(forward.y, forward.x)
+
+
+def _hierarchy(arm):
+    """The HIERARCHY lines of the armature's rest pose and its bones in the file's order.
+    An armature with several root bones, or a bone name with spaces, is refused."""
     roots = [b for b in arm.data.bones if b.parent is None]
     if len(roots) != 1:
         raise ValueError(f"{arm.name}: the armature has {len(roots)} root bones ({', '.join(b.name for b in roots[:4])}); glocal needs one")
@@ -28,9 +84,10 @@ def rig_bvh(arm):
         raise ValueError(f"{arm.name}: bone name '{spaced[0]}' has spaces, which a BVH file cannot hold; rename it")
     world = arm.matrix_world
     point = lambda v: TO_BVH @ (world @ v)
-    lines = ["HIERARCHY"]
+    lines, order = ["HIERARCHY"], []
 
     def joint(bone, depth, origin):
+        order.append(bone)
         pad = "  " * depth
         head = point(bone.head_local)
         kind = "ROOT" if bone.parent is None else "JOINT"
@@ -44,10 +101,7 @@ def rig_bvh(arm):
         lines.append(f"{pad}}}")
 
     joint(roots[0], 0, Vector((0, 0, 0)))
-    # The one frame is the rest pose: the root where its offset puts it, nothing turned.
-    rotations = " ".join(["0"] * 3 * len(arm.data.bones))
-    lines.extend(["MOTION", "Frames: 1", "Frame Time: 0.04", f"{_xyz(point(roots[0].head_local))} {rotations}"])
-    return "\n".join(lines) + "\n"
+    return lines, order
 
 
 def _xyz(v):

@@ -1,9 +1,12 @@
 """Generate (glocal in the background, the take onto the selected armature as a new Action),
 Export FBX, and the timeline's add / remove row buttons."""
+import math
+
 import bpy
 from bpy_extras.io_utils import ExportHelper
+from mathutils import Matrix
 
-from . import action, properties, runner
+from . import action, bvh_io, properties, runner
 from .preferences import glocal_binary
 
 # Blender's FBX exporter, set for what Unreal's and Unity's importers take without changes:
@@ -71,7 +74,9 @@ class GLOCAL_OT_generate(bpy.types.Operator):
             return False
         self.arm = selected_armature(context)
         try:
-            self._run = runner.Run(binary, bpy.path.abspath(settings.model), self.text, settings.seed, self.arm)
+            self.continued = Continued(context.scene, self.arm, properties.model_info(settings.model)) if settings.continue_action else None
+            start = self.continued.bvh if self.continued else None
+            self._run = runner.Run(binary, bpy.path.abspath(settings.model), self.text, settings.seed, self.arm, start)
         except (OSError, ValueError) as e:
             self.report({"ERROR"}, str(e))
             return False
@@ -88,6 +93,8 @@ class GLOCAL_OT_generate(bpy.types.Operator):
         except (RuntimeError, OSError, ValueError) as e:
             self.report({"ERROR"}, str(e).splitlines()[0] if str(e) else "glocal failed")
             return {"CANCELLED"}
+        if self.continued:
+            self.continued.place(take)
         # Keying a long take on a big rig takes a while too: the cursor shows how far it is.
         wm = context.window_manager
         wm.progress_begin(0, 100)
@@ -134,6 +141,39 @@ class GLOCAL_OT_generate(bpy.types.Operator):
 
     def stop_timer(self, context):
         context.window_manager.event_timer_remove(self._timer)
+
+
+class Continued:
+    """The armature's own motion a take continues: the seconds a take's start reads, ending
+    at the current frame (one frame past it, for the resampling to the model's rate), as a
+    BVH text, and where its root stands at the take's first frame. A ValueError names what
+    is missing when the armature has none to give."""
+
+    def __init__(self, scene, arm, info):
+        action = arm.animation_data.action if arm.animation_data else None
+        if action is None:
+            raise ValueError(f"{arm.name} has no animation to continue: untick Continue the animation or give it an action")
+        fps = scene.render.fps / scene.render.fps_base
+        current = scene.frame_current
+        first = current - math.ceil(info["start_seconds"] * fps)
+        if first < action.frame_range[0]:
+            raise ValueError(f"{arm.name}'s animation starts at frame {action.frame_range[0]:g}: continuing from frame {current} needs it from frame {first} ({info['start_seconds']:g} s before)")
+        self.bvh = bvh_io.posed_bvh(arm, scene, range(first, current + 2))
+        # The take begins one sparse step into the file (the step before is its first pose's
+        # context): there its root is to stand as the armature's did.
+        at = first + round(info["stride"] / info["fps"] * fps)
+        self.root = bvh_io.root_turn(arm, scene, at)
+
+    def place(self, take):
+        """Turns `take` about the vertical and moves it so that its root stands at its first
+        frame where the armature's stood (glocal starts a take from a file at the origin,
+        facing +z)."""
+        turn, position = self.root
+        yaw = bvh_io.heading(turn) - bvh_io.heading(take.rotations[0][0])
+        spin = Matrix.Rotation(yaw, 3, "Z")
+        shift = position - spin @ take.positions[0][0]
+        take.rotations = [[spin @ r for r in frame] for frame in take.rotations]
+        take.positions = [[spin @ p + shift for p in frame] for frame in take.positions]
 
 
 # For the progress estimate: `glocal generate` took 0.18 s for a 7 s h36m take and 0.44 s for

@@ -34,6 +34,7 @@ class GLOCAL_PT_panel(bpy.types.Panel):
         buttons.operator("glocal.segment_add", icon="ADD", text="")
         buttons.operator("glocal.segment_remove", icon="REMOVE", text="")
         layout.prop(settings, "seed")
+        layout.prop(settings, "continue_action")
         arm = selected_armature(context)
         layout.label(text=f"Onto: {arm.name}" if arm else "Select an armature", icon="ARMATURE_DATA")
         if settings.running:

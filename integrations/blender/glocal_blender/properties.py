@@ -9,8 +9,9 @@ _model_cache = {}
 
 
 def model_info(folder):
-    """The `classes`, `styles` and `fps` of the model.json in `folder`, or None when it has
-    none to read; read once per folder and file time."""
+    """The `classes`, `styles` and `fps` of the model.json in `folder`, and the seconds of
+    motion a take's start reads (`start_seconds`), or None when it has none to read; read
+    once per folder and file time."""
     path = os.path.join(bpy.path.abspath(folder), "model.json")
     try:
         stamp = os.path.getmtime(path)
@@ -22,8 +23,10 @@ def model_info(folder):
     try:
         with open(path) as f:
             spec = json.load(f)
-        info = {"classes": list(spec.get("classes", [])), "styles": list(spec.get("styles", [])), "fps": spec.get("fps")}
-    except (OSError, ValueError):
+        info = {"classes": list(spec.get("classes", [])), "styles": list(spec.get("styles", [])), "fps": spec.get("fps"),
+                "stride": spec["stride"],
+                "start_seconds": spec["stride"] * spec["block_len"] / spec["fps"]}
+    except (OSError, ValueError, KeyError, TypeError, ZeroDivisionError):
         info = None
     _model_cache[path] = (stamp, info)
     return info
@@ -69,6 +72,9 @@ class GlocalSettings(bpy.types.PropertyGroup):
     segments: bpy.props.CollectionProperty(type=GlocalSegment)
     active_segment: bpy.props.IntProperty(default=0)
     seed: bpy.props.IntProperty(name="Seed", default=0, min=0, description="0: the model's own take; others vary it")
+    continue_action: bpy.props.BoolProperty(
+        name="Continue the animation", default=False,
+        description="Start from the armature's own motion in the seconds before the current frame (as many as the model reads: 2 s on the shipped models), which the take begins with, instead of the model's own start")
     running: bpy.props.BoolProperty(default=False)
     progress: bpy.props.FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR")
     status: bpy.props.StringProperty(default="")

@@ -28,7 +28,9 @@ def joint_map(arm):
 class Run:
     """A started `glocal generate` onto `arm`; `poll()` until it returns True, then `result()`."""
 
-    def __init__(self, binary, model, timeline, seed, arm):
+    def __init__(self, binary, model, timeline, seed, arm, start=None):
+        """`start`: the armature's own motion the take continues from, as a BVH text
+        ([`bvh_io.posed_bvh`]), or None for the model's own start."""
         self.folder = tempfile.TemporaryDirectory(prefix="glocal-")
         rig = os.path.join(self.folder.name, "rig.bvh")
         self.take_path = os.path.join(self.folder.name, "take.bvh")
@@ -36,6 +38,11 @@ class Run:
             f.write(bvh_io.rig_bvh(arm))
         self.command = [binary, "generate", "--model", model, "--timeline", timeline, "--seed", str(seed),
                         "--retarget-to", rig, "--out", self.take_path, "--json"]
+        if start is not None:
+            start_path = os.path.join(self.folder.name, "start.bvh")
+            with open(start_path, "w") as f:
+                f.write(start)
+            self.command += ["--init", f"clip:{start_path}@0"]
         mapping = joint_map(arm)
         if mapping:
             map_path = os.path.join(self.folder.name, "joint_map.json")
