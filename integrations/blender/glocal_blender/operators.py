@@ -155,7 +155,9 @@ class Continued:
             raise ValueError(f"{arm.name} has no animation to continue: untick Continue the animation or give it an action")
         fps = scene.render.fps / scene.render.fps_base
         current = scene.frame_current
-        first = current - math.ceil(info["start_seconds"] * fps)
+        # A scene rate a hair over a whole number (Blender keeps its base in single precision)
+        # asks for no frame more.
+        first = current - math.ceil(info["start_seconds"] * fps - 1e-3)
         if first < action.frame_range[0]:
             raise ValueError(f"{arm.name}'s animation starts at frame {action.frame_range[0]:g}: continuing from frame {current} needs it from frame {first} ({info['start_seconds']:g} s before)")
         self.bvh = bvh_io.posed_bvh(arm, scene, range(first, current + 2))
@@ -210,7 +212,9 @@ def put_on_armature(scene, arm, take, name, progress):
         previous.use_fake_user = True
     arm.animation_data.action = new
     fps = round(take.fps)
-    scene.render.fps, scene.render.fps_base = fps, fps / take.fps
+    # A BVH's frame time holds a rate like 30 to a few digits (30.0000003): that is 30.
+    base = 1.0 if abs(take.fps - fps) < 1e-4 * fps else fps / take.fps
+    scene.render.fps, scene.render.fps_base = fps, base
     scene.frame_start, scene.frame_end = 1, take.frames
     scene.frame_set(1)
 
