@@ -73,6 +73,31 @@ fn a_styled_take_starts_in_its_style_and_its_segments_name_it() {
     }
 }
 
+/// A file holding fewer frames than a start reads (here one pose, cut from an export) starts
+/// a take: the take stands in that pose over the start's seconds and then moves (such a file
+/// was refused: "0.04 s from frame 0 are too few: a start needs 2.00 s").
+#[test]
+fn a_single_pose_starts_a_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    ok(glocal_in(crate_dir, &["generate", "--model", "models/h36m", "--timeline", "phoning:3", "--init", "seed:phoning", "--out", &path("clip.bvh")]), "the clip");
+    let clip = std::fs::read_to_string(path("clip.bvh")).unwrap();
+    let (hierarchy, motion) = clip.split_once("MOTION").unwrap();
+    let lines: Vec<&str> = motion.trim().lines().collect();
+    std::fs::write(path("pose.bvh"), format!("{hierarchy}MOTION\nFrames: 1\n{}\n{}\n", lines[1], lines[2])).unwrap();
+    ok(glocal_in(crate_dir, &["generate", "--model", "models/h36m", "--timeline", "walking:6", "--init", &format!("clip:{}@0", path("pose.bvh")), "--out", &path("take.json")]), "a take from one pose");
+    let take: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path("take.json")).unwrap()).unwrap();
+    let frames: Vec<Vec<[f32; 3]>> = serde_json::from_value(take["frames"].clone()).unwrap();
+    let from_hips = |f: &[[f32; 3]]| f.iter().map(|p| [p[0] - f[0][0], p[1] - f[0][1], p[2] - f[0][2]]).collect::<Vec<_>>();
+    let apart = |a: &[[f32; 3]], b: &[[f32; 3]]| from_hips(a).iter().zip(from_hips(b)).map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f32>().sqrt()).fold(0.0f32, f32::max);
+    let held = (1..25).map(|t| apart(&frames[0], &frames[t])).fold(0.0f32, f32::max);
+    let speed = |from: usize| frames[from..].windows(2).map(|w| w[1][0].iter().zip(&w[0][0]).map(|(a, b)| (a - b).powi(2)).sum::<f32>().sqrt()).sum::<f32>() * 25.0 / (frames.len() - from - 1) as f32;
+    println!("one pose: held within {held:.5} m over the first second; the hips then travel at {:.2} m/s", speed(75));
+    assert!(held < 1e-3, "the first second moves {held} m from the pose");
+    assert!(speed(75) > 0.3, "the take does not walk after the pose: {} m/s", speed(75));
+}
+
 /// Outside the checkout, with no --model, the command line finds the shipped model the way
 /// the studio does; and `--project` generates on the project's own model (a Bandai project
 /// with Bandai's classes), not on h36m.

@@ -37,7 +37,9 @@ pub struct GenerateArgs {
     #[arg(long, default_value_t = 1.0)]
     pub pace: f32,
     /// seed:CLASS, seed:N, or clip:PATH@FRAME (a BVH, NPY or exponential-map file; FRAME the
-    /// file's own). Default: the first seed-bank window of the first segment's class.
+    /// file's own; a file shorter than the start's 2 s, one pose even, holds its frame FRAME
+    /// before the rest). Default: the first seed-bank window of the first segment's class, in
+    /// the style that segment names where the class has one.
     #[arg(long)]
     pub init: Option<String>,
     /// Plain interpolation between sparse poses instead of LocGen.

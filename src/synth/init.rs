@@ -1,6 +1,7 @@
 //! The first sparse poses of a take: from the model's seed bank, or from a motion file on
 //! the model's skeleton (or a BVH of another humanoid skeleton, retargeted).
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -68,17 +69,8 @@ pub fn initial_features(model: &GlocalModel, init: &InitPose) -> Result<(Vec<f32
         }
         InitPose::File { path, frame, joint_map } => {
             let file = read_on_model_skeleton(model, path, joint_map.as_ref())?;
-            let at = file.frame_of(*frame)?;
-            let motion = &file.motion;
-            let needed = at + spec.stride * spec.block_len;
-            if motion.frames() <= needed {
-                let seconds = (spec.stride * spec.block_len) as f32 / spec.fps;
-                bail!(
-                    "{}: {:.2} s from frame {frame} (of {} at {} fps) are too few: a start needs {seconds:.2} s ({} sparse poses {} frames apart at the model's {} fps)",
-                    path.display(), (motion.frames() - at) as f32 / spec.fps, file.file_frames, file.file_fps, spec.block_len, spec.stride, spec.fps
-                );
-            }
-            let motion = motion.translated(Vec3::new(0.0, FileStart::of(model, motion, at).lift, 0.0));
+            let (motion, at) = start_window(model, &file.motion, file.frame_of(*frame)?);
+            let motion = motion.translated(Vec3::new(0.0, FileStart::of(model, &motion, at).lift, 0.0));
             let start = at + spec.stride;
             Ok((spec.layout.encode_motion(&motion, start, spec.stride, spec.block_len), Placement::default()))
         }
@@ -92,10 +84,27 @@ pub fn given_frames(model: &GlocalModel, init: &InitPose) -> Result<Option<Vec<V
     let InitPose::File { path, frame, joint_map } = init else { return Ok(None) };
     let spec = &model.spec;
     let file = read_on_model_skeleton(model, path, joint_map.as_ref())?;
-    let (motion, at) = (&file.motion, file.frame_of(*frame)?);
-    let start = FileStart::of(model, motion, at);
+    let (motion, at) = start_window(model, &file.motion, file.frame_of(*frame)?);
+    let start = FileStart::of(model, &motion, at);
     let frames = at + spec.stride..=at + spec.stride * spec.block_len;
     Ok(Some(frames.filter(|&f| f < motion.frames()).flat_map(|f| start.apply(motion.frame(f))).collect()))
+}
+
+/// The frames a start reads from model-rate frame `at` of a file's `motion`, and where they
+/// begin: the file itself where it holds the start's seconds from there; where it holds fewer
+/// (a single pose, a clip shorter than the start), its frame `at` held before the rest, so the
+/// take stands in that pose and goes on from the file's last frame. (A start used to refuse
+/// such a file: a pose from a rig, the commonest start an animator has, could not start a take.)
+fn start_window<'m>(model: &GlocalModel, motion: &'m Motion, at: usize) -> (Cow<'m, Motion>, usize) {
+    let spec = &model.spec;
+    let window = spec.stride * spec.block_len + 1;
+    let left = motion.frames().saturating_sub(at);
+    if left >= window {
+        return (Cow::Borrowed(motion), at);
+    }
+    let held = std::iter::repeat_n(motion.frame(at), window - left).flatten();
+    let positions: Vec<Vec3> = held.chain(motion.positions()[at * motion.joints()..].iter()).copied().collect();
+    (Cow::Owned(Motion::from_positions(motion.skeleton.clone(), motion.fps, positions)), 0)
 }
 
 /// Where a take started from frame `frame` of a motion file puts the file's world: that
