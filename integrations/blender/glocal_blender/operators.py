@@ -146,24 +146,27 @@ class GLOCAL_OT_generate(bpy.types.Operator):
 class Continued:
     """The armature's own motion a take continues: the seconds a take's start reads, ending
     at the current frame (one frame past it, for the resampling to the model's rate), as a
-    BVH text, and where its root stands at the take's first frame. A ValueError names what
-    is missing when the armature has none to give."""
+    BVH text, and where its root stands at the take's first frame. An armature without an
+    action gives its current pose, one whose action starts later what it has: glocal holds
+    a short start's first pose before the rest."""
 
     def __init__(self, scene, arm, info):
         action = arm.animation_data.action if arm.animation_data else None
-        if action is None:
-            raise ValueError(f"{arm.name} has no animation to continue: untick Continue the animation or give it an action")
         fps = scene.render.fps / scene.render.fps_base
         current = scene.frame_current
         # A scene rate a hair over a whole number (Blender keeps its base in single precision)
         # asks for no frame more.
-        first = current - math.ceil(info["start_seconds"] * fps - 1e-3)
-        if first < action.frame_range[0]:
-            raise ValueError(f"{arm.name}'s animation starts at frame {action.frame_range[0]:g}: continuing from frame {current} needs it from frame {first} ({info['start_seconds']:g} s before)")
-        self.bvh = bvh_io.posed_bvh(arm, scene, range(first, current + 2))
-        # The take begins one sparse step into the file (the step before is its first pose's
-        # context): there its root is to stand as the armature's did.
-        at = first + round(info["stride"] / info["fps"] * fps)
+        wanted = current - math.ceil(info["start_seconds"] * fps - 1e-3)
+        if action is None:
+            first, frames = current, [current]
+        else:
+            first = max(wanted, min(current, math.ceil(action.frame_range[0])))
+            frames = range(first, current + 2)
+        self.bvh = bvh_io.posed_bvh(arm, scene, frames)
+        # The take begins one sparse step into the start (the step before is its first pose's
+        # context), the frames the file lacks held before it: there its root is to stand as
+        # the armature's did.
+        at = first + max(0, round(info["stride"] / info["fps"] * fps) - (first - wanted))
         self.root = bvh_io.root_turn(arm, scene, at)
 
     def place(self, take):

@@ -73,8 +73,8 @@ class GlocalSettings(bpy.types.PropertyGroup):
     active_segment: bpy.props.IntProperty(default=0)
     seed: bpy.props.IntProperty(name="Seed", default=0, min=0, description="0: the model's own take; others vary it")
     continue_action: bpy.props.BoolProperty(
-        name="Continue the animation", default=False,
-        description="Start from the armature's own motion in the seconds before the current frame (as many as the model reads: 2 s on the shipped models), which the take begins with, instead of the model's own start")
+        name="Continue from the armature", default=False,
+        description="Start from the armature's own motion in the seconds before the current frame (as many as the model reads: 2 s on the shipped models; its current pose, held, where it has no animation), which the take begins with, instead of the model's own start")
     running: bpy.props.BoolProperty(default=False)
     progress: bpy.props.FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR")
     status: bpy.props.StringProperty(default="")
