@@ -18,6 +18,7 @@ use crate::motion::Side;
 use crate::synth::constraints::{Key, RootPath};
 use crate::synth::render::class_color;
 use crate::synth::{SegmentSpan, Timeline};
+use crate::synth::timeline::spelled;
 
 /// The shortest segment the timeline allows, in seconds.
 pub const MIN_SECONDS: f32 = 0.4;
@@ -443,10 +444,8 @@ impl Pass<'_> {
 /// style it asks for, as the command line spells them (`walking/tired`), duration (and the take's, `made`, where the rounding to whole sparse steps at its pace
 /// changed it), pace and transition.
 fn segment_label(seg: &crate::synth::Segment, k: usize, known: bool, made: Option<f32>) -> String {
-    let mut name = if known { seg.class.clone() } else { format!("{}?", seg.class) };
-    if let Some(style) = &seg.style {
-        name.push_str(&format!("/{style}"));
-    }
+    let class = if known { seg.class.clone() } else { format!("{}?", seg.class) };
+    let name = spelled(&class, seg.style.as_deref());
     let mut length = format!("{:.1}s", seg.seconds);
     if let Some(made) = made.filter(|m| (m - seg.seconds).abs() >= 0.05) {
         length.push_str(&format!(" (makes {made:.2}s)"));

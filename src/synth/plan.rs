@@ -34,10 +34,7 @@ pub struct SegmentSpan {
 impl SegmentSpan {
     /// The segment as the timeline names it: `CLASS` or `CLASS/STYLE`.
     pub fn label(&self) -> String {
-        match &self.style {
-            Some(style) => format!("{}/{style}", self.name),
-            None => self.name.clone(),
-        }
+        super::timeline::spelled(&self.name, self.style.as_deref())
     }
 }
 

@@ -127,6 +127,14 @@ fn meant(name: &str, names: &[String]) -> String {
 }
 
 /// Where a model's class or style `name` is among `names`, whatever its case.
+/// An activity as a timeline spells it: `CLASS`, or `CLASS/STYLE` where it names a style.
+pub fn spelled(class: &str, style: Option<&str>) -> String {
+    match style {
+        Some(style) => format!("{class}/{style}"),
+        None => class.to_string(),
+    }
+}
+
 fn position_of(names: &[String], name: &str) -> Option<usize> {
     names.iter().position(|n| n.eq_ignore_ascii_case(name))
 }
@@ -196,8 +204,7 @@ impl fmt::Display for Timeline {
                 let pace = s.pace.map(|p| format!("@{p}")).unwrap_or_default();
                 let transition = s.transition.map(|t| format!("~{t}")).unwrap_or_default();
                 let seed = s.seed.map(|n| format!("#{n}")).unwrap_or_default();
-                let style = s.style.as_ref().map(|n| format!("/{n}")).unwrap_or_default();
-                format!("{}{style}:{}{pace}{transition}{seed}", s.class, s.seconds)
+                format!("{}:{}{pace}{transition}{seed}", spelled(&s.class, s.style.as_deref()), s.seconds)
             })
             .collect();
         f.write_str(&parts.join(","))
