@@ -2,7 +2,7 @@
 //! than asked, and the cycle of about the asked length whose end best continues its start
 //! cut out of it and closed ([`crate::motion::cycle`]).
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 
 use super::generate::continuous_take;
 use super::generated::Generated;
@@ -46,9 +46,8 @@ pub fn generate_loop(model: &GlocalModel, opts: &GenerateOptions, progress: &mut
     let take = continuous_take(model, &longer, progress)?;
     let (motion, cycle) = closed_cycle(&take.motion, &CycleSearch { starts, lengths })?;
     let range = cycle.start..cycle.start + cycle.frames;
-    let segments = match take.segments.first() {
-        Some(first) => vec![SegmentSpan { start_frame: 0, end_frame: cycle.frames, ..first.clone() }],
-        None => vec![SegmentSpan { class: 0, name: segment.class.clone(), start_frame: 0, end_frame: cycle.frames, style: segment.style.clone() }],
-    };
+    // The take of a one-segment timeline has that segment's span.
+    let first = take.segments.first().context("the loop's take has no segment")?;
+    let segments = vec![SegmentSpan { start_frame: 0, end_frame: cycle.frames, ..first.clone() }];
     Ok(Generated { motion, segments, contacts: take.contacts.slice(range), cycle: Some(cycle), ..take })
 }
