@@ -35,14 +35,12 @@ def posed_bvh(arm, scene, frames):
     lines, order = _hierarchy(arm)
     fps = scene.render.fps / scene.render.fps_base
     lines.extend(["MOTION", f"Frames: {len(frames)}", f"Frame Time: {1.0 / fps:.8f}"])
-    world = arm.matrix_world
-    rest = {b.name: (world @ b.matrix_local).to_3x3().normalized() for b in order}
     current = scene.frame_current
     for f in frames:
         scene.frame_set(f)
         # Each bone's turn from its rest pose, in the file's axes (a joint's world turn in a BVH).
-        turns = {b.name: TO_BVH @ (world @ arm.pose.bones[b.name].matrix).to_3x3().normalized() @ rest[b.name].inverted() @ FROM_BVH for b in order}
-        values = [_xyz(TO_BVH @ (world @ arm.pose.bones[order[0].name].head))]
+        turns = {b.name: TO_BVH @ _world_turn(arm, b) @ FROM_BVH for b in order}
+        values = [_xyz(TO_BVH @ (arm.matrix_world @ arm.pose.bones[order[0].name].head))]
         for bone in order:
             local = turns[bone.name] if bone.parent is None else turns[bone.parent.name].inverted() @ turns[bone.name]
             # Channels Z X Y: the turn is Rz Rx Ry, Blender's Euler order YXZ.
@@ -59,11 +57,15 @@ def root_turn(arm, scene, frame):
     current = scene.frame_current
     scene.frame_set(frame)
     root = next(b for b in arm.data.bones if b.parent is None)
-    world = arm.matrix_world
-    turn = (world @ arm.pose.bones[root.name].matrix).to_3x3().normalized() @ (world @ root.matrix_local).to_3x3().normalized().inverted()
-    head = world @ arm.pose.bones[root.name].head
+    turn, head = _world_turn(arm, root), arm.matrix_world @ arm.pose.bones[root.name].head
     scene.frame_set(current)
     return turn, head
+
+
+def _world_turn(arm, bone):
+    """`bone`'s turn from its rest pose in Blender's world, as the scene poses it now."""
+    world = arm.matrix_world
+    return (world @ arm.pose.bones[bone.name].matrix).to_3x3().normalized() @ (world @ bone.matrix_local).to_3x3().normalized().inverted()
 
 
 def heading(turn):
