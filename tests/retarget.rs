@@ -16,6 +16,7 @@ use glocal::data::registry::{expmap_format, Dataset};
 use glocal::model::glocal::GlocalModel;
 use glocal::motion::{mapped_bones, mean_bone_angle, solve_local_poses, Key, KeyJoints, Motion, RestPose, Skeleton};
 use glocal::synth::export::export;
+use glocal::synth::own_start::with_own_start;
 use glocal::synth::rig::{onto_model, onto_skeleton_file};
 use glocal::synth::{generate, GenerateOptions, InitPose};
 
@@ -324,4 +325,57 @@ fn a_retargeted_toe_points_as_the_sources() {
     }
     println!("the retargeted toe's largest angle from the source's toe: {worst:.1} degrees");
     assert!(worst < 5.0, "the retargeted toe turns {worst:.1} degrees from the source's");
+}
+
+/// The angle in degrees from rotation `b` to `a`, read from the sine of its half (which keeps
+/// its precision near zero, where `Quat::angle_between`'s arc cosine reads 0.04 degrees for
+/// quaternions a bit apart).
+fn turn_between(a: Quat, b: Quat) -> f32 {
+    2.0 * (a * b.inverse()).xyz().length().min(1.0).asin().to_degrees()
+}
+
+/// The largest turn of any bone's direction from one frame to the next over `frames`.
+fn largest_bone_turn(m: &Motion, frames: std::ops::Range<usize>) -> f32 {
+    let parents = m.skeleton.parents();
+    let bone = |t: usize, j: usize| parents[j].and_then(|p| (m.frame(t)[j] - m.frame(t)[p]).try_normalize());
+    frames
+        .flat_map(|t| (0..m.joints()).filter_map(move |j| Some(bone(t, j)?.angle_between(bone(t + 1, j)?).to_degrees())))
+        .fold(0.0, f32::max)
+}
+
+/// A take started from a rig's BVH and retargeted back onto that rig (the Blender add-on's
+/// Continue from the armature) shows the file's own frames over its start, every joint, and
+/// joins on no faster than the file moves. Through the model's joints and back, this
+/// mannequin's start came back with joints turned up to 135 degrees off the file's (where the
+/// model has no joint), its bones pointing 1.5 degrees off on average and its pelvis 22, and
+/// a Rigify leg straightened before the join (tests/blender/check_addon.py).
+#[test]
+fn a_start_retargeted_back_onto_its_own_rig_is_the_rigs_own_frames() {
+    let m = model("h36m");
+    let path = blender_unreal();
+    let frame = 60;
+    let o = GenerateOptions { timeline: "walking:3".parse().unwrap(), init: InitPose::file(path.clone(), frame), ..Default::default() };
+    let take = generate(&m, &o, &mut |_| true).unwrap();
+    let round_trip = onto_skeleton_file(&take.motion, &path, None).unwrap();
+    let kept = with_own_start(&m, &o, round_trip.clone()).unwrap();
+    let file = read_bvh(&std::fs::read_to_string(&path).unwrap(), "salsa").unwrap();
+    let file = file.resample(m.spec.fps);
+    // The take's frame 0 is a sparse step after the file's start frame; its start runs to the
+    // start window's last pose.
+    let first = (frame as f32 * m.spec.fps / 60.0).round() as usize + m.spec.stride;
+    let given = m.spec.stride * (m.spec.block_len - 1) + 1;
+    let parents = kept.skeleton.parents();
+    let worst_off = |take: &Motion| -> f32 {
+        let (ours, theirs) = (take.local_poses.as_ref().unwrap(), file.local_poses.as_ref().unwrap());
+        (0..given)
+            .flat_map(|k| (0..take.joints()).filter(|&j| parents[j].is_some()).map(move |j| turn_between(ours[k].rotations[j], theirs[first + k].rotations[j])))
+            .fold(0.0, f32::max)
+    };
+    let (before, after) = (worst_off(&round_trip), worst_off(&kept));
+    let half = (m.spec.fps / 2.0).round() as usize;
+    let (join, own) = (largest_bone_turn(&kept, given - 1..given + half), largest_bone_turn(&file, first..first + given - 1));
+    println!("the start's joints against the file's, worst: {before:.2} degrees through the model's joints, {after:.4} kept; largest bone turn in a frame over the half second after the join {join:.1} degrees, over the file's start {own:.1}");
+    assert!(after < 0.01, "the kept start is {after} degrees off the file's own frames");
+    assert!(before > 5.0, "the round trip alone is {before} degrees off: the test no longer tells the two apart");
+    assert!(join <= 1.5 * own, "a bone turns {join:.1} degrees in one frame after the join, the file's own at most {own:.1}");
 }

@@ -8,6 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::data::joint_map::UserJointMap;
 use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
+use crate::synth::own_start::with_own_start;
 use crate::synth::rig::onto_skeleton_file;
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
@@ -193,7 +194,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     let elapsed = start.elapsed();
     bar.finish_and_clear();
     let motion = match &output.retarget_to {
-        Some(skeleton) => onto_skeleton_file(&take.motion, skeleton, request.joint_map.as_ref())?,
+        Some(skeleton) => with_own_start(&model, &request.options, onto_skeleton_file(&take.motion, skeleton, request.joint_map.as_ref())?)?,
         None => take.motion.clone(),
     };
     let options = ExportOptions { units: output.units.into(), fps: output.fps, source_root: false, root_motion: output.root_motion.into() };

@@ -14,7 +14,7 @@ use super::finish_thread::{FinishingThread, Shown};
 use super::course::HoldCourse;
 use super::foot_lock::Travel;
 use super::generated::{Generated, TakeEvents};
-use super::given::{GivenFloor, GivenStart};
+use super::given::{keeps_given_frames, GivenFloor, GivenStart};
 use super::held::HeldConstraint;
 use super::init::{given_frames, initial_features};
 use super::keys::{filled_gaps, learnt_travel, place_keys, KeyConstraint, PlacedKey};
@@ -159,9 +159,7 @@ fn pose_classes(block_classes: &[usize], block_len: usize, total: usize) -> Vec<
 fn take_constraints<'a>(model: &'a GlocalModel, opts: &GenerateOptions, timeline: &SparseTimeline, (keys, gaps): (Vec<PlacedKey>, Vec<Range<usize>>), held: Option<&'a HeldConstraint>) -> Result<Vec<Box<dyn TakeConstraint + 'a>>> {
     let spec = &model.spec;
     let mut constraints: Vec<Box<dyn TakeConstraint + 'a>> = Vec::new();
-    // The given frames of a file start keep their own timing only at pace 1.
-    let first_pace = opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace);
-    let given = given_frames(model, &opts.init)?.filter(|_| first_pace == 1.0);
+    let given = given_frames(model, &opts.init)?.filter(|_| keeps_given_frames(opts));
     // First: the take onto the given frames' floor, which the keys and the path then keep.
     if let Some(frames) = &given {
         constraints.push(Box::new(GivenFloor { frames: frames.clone() }));

@@ -4,6 +4,7 @@
 
 use glam::Vec3;
 
+use super::options::GenerateOptions;
 use super::plan::TakeConstraint;
 use super::raised_cosine;
 use crate::data::features::FeatureLayout;
@@ -12,7 +13,13 @@ use crate::motion::{solve_local_poses, JointRoles, Motion};
 
 /// Seconds over which the difference between a given start and the generated take fades
 /// out after the start's last frame.
-const GIVEN_BLEND_SECONDS: f32 = 0.5;
+pub(super) const GIVEN_BLEND_SECONDS: f32 = 0.5;
+
+/// Whether a file start's given frames are kept as given: only at the pace they were
+/// captured at (the first segment's pace 1).
+pub(super) fn keeps_given_frames(opts: &GenerateOptions) -> bool {
+    opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace) == 1.0
+}
 
 /// The floor of a file start's given frames as a constraint: the finished take raised or
 /// lowered onto it ([`floor_gap`]), before the keys and the path place what they place in

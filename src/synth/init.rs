@@ -96,15 +96,20 @@ pub fn given_frames(model: &GlocalModel, init: &InitPose) -> Result<Option<Vec<V
 /// take stands in that pose and goes on from the file's last frame. (A start used to refuse
 /// such a file: a pose from a rig, the commonest start an animator has, could not start a take.)
 fn start_window<'m>(model: &GlocalModel, motion: &'m Motion, at: usize) -> (Cow<'m, Motion>, usize) {
-    let spec = &model.spec;
-    let window = spec.stride * spec.block_len + 1;
-    let left = motion.frames().saturating_sub(at);
-    if left >= window {
+    let frames = window_frames(model, motion.frames(), at);
+    if frames.windows(2).all(|w| w[1] == w[0] + 1) {
         return (Cow::Borrowed(motion), at);
     }
-    let held = std::iter::repeat_n(motion.frame(at), window - left).flatten();
-    let positions: Vec<Vec3> = held.chain(motion.positions()[at * motion.joints()..].iter()).copied().collect();
+    let positions: Vec<Vec3> = frames.iter().flat_map(|&f| motion.frame(f)).copied().collect();
     (Cow::Owned(Motion::from_positions(motion.skeleton.clone(), motion.fps, positions)), 0)
+}
+
+/// Which of a file's `frames` (at the model's rate) each frame of [`start_window`] is, for a
+/// start from frame `at`: `at` on, its first held as long as the file falls short.
+pub(super) fn window_frames(model: &GlocalModel, frames: usize, at: usize) -> Vec<usize> {
+    let window = model.spec.stride * model.spec.block_len + 1;
+    let held = window.saturating_sub(frames.saturating_sub(at));
+    (0..window).map(|i| at + i.saturating_sub(held)).collect()
 }
 
 /// Where a take started from frame `frame` of a motion file puts the file's world: that
@@ -213,6 +218,22 @@ impl FileMotion {
         let at = (frame as f64 * self.motion.fps as f64 / self.file_fps as f64).round() as usize;
         Ok(at.min(self.motion.frames().saturating_sub(1)))
     }
+}
+
+/// A BVH start on its own skeleton at the model's frame rate, its local rotations kept: what
+/// a take retargeted back onto that skeleton shows over its start ([`super::own_start`]).
+pub(super) fn read_on_own_skeleton(model: &GlocalModel, path: &Path) -> Result<FileMotion> {
+    let name = path.display().to_string();
+    let text = read_text(path, MAX_MOTION_BYTES)?;
+    let m = read_bvh_with_unit(&text, &name, model.spec.source_skeleton.meters_per_unit())?;
+    let (file_fps, file_frames) = (m.fps, m.frames());
+    let resampled = m.resample(model.spec.fps);
+    let motion = match resampled.local_poses {
+        // Positions from the slerped rotations, not the interpolated positions they came with.
+        Some(poses) => Motion::from_local_poses(resampled.skeleton, resampled.fps, poses),
+        None => resampled,
+    };
+    Ok(FileMotion { motion, file_fps, file_frames, name })
 }
 
 /// Reads a BVH, NPY or exponential-map file and brings it onto the model's joints and

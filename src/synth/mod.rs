@@ -19,6 +19,7 @@ pub mod keys;
 pub mod looping;
 pub mod model_switch;
 pub mod options;
+pub mod own_start;
 mod pace;
 pub mod path_follow;
 mod plan;

@@ -330,14 +330,12 @@ def check_markers(action, take, label, failures):
 
 def check_continue(arm, label, failures):
     """Generate with Continue from the armature: the new take begins with the armature's own
-    motion of the seconds before the current frame, standing and facing where it did: over
-    those frames (but the last sparse step, over which the take joins on) every bone but the
-    toes within 1 degree on average and 5 at worst, the root within 2 cm; and from a pose
-    without an action ([`check_from_a_pose`]). A toe comes back up to 48 degrees off
-    on the Mixamo-named rig (printed; the Rigify metarig's within 0.1): a file's toes are read
-    as carried by their foot (`motion::retarget`, `with_toes_to_tips` is for generated takes
-    only: a capture's toe markers whip with the foot), and the take's toes then turn to their
-    tips as the model's own do."""
+    motion of the seconds before the current frame, standing and facing where it did, every
+    bone, the toes too, up to the current frame, where the take joins on (glocal keeps a start
+    retargeted back onto its own rig as the rig's frames: `synth::own_start`); over the half
+    second after it no bone turns in one frame more than 1.5 times the most one did in those
+    seconds of the armature's (no snap at the join); and from a pose without an action
+    ([`check_from_a_pose`])."""
     from glocal_blender import properties
     select_only(arm)
     scene, settings = bpy.context.scene, bpy.context.scene.glocal
@@ -345,13 +343,17 @@ def check_continue(arm, label, failures):
     fps = scene.render.fps / scene.render.fps_base
     old = arm.animation_data.action
     bones = [b.name for b in arm.pose.bones if b.bone.use_deform or b.parent is None]
-    toes = {n for n in bones if "toe" in n.lower()}
 
     def pose(action, frame):
         arm.animation_data.action = action
         scene.frame_set(frame)
         world = arm.matrix_world
         return {n: (world @ arm.pose.bones[n].tail - world @ arm.pose.bones[n].head).normalized() for n in bones}, world @ arm.pose.bones[bones[0]].head
+
+    def largest_turn(action, frames):
+        """The most any bone turns from one of `frames` to the next."""
+        dirs = [pose(action, k)[0] for k in frames]
+        return max(degrees(a[n].angle(b[n])) for a, b in zip(dirs, dirs[1:]) for n in bones if a[n].length > 0 and b[n].length > 0)
 
     current = scene.frame_start + round(info["start_seconds"] * fps) + 20
     scene.frame_set(current)
@@ -364,28 +366,28 @@ def check_continue(arm, label, failures):
         # The take's first frame is one sparse step into the armature's seconds; its frame
         # `joins` is the current frame.
         joins = round(info["start_seconds"] * fps) - round(info["stride"] / info["fps"] * fps) + 1
-        # Over its last sparse step the take joins on: the seconds before it are the armature's.
-        step = round(info["stride"] / info["fps"] * fps)
-        angles, toe_angles, apart = [], [], 0.0
-        for k in range(1, joins - step):
+        angles, apart = [], 0.0
+        for k in range(1, joins + 1):
             (after, root_after), (before, root_before) = pose(new, k), pose(old, current - joins + k)
-            for n in bones:
-                if before[n].length > 0 and after[n].length > 0:
-                    (toe_angles if n in toes else angles).append(degrees(before[n].angle(after[n])))
+            angles += [degrees(before[n].angle(after[n])) for n in bones if before[n].length > 0 and after[n].length > 0]
             apart = max(apart, (root_after - root_before).length)
         mean = sum(angles) / len(angles)
-        toe = max(toe_angles, default=0.0)
-        print(f"{label}: continued from frame {current}: its frames 1-{joins - step - 1} against the animation's, bones but the toes mean {mean:.2f} deg, worst {max(angles):.2f}; toes worst {toe:.1f}; root at most {100 * apart:.2f} cm apart")
-        if mean > 1.0 or max(angles) > 5.0 or apart > 0.02:
+        half = round(fps / 2)
+        own, after_join = largest_turn(old, range(current - joins + 1, current + 1)), largest_turn(new, range(joins, joins + half + 1))
+        print(f"{label}: continued from frame {current}: its frames 1-{joins} against the animation's, every bone mean {mean:.2f} deg, worst {max(angles):.2f}; root at most {100 * apart:.2f} cm apart; "
+              f"largest bone turn in a frame over the half second after the join {after_join:.1f} deg, over the armature's seconds {own:.1f}")
+        if mean > 0.1 or max(angles) > 1.0 or apart > 0.01:
             failures.append(f"{label}: the continued take is {mean:.2f} deg (worst {max(angles):.2f}) and {100 * apart:.2f} cm from the animation it continues")
-        check_from_a_pose(arm, new, pose, bones, toes, label, failures)
+        if after_join > 1.5 * own:
+            failures.append(f"{label}: a bone turns {after_join:.1f} deg in one frame after the join, the armature's at most {own:.1f}")
+        check_from_a_pose(arm, new, pose, bones, label, failures)
     finally:
         settings.continue_action = False
 
 
-def check_from_a_pose(arm, action, pose, bones, toes, label, failures):
+def check_from_a_pose(arm, action, pose, bones, label, failures):
     """An armature without an action continues from its current pose: the take holds it
-    over its start (frames 1-25 within 1 degree but the toes, root within 2 cm) and then
+    over its start (frames 1-25 within 1 degree, every bone; root within 2 cm) and then
     moves."""
     scene = bpy.context.scene
     (posed, root_posed) = pose(action, 30)
@@ -398,10 +400,10 @@ def check_from_a_pose(arm, action, pose, bones, toes, label, failures):
     worst, apart = 0.0, 0.0
     for k in range(1, 26):
         (after, root_after) = pose(new, k)
-        worst = max([worst] + [degrees(posed[n].angle(after[n])) for n in bones if n not in toes and posed[n].length > 0 and after[n].length > 0])
+        worst = max([worst] + [degrees(posed[n].angle(after[n])) for n in bones if posed[n].length > 0 and after[n].length > 0])
         apart = max(apart, (root_after - root_posed).length)
     (_, root_end) = pose(new, int(new.frame_range[1]))
-    print(f"{label}: continued from a pose: frames 1-25 within {worst:.2f} deg of it but the toes, root within {100 * apart:.2f} cm; then {(root_end - root_posed).length:.2f} m on")
+    print(f"{label}: continued from a pose: frames 1-25 within {worst:.2f} deg of it, root within {100 * apart:.2f} cm; then {(root_end - root_posed).length:.2f} m on")
     if worst > 1.0 or apart > 0.02 or (root_end - root_posed).length < 0.5:
         failures.append(f"{label}: a take from a pose: frames 1-25 {worst:.2f} deg and {100 * apart:.2f} cm off it, {(root_end - root_posed).length:.2f} m walked")
 
