@@ -329,19 +329,21 @@ def check_markers(action, take, label, failures):
 
 
 def check_continue(arm, label, failures):
-    """Generate with Continue from the armature: the new take begins with the armature's own
-    motion of the seconds before the current frame, standing and facing where it did, every
-    bone, the toes too, up to the current frame, where the take joins on (glocal keeps a start
-    retargeted back onto its own rig as the rig's frames: `synth::own_start`); over the half
-    second after it no bone turns in one frame more than 1.5 times the most one did in those
-    seconds of the armature's (no snap at the join); and from a pose without an action
-    ([`check_from_a_pose`])."""
+    """Generate with Continue from the armature, the scene at 24 fps (a film's rate, not the
+    model's): one new Action, the armature's own up to the current frame (every bone where it
+    was, to a hundredth of a degree, the root to a tenth of a millimetre), then the take at the
+    scene's rate (which stays 24 fps), turning no bone more in one frame over the half second
+    after the join than the armature's own did over the seconds before it (glocal keeps a start
+    retargeted back onto its own rig as the rig's frames: `synth::own_start`); the take's first
+    segment marked on the frame after the join; the armature's Action as it was; and from a
+    pose without an action ([`check_from_a_pose`])."""
     from glocal_blender import properties
     select_only(arm)
     scene, settings = bpy.context.scene, bpy.context.scene.glocal
     info = properties.model_info(settings.model)
-    fps = scene.render.fps / scene.render.fps_base
+    scene.render.fps, scene.render.fps_base = 24, 1.0
     old = arm.animation_data.action
+    state = action_state(old)
     bones = [b.name for b in arm.pose.bones if b.bone.use_deform or b.parent is None]
 
     def pose(action, frame):
@@ -355,7 +357,7 @@ def check_continue(arm, label, failures):
         dirs = [pose(action, k)[0] for k in frames]
         return max(degrees(a[n].angle(b[n])) for a, b in zip(dirs, dirs[1:]) for n in bones if a[n].length > 0 and b[n].length > 0)
 
-    current = scene.frame_start + round(info["start_seconds"] * fps) + 20
+    current = scene.frame_start + round(info["start_seconds"] * 24) + 20
     scene.frame_set(current)
     settings.continue_action = True
     try:
@@ -363,26 +365,64 @@ def check_continue(arm, label, failures):
             failures.append(f"{label}: Continue from the armature did not generate")
             return
         new = arm.animation_data.action
-        # The take's first frame is one sparse step into the armature's seconds; its frame
-        # `joins` is the current frame.
-        joins = round(info["start_seconds"] * fps) - round(info["stride"] / info["fps"] * fps) + 1
         angles, apart = [], 0.0
-        for k in range(1, joins + 1):
-            (after, root_after), (before, root_before) = pose(new, k), pose(old, current - joins + k)
+        for k in range(scene.frame_start, current + 1):
+            (after, root_after), (before, root_before) = pose(new, k), pose(old, k)
             angles += [degrees(before[n].angle(after[n])) for n in bones if before[n].length > 0 and after[n].length > 0]
             apart = max(apart, (root_after - root_before).length)
-        mean = sum(angles) / len(angles)
-        half = round(fps / 2)
-        own, after_join = largest_turn(old, range(current - joins + 1, current + 1)), largest_turn(new, range(joins, joins + half + 1))
-        print(f"{label}: continued from frame {current}: its frames 1-{joins} against the animation's, every bone mean {mean:.2f} deg, worst {max(angles):.2f}; root at most {100 * apart:.2f} cm apart; "
-              f"largest bone turn in a frame over the half second after the join {after_join:.1f} deg, over the armature's seconds {own:.1f}")
-        if mean > 0.1 or max(angles) > 1.0 or apart > 0.01:
-            failures.append(f"{label}: the continued take is {mean:.2f} deg (worst {max(angles):.2f}) and {100 * apart:.2f} cm from the animation it continues")
+        own, after_join = largest_turn(old, range(current - 48, current + 1)), largest_turn(new, range(current, current + 13))
+        end = int(new.frame_range[1])
+        markers = sorted((m.frame, m.name) for m in new.pose_markers if m.frame > current)
+        fps = scene.render.fps / scene.render.fps_base
+        print(f"{label}: continued from frame {current} at {fps:g} fps into '{new.name}', frames {int(new.frame_range[0])}-{end}: up to the join every bone within {max(angles):.4f} deg, root {1000 * apart:.3f} mm; "
+              f"largest bone turn in a frame over the half second after the join {after_join:.1f} deg, over the armature's two seconds before {own:.1f}; markers {markers}")
+        if max(angles) > 0.01 or apart > 1e-4:
+            failures.append(f"{label}: the continued Action is {max(angles):.4f} deg and {1000 * apart:.3f} mm off the armature's before the join")
         if after_join > 1.5 * own:
             failures.append(f"{label}: a bone turns {after_join:.1f} deg in one frame after the join, the armature's at most {own:.1f}")
+        if fps != 24 or scene.frame_end != end or (end - current) / fps < 1.0:
+            failures.append(f"{label}: the continued take runs to frame {end} at {fps:g} fps (scene range to {scene.frame_end})")
+        if not markers or markers[0] != (current + 1, "walking"):
+            failures.append(f"{label}: the continued take's markers are {markers}")
+        if action_state(old) != state:
+            failures.append(f"{label}: the armature's Action changed")
+        check_continue_keyed(arm, old, pose, bones, label, failures)
         check_from_a_pose(arm, new, pose, bones, label, failures)
     finally:
         settings.continue_action = False
+
+
+def check_continue_keyed(arm, source, pose, bones, label, failures):
+    """Continue from an animation keyed by hand: `source`'s poses keyed every 20 frames on
+    every bone, Blender's own Bezier curves with automatic handles, the current frame between
+    two keys. The new Action up to the current frame is that animation to a hundredth of a
+    degree, though its keys after the current frame are gone and the last one before it has a
+    new neighbour."""
+    scene = bpy.context.scene
+    keyed = bpy.data.actions.new("keyed by hand")
+    for frame in (1, 20, 40, 60, 80):
+        arm.animation_data.action = source
+        scene.frame_set(frame)
+        posed = {b.name: (b.location.copy(), b.rotation_quaternion.copy(), b.rotation_euler.copy()) for b in arm.pose.bones}
+        arm.animation_data.action = keyed
+        for b in arm.pose.bones:
+            b.location, b.rotation_quaternion, b.rotation_euler = posed[b.name]
+            b.keyframe_insert("location", frame=frame)
+            b.keyframe_insert("rotation_quaternion" if b.rotation_mode == "QUATERNION" else "rotation_euler", frame=frame)
+    current = 69
+    scene.frame_set(current)
+    if "FINISHED" not in bpy.ops.glocal.generate(timeline="walking:3"):
+        failures.append(f"{label}: Continue from a keyed animation did not generate")
+        return
+    new = arm.animation_data.action
+    worst, apart = 0.0, 0.0
+    for k in range(1, current + 1):
+        (after, root_after), (before, root_before) = pose(new, k), pose(keyed, k)
+        worst = max([worst] + [degrees(before[n].angle(after[n])) for n in bones if before[n].length > 0 and after[n].length > 0])
+        apart = max(apart, (root_after - root_before).length)
+    print(f"{label}: continued from frame {current} of an animation keyed every 20 frames: up to the join every bone within {worst:.4f} deg, root {1000 * apart:.3f} mm")
+    if worst > 0.01 or apart > 1e-4:
+        failures.append(f"{label}: continuing a keyed animation moved it by {worst:.4f} deg and {1000 * apart:.3f} mm before the join")
 
 
 def check_from_a_pose(arm, action, pose, bones, label, failures):

@@ -7,7 +7,7 @@ Both files are in world space (the armature object's location, rotation and scal
 so a rig imported lying in its own y-up space with a 0.01 scale (as Mixamo FBX files come in)
 stands up and measures in metres for glocal like any other.
 """
-from math import atan2, degrees, radians
+from math import atan2, degrees, floor, radians
 
 from mathutils import Matrix, Vector
 
@@ -28,16 +28,15 @@ def rig_bvh(arm):
     return "\n".join(lines) + "\n"
 
 
-def posed_bvh(arm, scene, frames):
-    """The armature as the scene poses it at each of `frames` (scene frame numbers), on the
-    rest hierarchy of [`rig_bvh`], at the scene's frame rate: each joint's turn from its rest
-    pose, the root's head where it stands."""
+def posed_bvh(arm, scene, frames, fps):
+    """The armature as the scene poses it at each of `frames` (scene frame numbers, whole or
+    not), on the rest hierarchy of [`rig_bvh`], as a BVH at `fps`: each joint's turn from its
+    rest pose, the root's head where it stands."""
     lines, order = _hierarchy(arm)
-    fps = scene.render.fps / scene.render.fps_base
     lines.extend(["MOTION", f"Frames: {len(frames)}", f"Frame Time: {1.0 / fps:.8f}"])
     current = scene.frame_current
     for f in frames:
-        scene.frame_set(f)
+        _frame_set(scene, f)
         # Each bone's turn from its rest pose, in the file's axes (a joint's world turn in a BVH).
         turns = {b.name: TO_BVH @ _world_turn(arm, b) @ FROM_BVH for b in order}
         values = [_xyz(TO_BVH @ (arm.matrix_world @ arm.pose.bones[order[0].name].head))]
@@ -51,11 +50,17 @@ def posed_bvh(arm, scene, frames):
     return "\n".join(lines) + "\n"
 
 
+def _frame_set(scene, frame):
+    """Poses the scene at `frame`, a whole scene frame or between two."""
+    whole = floor(frame)
+    scene.frame_set(int(whole), subframe=frame - whole)
+
+
 def root_turn(arm, scene, frame):
     """The armature's root bone at scene `frame`: its world turn from its rest pose and its
     head, in Blender's world (as [`read_take`] gives a take's joints)."""
     current = scene.frame_current
-    scene.frame_set(frame)
+    _frame_set(scene, frame)
     root = next(b for b in arm.data.bones if b.parent is None)
     turn, head = _world_turn(arm, root), arm.matrix_world @ arm.pose.bones[root.name].head
     scene.frame_set(current)

@@ -75,7 +75,7 @@ class GLOCAL_OT_generate(bpy.types.Operator):
         self.arm = selected_armature(context)
         try:
             self.continued = Continued(context.scene, self.arm, properties.model_info(settings.model)) if settings.continue_action else None
-            start = self.continued.bvh if self.continued else None
+            start = (self.continued.bvh, self.continued.fps) if self.continued else None
             self._run = runner.Run(binary, bpy.path.abspath(settings.model), self.text, settings.seed, self.arm, start)
         except (OSError, ValueError) as e:
             self.report({"ERROR"}, str(e))
@@ -93,12 +93,15 @@ class GLOCAL_OT_generate(bpy.types.Operator):
         except (RuntimeError, OSError, ValueError) as e:
             self.report({"ERROR"}, str(e).splitlines()[0] if str(e) else "glocal failed")
             return {"CANCELLED"}
-        if self.continued:
-            self.continued.place(take)
         # Keying a long take on a big rig takes a while too: the cursor shows how far it is.
         wm = context.window_manager
         wm.progress_begin(0, 100)
-        put_on_armature(context.scene, self.arm, take, self.text, lambda done: wm.progress_update(int(100 * done)))
+        progress = lambda done: wm.progress_update(int(100 * done))
+        if self.continued:
+            self.continued.place(take)
+            self.continued.put_on_armature(context.scene, self.arm, take, self.text, progress)
+        else:
+            put_on_armature(context.scene, self.arm, take, self.text, progress)
         wm.progress_end()
         self.report({"INFO"}, f"{self.text}: {take.frames} frames at {take.fps:g} fps on {self.arm.name}")
         return {"FINISHED"}
@@ -144,30 +147,29 @@ class GLOCAL_OT_generate(bpy.types.Operator):
 
 
 class Continued:
-    """The armature's own motion a take continues: the seconds a take's start reads, ending
-    at the current frame (one frame past it, for the resampling to the model's rate), as a
-    BVH text, and where its root stands at the take's first frame. An armature without an
-    action gives its current pose, one whose action starts later what it has: glocal holds
-    a short start's first pose before the rest."""
+    """The armature's own animation a take continues (Continue from the armature): the seconds
+    a take's start reads, ending at the current frame (or a fraction of a frame after it),
+    sampled at the model's frame rate as a BVH; the scene frame the take's first frame falls
+    on (a whole one: glocal gives the take at the scene's frame rate, counted from there);
+    and where the armature's root stands then. An armature without an action continues from
+    its current pose, the take beginning at the current frame and holding it over its start;
+    an action that starts later than those seconds holds its first pose before it, as
+    Blender shows it."""
 
     def __init__(self, scene, arm, info):
-        action = arm.animation_data.action if arm.animation_data else None
-        fps = scene.render.fps / scene.render.fps_base
-        current = scene.frame_current
-        # A scene rate a hair over a whole number (Blender keeps its base in single precision)
-        # asks for no frame more.
-        wanted = current - math.ceil(info["start_seconds"] * fps - 1e-3)
-        if action is None:
-            first, frames = current, [current]
-        else:
-            first = max(wanted, min(current, math.ceil(action.frame_range[0])))
-            frames = range(first, current + 2)
-        self.bvh = bvh_io.posed_bvh(arm, scene, frames)
-        # The take begins one sparse step into the start (the step before is its first pose's
-        # context), the frames the file lacks held before it: there its root is to stand as
-        # the armature's did.
-        at = first + max(0, round(info["stride"] / info["fps"] * fps) - (first - wanted))
-        self.root = bvh_io.root_turn(arm, scene, at)
+        self.fps = scene.render.fps / scene.render.fps_base
+        self.action = arm.animation_data.action if arm.animation_data else None
+        self.current = scene.frame_current
+        step = info["stride"] / info["fps"]
+        # From the take's first frame (a sparse step into its start) to the end of its start.
+        lead = info["start_seconds"] - step
+        # The start ends at the current frame or up to a frame after it (a scene rate a hair
+        # under a whole number, as Blender's single-precision base gives, counts as that number).
+        self.first = self.current - (math.floor(lead * self.fps + 1e-3) if self.action else 0)
+        begin = self.first - step * self.fps
+        samples = [begin + i * self.fps / info["fps"] for i in range(round(info["start_seconds"] * info["fps"]) + 1)]
+        self.bvh = bvh_io.posed_bvh(arm, scene, samples, info["fps"])
+        self.root = bvh_io.root_turn(arm, scene, self.first)
 
     def place(self, take):
         """Turns `take` about the vertical and moves it so that its root stands at its first
@@ -179,6 +181,23 @@ class Continued:
         shift = position - spin @ take.positions[0][0]
         take.rotations = [[spin @ r for r in frame] for frame in take.rotations]
         take.positions = [[spin @ p + shift for p in frame] for frame in take.positions]
+
+    def put_on_armature(self, scene, arm, take, name, progress):
+        """The armature's Action up to the current frame, then the take, as a new Action (the
+        old one kept, with a fake user); the take's segments marked where they begin after the
+        current frame; the scene's frame rate kept and its range run to the take's end. With
+        no action to continue, the take from the current frame, and the scene's range from it."""
+        if self.action is None:
+            new = action.new_action(arm, take, name, progress, first=self.first)
+        else:
+            new = action.continued_action(arm, self.action, take, f"{self.action.name} + {name}", self.first, self.current, progress)
+        for label, first in take.segments:
+            new.pose_markers.new(label).frame = max(self.first + first, self.current + 1 if self.action else self.first)
+        use_action(arm, new)
+        if self.action is None:
+            scene.frame_start = self.first
+        scene.frame_end = self.first + take.frames - 1
+        scene.frame_set(self.current)
 
 
 # For the progress estimate: `glocal generate` took 0.18 s for a 7 s h36m take and 0.44 s for
@@ -208,18 +227,23 @@ def put_on_armature(scene, arm, take, name, progress):
     # them with View > Show Pose Markers) and leave the user's own scene markers alone.
     for label, first in take.segments:
         new.pose_markers.new(label).frame = first + 1
-    if arm.animation_data is None:
-        arm.animation_data_create()
-    previous = arm.animation_data.action
-    if previous is not None:
-        previous.use_fake_user = True
-    arm.animation_data.action = new
+    use_action(arm, new)
     fps = round(take.fps)
     # A BVH's frame time holds a rate like 30 to a few digits (30.0000003): that is 30.
     base = 1.0 if abs(take.fps - fps) < 1e-4 * fps else fps / take.fps
     scene.render.fps, scene.render.fps_base = fps, base
     scene.frame_start, scene.frame_end = 1, take.frames
     scene.frame_set(1)
+
+
+def use_action(arm, new):
+    """Makes `new` the armature's action, its previous one kept with a fake user."""
+    if arm.animation_data is None:
+        arm.animation_data_create()
+    previous = arm.animation_data.action
+    if previous is not None:
+        previous.use_fake_user = True
+    arm.animation_data.action = new
 
 
 class GLOCAL_OT_export_fbx(bpy.types.Operator, ExportHelper):

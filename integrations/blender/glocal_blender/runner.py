@@ -30,7 +30,8 @@ class Run:
 
     def __init__(self, binary, model, timeline, seed, arm, start=None):
         """`start`: the armature's own motion the take continues from, as a BVH text
-        ([`bvh_io.posed_bvh`]), or None for the model's own start."""
+        ([`bvh_io.posed_bvh`]), and the frame rate the take is wanted at (the scene's, whose
+        frames it continues); or None for the model's own start, at the model's rate."""
         self.folder = tempfile.TemporaryDirectory(prefix="glocal-")
         rig = os.path.join(self.folder.name, "rig.bvh")
         self.take_path = os.path.join(self.folder.name, "take.bvh")
@@ -39,10 +40,11 @@ class Run:
         self.command = [binary, "generate", "--model", model, "--timeline", timeline, "--seed", str(seed),
                         "--retarget-to", rig, "--out", self.take_path, "--json"]
         if start is not None:
+            text, fps = start
             start_path = os.path.join(self.folder.name, "start.bvh")
             with open(start_path, "w") as f:
-                f.write(start)
-            self.command += ["--init", f"clip:{start_path}@0"]
+                f.write(text)
+            self.command += ["--init", f"clip:{start_path}@0", "--fps", f"{fps:.6f}"]
         mapping = joint_map(arm)
         if mapping:
             map_path = os.path.join(self.folder.name, "joint_map.json")
