@@ -6,7 +6,7 @@ new Action, and exports it as FBX for Unreal and Unity. See integrations/blender
 bl_info = {
     "name": "Glocal Studio",
     "author": "Glocal Studio",
-    "version": (0, 2, 0),
+    "version": (0, 3, 0),
     "blender": (4, 2, 0),
     "location": "View3D > Sidebar > Glocal",
     "description": "Generate human motion from a timeline onto the selected armature",
