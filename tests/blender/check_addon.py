@@ -296,6 +296,8 @@ def run_rig(rig, timeline, seed, take, out_dir, failures):
         bpy.data.actions.remove(action)
     arm = make()
     select_only(arm)
+    # A scene at the model's frame rate, where the take's frames are the JSON export's.
+    bpy.context.scene.render.fps, bpy.context.scene.render.fps_base = round(take["fps"]), 1.0
     before = existing_action(arm)
     state = action_state(before)
     check_error(arm, before, label, failures)
@@ -314,6 +316,7 @@ def run_rig(rig, timeline, seed, take, out_dir, failures):
     check_generated(arm, keys, take, label, failures)
     check_markers(arm.animation_data.action, take, label, failures)
     check_fbx(arm, out_dir, label, failures)
+    check_scene_rate(arm, take, label, failures)
     check_continue(arm, label, failures)
 
 
@@ -326,6 +329,25 @@ def check_markers(action, take, label, failures):
         failures.append(f"{label}: pose markers {got}, the take's segments {want}")
     else:
         print(f"{label}: pose markers {got}")
+
+
+def check_scene_rate(arm, take, label, failures):
+    """Generate in a scene at 30 fps (a game's rate, not the model's): the scene keeps it,
+    and the take comes at it, as long in seconds as at the model's rate; the test's take is
+    put back after."""
+    select_only(arm)
+    scene = bpy.context.scene
+    before = arm.animation_data.action
+    scene.render.fps = 30
+    bpy.ops.glocal.generate(timeline="walking:2")
+    new = arm.animation_data.action
+    fps = scene.render.fps / scene.render.fps_base
+    frames = int(new.frame_range[1] - new.frame_range[0]) + 1
+    print(f"{label}: generated in a 30 fps scene: {frames} frames, scene {scene.frame_start}-{scene.frame_end} at {fps:g} fps")
+    if fps != 30 or abs((frames - 1) / 30 - 2.0) > 0.1 or scene.frame_end != frames:
+        failures.append(f"{label}: a 2 s take in a 30 fps scene has {frames} frames, the scene {fps:g} fps to frame {scene.frame_end}")
+    scene.render.fps = round(take["fps"])
+    arm.animation_data.action = before
 
 
 def check_continue(arm, label, failures):

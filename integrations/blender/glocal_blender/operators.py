@@ -75,8 +75,9 @@ class GLOCAL_OT_generate(bpy.types.Operator):
         self.arm = selected_armature(context)
         try:
             self.continued = Continued(context.scene, self.arm, properties.model_info(settings.model)) if settings.continue_action else None
-            start = (self.continued.bvh, self.continued.fps) if self.continued else None
-            self._run = runner.Run(binary, bpy.path.abspath(settings.model), self.text, settings.seed, self.arm, start)
+            start = self.continued.bvh if self.continued else None
+            fps = context.scene.render.fps / context.scene.render.fps_base
+            self._run = runner.Run(binary, bpy.path.abspath(settings.model), self.text, settings.seed, self.arm, fps, start)
         except (OSError, ValueError) as e:
             self.report({"ERROR"}, str(e))
             return False
@@ -150,14 +151,14 @@ class Continued:
     """The armature's own animation a take continues (Continue from the armature): the seconds
     a take's start reads, ending at the current frame (or a fraction of a frame after it),
     sampled at the model's frame rate as a BVH; the scene frame the take's first frame falls
-    on (a whole one: glocal gives the take at the scene's frame rate, counted from there);
+    on (a whole one: the take comes at the scene's frame rate, counted from there);
     and where the armature's root stands then. An armature without an action continues from
     its current pose, the take beginning at the current frame and holding it over its start;
     an action that starts later than those seconds holds its first pose before it, as
     Blender shows it."""
 
     def __init__(self, scene, arm, info):
-        self.fps = scene.render.fps / scene.render.fps_base
+        fps = scene.render.fps / scene.render.fps_base
         self.action = arm.animation_data.action if arm.animation_data else None
         self.current = scene.frame_current
         step = info["stride"] / info["fps"]
@@ -165,9 +166,9 @@ class Continued:
         lead = info["start_seconds"] - step
         # The start ends at the current frame or up to a frame after it (a scene rate a hair
         # under a whole number, as Blender's single-precision base gives, counts as that number).
-        self.first = self.current - (math.floor(lead * self.fps + 1e-3) if self.action else 0)
-        begin = self.first - step * self.fps
-        samples = [begin + i * self.fps / info["fps"] for i in range(round(info["start_seconds"] * info["fps"]) + 1)]
+        self.first = self.current - (math.floor(lead * fps + 1e-3) if self.action else 0)
+        begin = self.first - step * fps
+        samples = [begin + i * fps / info["fps"] for i in range(round(info["start_seconds"] * info["fps"]) + 1)]
         self.bvh = bvh_io.posed_bvh(arm, scene, samples, info["fps"])
         self.root = bvh_io.root_turn(arm, scene, self.first)
 
@@ -185,8 +186,8 @@ class Continued:
     def put_on_armature(self, scene, arm, take, name, progress):
         """The armature's Action up to the current frame, then the take, as a new Action (the
         old one kept, with a fake user); the take's segments marked where they begin after the
-        current frame; the scene's frame rate kept and its range run to the take's end. With
-        no action to continue, the take from the current frame, and the scene's range from it."""
+        current frame; the scene's range run to the take's end. With no action to continue, the
+        take from the current frame, and the scene's range from it."""
         if self.action is None:
             new = action.new_action(arm, take, name, progress, first=self.first)
         else:
@@ -220,18 +221,14 @@ def take_seconds(timeline):
 
 def put_on_armature(scene, arm, take, name, progress):
     """The take as a new Action on `arm` (its previous action kept, with a fake user so it is
-    saved), a pose marker naming each segment where it starts, the scene's frame rate and
-    range set to the take's."""
+    saved), a pose marker naming each segment where it starts, the scene's range set to the
+    take's (its frame rate, which the take was made at, kept)."""
     new = action.new_action(arm, take, name, progress)
     # Markers of the Action, not the scene: they go with the take (the Action Editor shows
     # them with View > Show Pose Markers) and leave the user's own scene markers alone.
     for label, first in take.segments:
         new.pose_markers.new(label).frame = first + 1
     use_action(arm, new)
-    fps = round(take.fps)
-    # A BVH's frame time holds a rate like 30 to a few digits (30.0000003): that is 30.
-    base = 1.0 if abs(take.fps - fps) < 1e-4 * fps else fps / take.fps
-    scene.render.fps, scene.render.fps_base = fps, base
     scene.frame_start, scene.frame_end = 1, take.frames
     scene.frame_set(1)
 

@@ -28,23 +28,22 @@ def joint_map(arm):
 class Run:
     """A started `glocal generate` onto `arm`; `poll()` until it returns True, then `result()`."""
 
-    def __init__(self, binary, model, timeline, seed, arm, start=None):
-        """`start`: the armature's own motion the take continues from, as a BVH text
-        ([`bvh_io.posed_bvh`]), and the frame rate the take is wanted at (the scene's, whose
-        frames it continues); or None for the model's own start, at the model's rate."""
+    def __init__(self, binary, model, timeline, seed, arm, fps, start=None):
+        """`fps`: the frame rate the take is wanted at (the scene's). `start`: the armature's
+        own motion the take continues from, as a BVH text ([`bvh_io.posed_bvh`]), or None for
+        the model's own start."""
         self.folder = tempfile.TemporaryDirectory(prefix="glocal-")
         rig = os.path.join(self.folder.name, "rig.bvh")
         self.take_path = os.path.join(self.folder.name, "take.bvh")
         with open(rig, "w") as f:
             f.write(bvh_io.rig_bvh(arm))
         self.command = [binary, "generate", "--model", model, "--timeline", timeline, "--seed", str(seed),
-                        "--retarget-to", rig, "--out", self.take_path, "--json"]
+                        "--retarget-to", rig, "--out", self.take_path, "--json", "--fps", f"{fps:.6f}"]
         if start is not None:
-            text, fps = start
             start_path = os.path.join(self.folder.name, "start.bvh")
             with open(start_path, "w") as f:
-                f.write(text)
-            self.command += ["--init", f"clip:{start_path}@0", "--fps", f"{fps:.6f}"]
+                f.write(start)
+            self.command += ["--init", f"clip:{start_path}@0"]
         mapping = joint_map(arm)
         if mapping:
             map_path = os.path.join(self.folder.name, "joint_map.json")
