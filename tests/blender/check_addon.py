@@ -415,36 +415,37 @@ def check_continue(arm, label, failures):
 
 
 def check_continue_keyed(arm, source, pose, bones, label, failures):
-    """Continue from an animation keyed by hand: `source`'s poses keyed every 20 frames on
-    every bone, Blender's own Bezier curves with automatic handles, the current frame between
-    two keys. The new Action up to the current frame is that animation to a hundredth of a
-    degree, though its keys after the current frame are gone and the last one before it has a
-    new neighbour."""
+    """Continue from animations keyed by hand: `source`'s poses keyed on every bone at a few
+    frames, Blender's own Bezier curves with automatic handles; the current frame between two
+    keys, or before the first (the animation holding its first pose there). The new Action up
+    to the current frame is that animation to a hundredth of a degree, though its keys after
+    the current frame are gone and the last one before it has a new neighbour."""
     scene = bpy.context.scene
-    keyed = bpy.data.actions.new("keyed by hand")
-    for frame in (1, 20, 40, 60, 80):
-        arm.animation_data.action = source
-        scene.frame_set(frame)
-        posed = {b.name: (b.location.copy(), b.rotation_quaternion.copy(), b.rotation_euler.copy()) for b in arm.pose.bones}
-        arm.animation_data.action = keyed
-        for b in arm.pose.bones:
-            b.location, b.rotation_quaternion, b.rotation_euler = posed[b.name]
-            b.keyframe_insert("location", frame=frame)
-            b.keyframe_insert("rotation_quaternion" if b.rotation_mode == "QUATERNION" else "rotation_euler", frame=frame)
-    current = 69
-    scene.frame_set(current)
-    if "FINISHED" not in bpy.ops.glocal.generate(timeline="walking:3"):
-        failures.append(f"{label}: Continue from a keyed animation did not generate")
-        return
-    new = arm.animation_data.action
-    worst, apart = 0.0, 0.0
-    for k in range(1, current + 1):
-        (after, root_after), (before, root_before) = pose(new, k), pose(keyed, k)
-        worst = max([worst] + [degrees(before[n].angle(after[n])) for n in bones if before[n].length > 0 and after[n].length > 0])
-        apart = max(apart, (root_after - root_before).length)
-    print(f"{label}: continued from frame {current} of an animation keyed every 20 frames: up to the join every bone within {worst:.4f} deg, root {1000 * apart:.3f} mm")
-    if worst > 0.01 or apart > 1e-4:
-        failures.append(f"{label}: continuing a keyed animation moved it by {worst:.4f} deg and {1000 * apart:.3f} mm before the join")
+    for keys in ((1, 20, 40, 60, 80), (80, 100)):
+        keyed = bpy.data.actions.new("keyed by hand")
+        for frame in keys:
+            arm.animation_data.action = source
+            scene.frame_set(frame)
+            posed = {b.name: (b.location.copy(), b.rotation_quaternion.copy(), b.rotation_euler.copy()) for b in arm.pose.bones}
+            arm.animation_data.action = keyed
+            for b in arm.pose.bones:
+                b.location, b.rotation_quaternion, b.rotation_euler = posed[b.name]
+                b.keyframe_insert("location", frame=frame)
+                b.keyframe_insert("rotation_quaternion" if b.rotation_mode == "QUATERNION" else "rotation_euler", frame=frame)
+        current = 69
+        scene.frame_set(current)
+        if "FINISHED" not in bpy.ops.glocal.generate(timeline="walking:3"):
+            failures.append(f"{label}: Continue from a keyed animation did not generate")
+            return
+        new = arm.animation_data.action
+        worst, apart = 0.0, 0.0
+        for k in range(1, current + 1):
+            (after, root_after), (before, root_before) = pose(new, k), pose(keyed, k)
+            worst = max([worst] + [degrees(before[n].angle(after[n])) for n in bones if before[n].length > 0 and after[n].length > 0])
+            apart = max(apart, (root_after - root_before).length)
+        print(f"{label}: continued from frame {current} of an animation keyed at frames {keys}: up to the join every bone within {worst:.4f} deg, root {1000 * apart:.3f} mm")
+        if worst > 0.01 or apart > 1e-4:
+            failures.append(f"{label}: continuing an animation keyed at {keys} moved it by {worst:.4f} deg and {1000 * apart:.3f} mm before the join")
 
 
 def check_from_a_pose(arm, action, pose, bones, label, failures):

@@ -61,19 +61,20 @@ def bone_tracks(arm, take, frames, progress=lambda done: None):
 
 def _trim_after(curve, frame):
     """Cuts `curve` after scene frame `frame`, keeping every whole frame up to it as it was:
-    its keys after `frame` go, the frames between its last key before and `frame` are keyed
-    with the values the curve gave them (linear keys, which the take's keys follow), and that
-    last key's handles are frozen where they were (an automatic handle would turn towards the
-    new neighbour and reshape the curve before it)."""
+    its keys after `frame` go, the frames between its last key before and `frame` (or `frame`
+    alone, where every key was after it) are keyed with the values the curve gave them (linear
+    keys, which the take's keys follow), and that last key's handles are frozen where they
+    were (an automatic handle would turn towards the new neighbour and reshape the curve
+    before it)."""
     points = curve.keyframe_points
     kept = [p for p in points if p.co.x <= frame]
-    if not kept or (not any(p.co.x > frame for p in points) and kept[-1].co.x == frame):
+    if kept and kept[-1].co.x == frame and len(kept) == len(points):
         return
-    last = kept[-1]
-    between = range(int(last.co.x) + 1, int(frame) + 1)
+    between = range(int(kept[-1].co.x) + 1 if kept else int(frame), int(frame) + 1)
     values = [curve.evaluate(f) for f in between]
-    last.handle_left_type = last.handle_right_type = "FREE"
-    last.interpolation = "LINEAR"
+    if kept:
+        kept[-1].handle_left_type = kept[-1].handle_right_type = "FREE"
+        kept[-1].interpolation = "LINEAR"
     for point in reversed([p for p in points if p.co.x > frame]):
         points.remove(point, fast=True)
     for f, value in zip(between, values):
