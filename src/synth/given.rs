@@ -13,7 +13,7 @@ use crate::motion::{solve_local_poses, JointRoles, Motion};
 
 /// Seconds over which the difference between a given start and the generated take fades
 /// out after the start's last frame.
-pub(super) const GIVEN_BLEND_SECONDS: f32 = 0.5;
+const GIVEN_BLEND_SECONDS: f32 = 0.5;
 
 /// Whether a file start's given frames are kept as given: only at the pace they were
 /// captured at (the first segment's pace 1).
@@ -47,11 +47,26 @@ pub(super) struct GivenStart {
     pub until: usize,
 }
 
-impl GivenStart {
-    /// The blend's length after `given` frames of a take of `frames`, and where it ends.
-    fn blend(&self, given: usize, frames: usize, fps: f32) -> (usize, usize) {
-        let blend = ((GIVEN_BLEND_SECONDS * fps).round() as usize).min(self.until.saturating_sub(given));
-        (blend, frames.min(given + blend))
+/// How a file start's given frames hand over to the take after them: the difference at their
+/// last frame fades out over [`GIVEN_BLEND_SECONDS`] after it, ending before the first key.
+pub(super) struct StartFade {
+    last: usize,
+    blend: usize,
+    /// The first frame the fade leaves as it was.
+    pub end: usize,
+}
+
+impl StartFade {
+    /// The fade after `given` frames (at least one) of a take of `frames` at `fps`, its first
+    /// key at frame `until`.
+    pub fn new(given: usize, frames: usize, until: usize, fps: f32) -> Self {
+        let blend = ((GIVEN_BLEND_SECONDS * fps).round() as usize).min(until.saturating_sub(given));
+        Self { last: given.saturating_sub(1), blend, end: frames.min(given + blend) }
+    }
+
+    /// Each frame after the given ones and how much of the difference it takes.
+    pub fn weights(&self) -> impl Iterator<Item = (usize, f32)> + '_ {
+        (self.last + 1..self.end).map(|f| (f, raised_cosine((f - self.last) as f32 / (self.blend + 1) as f32)))
     }
 }
 
@@ -66,14 +81,13 @@ impl TakeConstraint for GivenStart {
         let last = given - 1;
         let residual: Vec<Vec3> = (0..j).map(|k| self.frames[last * j + k] - positions[last * j + k]).collect();
         positions[..given * j].copy_from_slice(&self.frames);
-        let (blend, end) = self.blend(given, frames, motion.fps);
-        for f in given..end {
-            let w = raised_cosine((f - last) as f32 / (blend + 1) as f32);
+        let fade = StartFade::new(given, frames, self.until, motion.fps);
+        for (f, w) in fade.weights() {
             positions[f * j..(f + 1) * j].iter_mut().zip(&residual).for_each(|(p, r)| *p += w * *r);
         }
         let skeleton = motion.skeleton.clone();
         let Some(mut poses) = motion.local_poses else { return Motion::from_positions(skeleton, motion.fps, positions) };
-        poses.splice(0..end, solve_local_poses(&skeleton, &positions[..end * j]));
+        poses.splice(0..fade.end, solve_local_poses(&skeleton, &positions[..fade.end * j]));
         Motion::from_local_poses(skeleton, motion.fps, poses)
     }
 
@@ -85,7 +99,7 @@ impl TakeConstraint for GivenStart {
         if given == 0 || motion.frames() <= given {
             return;
         }
-        let (_, end) = self.blend(given, motion.frames(), motion.fps);
+        let end = StartFade::new(given, motion.frames(), self.until, motion.fps).end;
         let Ok(roles) = JointRoles::new(&motion.skeleton) else { return };
         let defaults = ContactConfig::default();
         let standing = ContactConfig { height_off: defaults.height_on, seated_height: defaults.height_on, ..defaults };

@@ -10,10 +10,11 @@
 use anyhow::Result;
 use glam::{Quat, Vec3};
 
-use super::given::{keeps_given_frames, GIVEN_BLEND_SECONDS};
+use super::given::{keeps_given_frames, StartFade};
 use super::init::{read_on_own_skeleton, window_frames, InitPose};
+use super::keys::place_keys;
 use super::options::GenerateOptions;
-use super::raised_cosine;
+use super::plan::SparseTimeline;
 use crate::model::glocal::GlocalModel;
 use crate::motion::{JointRoles, LocalPose, Motion, Skeleton};
 
@@ -53,7 +54,10 @@ pub fn with_own_start(model: &GlocalModel, opts: &GenerateOptions, retargeted: M
     for (pose, &f) in poses.iter_mut().zip(&frames) {
         *pose = placed(&skeleton, &own[f], turn, shift);
     }
-    fade_after(&mut poses, take, given, (GIVEN_BLEND_SECONDS * retargeted.fps).round() as usize);
+    // The fade ends before the first key, as the take's own given frames' does.
+    let timeline = SparseTimeline::new(&model.spec, opts)?;
+    let until = place_keys(&timeline, model, &opts.keys, &opts.init)?.iter().map(|k| k.frame).min().unwrap_or(usize::MAX);
+    fade_after(&mut poses, take, &StartFade::new(given, retargeted.frames(), until, retargeted.fps));
     Ok(Motion::from_local_poses(skeleton, retargeted.fps, poses))
 }
 
@@ -97,15 +101,15 @@ fn placed(skeleton: &Skeleton, pose: &LocalPose, turn: Quat, shift: Vec3) -> Loc
 }
 
 /// The difference the given start makes at its last pose (against the take's own pose there,
-/// in `take`) added to the `blend` poses after it, fading out: each joint's rotation and place.
-fn fade_after(poses: &mut [LocalPose], take: &[LocalPose], given: usize, blend: usize) {
-    let Some(last) = given.checked_sub(1) else { return };
+/// in `take`) added to the poses after it as `fade` weighs them: each joint's rotation and place.
+fn fade_after(poses: &mut [LocalPose], take: &[LocalPose], fade: &StartFade) {
+    let Some((first, _)) = fade.weights().next() else { return };
+    let last = first - 1;
     let (start, own) = (&poses[last], &take[last]);
     let turns: Vec<Quat> = start.rotations.iter().zip(&own.rotations).map(|(s, t)| (*s * t.inverse()).normalize()).collect();
     let moves: Vec<Vec3> = start.translations.iter().zip(&own.translations).map(|(s, t)| *s - *t).collect();
-    let end = poses.len().min(given + blend);
-    for (f, pose) in poses.iter_mut().enumerate().take(end).skip(given) {
-        let w = raised_cosine((f - last) as f32 / (blend + 1) as f32);
+    for (f, w) in fade.weights() {
+        let pose = &mut poses[f];
         for (r, turn) in pose.rotations.iter_mut().zip(&turns) {
             *r = (Quat::IDENTITY.slerp(*turn, w) * *r).normalize();
         }

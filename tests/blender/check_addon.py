@@ -408,6 +408,7 @@ def check_continue(arm, label, failures):
             failures.append(f"{label}: the continued take's markers are {markers}")
         if action_state(old) != state:
             failures.append(f"{label}: the armature's Action changed")
+        check_refusals(arm, old, label, failures)
         check_continue_keyed(arm, old, pose, bones, label, failures)
         check_from_a_pose(arm, new, pose, bones, label, failures)
     finally:
@@ -419,9 +420,10 @@ def check_continue_keyed(arm, source, pose, bones, label, failures):
     frames, Blender's own Bezier curves with automatic handles; the current frame between two
     keys, or before the first (the animation holding its first pose there). The new Action up
     to the current frame is that animation to a hundredth of a degree, though its keys after
-    the current frame are gone and the last one before it has a new neighbour."""
+    the current frame are gone and the last one before it has a new neighbour (or, keyed on
+    the current frame, keys after it)."""
     scene = bpy.context.scene
-    for keys in ((1, 20, 40, 60, 80), (80, 100)):
+    for keys in ((1, 20, 40, 60, 80), (1, 20, 40, 69), (80, 100)):
         keyed = bpy.data.actions.new("keyed by hand")
         for frame in keys:
             arm.animation_data.action = source
@@ -446,6 +448,33 @@ def check_continue_keyed(arm, source, pose, bones, label, failures):
         print(f"{label}: continued from frame {current} of an animation keyed at frames {keys}: up to the join every bone within {worst:.4f} deg, root {1000 * apart:.3f} mm")
         if worst > 0.01 or apart > 1e-4:
             failures.append(f"{label}: continuing an animation keyed at {keys} moved it by {worst:.4f} deg and {1000 * apart:.3f} mm before the join")
+        for act in (keyed, new):
+            bpy.data.actions.remove(act)
+        arm.animation_data.action = source
+
+
+def check_refusals(arm, act, label, failures):
+    """Continuations that cannot be made are refused in one line before glocal runs, the
+    armature's actions as they were: a timeline ending before the current frame, a first row
+    at another pace, an Action with a curve modifier."""
+    arm.animation_data.action = act
+    for timeline, modifier, says in (("walking:1", False, "needs more than"), ("walking:3@1.5", False, "pace"), ("walking:3", True, "modifiers")):
+        curve = act.fcurves[0]
+        if modifier:
+            curve.modifiers.new("NOISE")
+        actions, state = set(bpy.data.actions), action_state(act)
+        try:
+            bpy.ops.glocal.generate(timeline=timeline)
+            failures.append(f"{label}: continuing with {timeline}{' and a modifier' if modifier else ''} generated")
+            continue
+        except RuntimeError as e:
+            message = str(e).strip()
+        finally:
+            if modifier:
+                curve.modifiers.remove(curve.modifiers[0])
+        print(f"{label}: continuing with {timeline}{' and a curve modifier' if modifier else ''} refused: {message}")
+        if len(message.splitlines()) != 1 or says not in message or set(bpy.data.actions) != actions or action_state(act) != state or arm.animation_data.action != act:
+            failures.append(f"{label}: continuing with {timeline}: {message!r}, actions changed or kept")
 
 
 def check_from_a_pose(arm, action, pose, bones, label, failures):

@@ -74,7 +74,7 @@ class GLOCAL_OT_generate(bpy.types.Operator):
             return False
         self.arm = selected_armature(context)
         try:
-            self.continued = Continued(context.scene, self.arm, properties.model_info(settings.model)) if settings.continue_action else None
+            self.continued = Continued(context.scene, self.arm, properties.model_info(settings.model), self.text) if settings.continue_action else None
             start = self.continued.bvh if self.continued else None
             fps = context.scene.render.fps / context.scene.render.fps_base
             self._run = runner.Run(binary, bpy.path.abspath(settings.model), self.text, settings.seed, self.arm, fps, start)
@@ -157,7 +157,10 @@ class Continued:
     an action that starts later than those seconds holds its first pose before it, as
     Blender shows it."""
 
-    def __init__(self, scene, arm, info):
+    def __init__(self, scene, arm, info, timeline):
+        """Raises ValueError, with what to change, for a continuation that cannot be made: an
+        Action with curve modifiers, a first row at another pace than 1 (its start would not be
+        the armature's own timing), a timeline ending before the current frame."""
         fps = scene.render.fps / scene.render.fps_base
         self.action = arm.animation_data.action if arm.animation_data else None
         self.current = scene.frame_current
@@ -167,10 +170,21 @@ class Continued:
         # The start ends at the current frame or up to a frame after it (a scene rate a hair
         # under a whole number, as Blender's single-precision base gives, counts as that number).
         self.first = self.current - (math.floor(lead * fps + 1e-3) if self.action else 0)
+        self.check(timeline, (self.current - self.first) / fps, fps)
         begin = self.first - step * fps
         samples = [begin + i * fps / info["fps"] for i in range(round(info["start_seconds"] * info["fps"]) + 1)]
         self.bvh = bvh_io.posed_bvh(arm, scene, samples, info["fps"])
         self.root = bvh_io.root_turn(arm, scene, self.first)
+
+    def check(self, timeline, before, fps):
+        """See [`__init__`]; `before`: the take's seconds up to the current frame."""
+        modified = action.modified_curves(self.action) if self.action else []
+        if modified:
+            raise ValueError(f"'{self.action.name}' has {len(modified)} curve{'s' if len(modified) > 1 else ''} with modifiers (first {modified[0]}): apply or remove them to continue it")
+        if first_pace(timeline) != 1.0:
+            raise ValueError(f"the first row's pace is {first_pace(timeline):g}: continuing from the armature needs pace 1, the armature's own timing")
+        if (take_seconds(timeline) - before) * fps < 1.0:
+            raise ValueError(f"the timeline is {take_seconds(timeline):g} s: continuing from the current frame needs more than {before:.2f} s, which the take spends on the armature's own seconds")
 
     def place(self, take):
         """Turns `take` about the vertical and moves it so that its root stands at its first
@@ -205,6 +219,15 @@ class Continued:
 # a 60 s one, retargeted onto the 159-bone Rigify metarig (2 CPU cores).
 STARTUP_SECONDS = 0.15
 SECONDS_PER_TAKE_SECOND = 0.005
+
+
+def first_pace(timeline):
+    """The pace of a --timeline text's first segment (CLASS:SECONDS[@PACE][~T]), 1 unless given."""
+    pace = timeline.split(",")[0].rpartition(":")[2].split("~")[0].partition("@")[2]
+    try:
+        return float(pace) if pace else 1.0
+    except ValueError:
+        return 1.0
 
 
 def take_seconds(timeline):
