@@ -207,7 +207,14 @@ fn m4_l1_outputs_that_are_inputs_or_not_files_are_refused() {
     refused(&["render", "--in", s(&start), "--out", s(&start)], &["start.bvh", ".png"]);
     let init = format!("clip:{}@0", s(&start));
     refused(&["generate", "--model", s(&model), "--init", &init, "--timeline", "walk:3", "--out", s(&start)], &["overwrite the input"]);
+    // The rig a take is written on, and a joint map, are inputs too (the rig was replaced by
+    // the take written on it).
+    refused(&["generate", "--model", s(&model), "--timeline", "walk:3", "--retarget-to", s(&start), "--out", s(&start)], &["overwrite the input"]);
+    let map = t.path().join("map.json");
+    std::fs::write(&map, "{}").unwrap();
+    refused(&["generate", "--model", s(&model), "--timeline", "walk:3", "--joint-map", s(&map), "--out", s(&map)], &["overwrite the input"]);
     assert_eq!(std::fs::read(&start).unwrap(), before, "a refused command leaves its target as it was");
+    assert_eq!(std::fs::read_to_string(&map).unwrap(), "{}");
     let dev = t.path().join("null.png");
     std::os::unix::fs::symlink("/dev/null", &dev).unwrap();
     refused(&["render", "--in", s(&start), "--out", s(&dev)], &["null.png", "not a regular file"]);

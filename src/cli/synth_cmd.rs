@@ -8,8 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::data::joint_map::UserJointMap;
 use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
-use crate::synth::own_start::with_own_start;
-use crate::synth::rig::onto_skeleton_file;
+use crate::synth::rig::take_on_rig;
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::{JointNamesArg, RootMotionArg, TransitionArg, UnitsArg};
@@ -175,7 +174,7 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
         (None, None) => bail!("--timeline or --project is needed"),
     };
     // Every file the take reads: the output may be none of them.
-    let inputs: Vec<&Path> = args.project.iter().map(PathBuf::as_path).chain(input_files(&request.options)).collect();
+    let inputs: Vec<&Path> = args.project.iter().map(PathBuf::as_path).chain(input_files(&request.options)).chain(output.retarget_to.as_deref()).chain(output.joint_map.as_deref()).collect();
     check_output(&output.out, &inputs)?;
     if let Some(path) = &output.joint_map {
         request.joint_map = Some(UserJointMap::read(path)?);
@@ -193,11 +192,11 @@ pub fn run_generate(args: GenerateArgs) -> Result<()> {
     })?;
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    let motion = match &output.retarget_to {
-        Some(skeleton) => with_own_start(&model, &request.options, onto_skeleton_file(&take.motion, skeleton, request.joint_map.as_ref())?)?,
+    let options = ExportOptions { units: output.units.into(), fps: output.fps, source_root: false, root_motion: output.root_motion.into(), rig: output.retarget_to.clone() };
+    let motion = match &options.rig {
+        Some(rig) => take_on_rig(&model, &request, &take.motion, rig)?,
         None => take.motion.clone(),
     };
-    let options = ExportOptions { units: output.units.into(), fps: output.fps, source_root: false, root_motion: output.root_motion.into() };
     let (m, segments) = prepare(&motion, &take.segments, &options, &model.spec.source_skeleton)?;
     let m = JointNames::from(output.joint_names).apply(&m, request.joint_map.as_ref())?;
     export_with_contacts(&m, &segments, Some(&take.contacts), &output.out)?;

@@ -2,7 +2,7 @@
 //! skinned character, see [`super::gltf`]). Every write
 //! is atomic: a failed export leaves no half-written file behind.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use std::sync::Arc;
 
@@ -195,11 +195,15 @@ pub struct ExportOptions {
     /// Where the take's travel goes: the hips, nowhere (in place), or an added root bone.
     #[serde(default)]
     pub root_motion: RootMotion,
+    /// A BVH whose skeleton (hierarchy, rest pose, joint names) the take is written on
+    /// ([`super::rig::take_on_rig`]); None: the model's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rig: Option<PathBuf>,
 }
 
 impl Default for ExportOptions {
     fn default() -> Self {
-        Self { units: Units::Metres, fps: None, source_root: false, root_motion: RootMotion::Travel }
+        Self { units: Units::Metres, fps: None, source_root: false, root_motion: RootMotion::Travel, rig: None }
     }
 }
 
