@@ -197,6 +197,47 @@ fn the_command_line_the_studio_copies_makes_the_same_take() {
     assert!(std::fs::read(&cli).unwrap() == std::fs::read(&studio).unwrap(), "the command line's take differs from the studio's: {copied}");
 }
 
+/// The take written on a rig from the studio (Export take > On a rig) is the command line's
+/// `--retarget-to` take, byte for byte, on the rig's joints; started from that rig's own
+/// file, it shows the file's own poses over its start (`synth::own_start`: through the
+/// model's joints and back this mannequin's joints came back up to 135 degrees off).
+#[test]
+fn the_studio_writes_a_take_on_a_rig_as_the_command_line_does() {
+    let _g = serial();
+    let dir = temp_dir("rig-export");
+    let mut h = harness("rig-export");
+    wait_take(&mut h);
+    let rig = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/assets/blender-unreal-salsa.bvh");
+    h.state_mut().use_init_file(rig.clone(), 60);
+    wait(&mut h, "the take from the rig's file", |a| a.take().is_some_and(|t| matches!(t.options.init, InitPose::File { .. })) && a.stale_reason().is_none() && !a.is_busy());
+    // Typed into the export section's field, as a user does.
+    let field = "On a rig (optional): a BVH whose skeleton the take is written on";
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).focus();
+    h.run_ok();
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, field).type_text(&rig.display().to_string());
+    h.run_ok();
+    assert_eq!(h.state_mut().fields_mut().export_rig, rig.display().to_string());
+    let studio = dir.join("studio.bvh");
+    h.state_mut().export_to(studio.clone());
+    wait(&mut h, "the export on the rig", |_| studio.exists());
+    let read = |path: &std::path::Path| glocal::data::bvh::read_bvh(&std::fs::read_to_string(path).unwrap(), "a bvh").unwrap();
+    let (written, file) = (read(&studio), read(&rig));
+    assert_eq!(written.skeleton.names(), file.skeleton.names(), "the rig's joints");
+    // The start: the file's poses from a sparse step after frame 60 (the file at 60 fps, the take at 25).
+    let (ours, theirs) = (written.local_poses.as_ref().unwrap(), file.resample(25.0).local_poses.unwrap());
+    let first = 25 + 5;
+    let worst = (0..40).flat_map(|k| (1..written.joints()).map(move |j| (k, j))).map(|(k, j)| 2.0 * (ours[k].rotations[j] * theirs[first + k].rotations[j].inverse()).xyz().length().min(1.0).asin().to_degrees()).fold(0.0f32, f32::max);
+    assert!(worst < 0.01, "the start is {worst} degrees off the rig's own poses");
+
+    let cli = dir.join("cli.bvh");
+    h.state_mut().fields_mut().export_path = cli.display().to_string();
+    let args = h.state().command_args().unwrap();
+    assert!(args.windows(2).any(|w| w[0] == "--retarget-to" && w[1] == rig.display().to_string()), "{args:?}");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_glocal")).args(&args).output().unwrap();
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read(&cli).unwrap() == std::fs::read(&studio).unwrap(), "the command line's take on the rig differs from the studio's: {args:?}");
+}
+
 /// A one-frame pose's height, lowest joint to highest, in metres.
 fn height(pose: &glocal::motion::Motion) -> f32 {
     let ys = pose.frame(0).iter().map(|p| p.y);

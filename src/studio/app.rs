@@ -77,6 +77,7 @@ impl StudioApp {
             model_path: doc.model.display().to_string(),
             project_path: state.project_path.as_ref().map_or_else(|| work.join("project.glocal.json"), Clone::clone).display().to_string(),
             export_path: state.export_path.clone().unwrap_or_else(|| work.join("take.bvh")).display().to_string(),
+            export_rig: String::new(),
             init_path: String::new(),
             init_frame: 0,
             new_class: 0,
@@ -164,6 +165,14 @@ impl StudioApp {
 
     pub fn export_options_mut(&mut self) -> &mut ExportOptions {
         &mut self.panels.export_options
+    }
+
+    /// The export's settings with its rig, if one is named (a take on a rig has no source
+    /// root joint to put back: that is the model's source skeleton's).
+    pub fn export_options(&self) -> ExportOptions {
+        let rig = Some(PathBuf::from(self.panels.fields.export_rig.trim())).filter(|p| !p.as_os_str().is_empty());
+        let source_root = self.panels.export_options.source_root && rig.is_none();
+        ExportOptions { rig, source_root, ..self.panels.export_options.clone() }
     }
 
     pub fn set_selection(&mut self, selection: Option<(usize, usize)>) {

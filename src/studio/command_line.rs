@@ -20,7 +20,7 @@ impl StudioApp {
         let model = self.engine.model.as_ref().filter(|m| m.dir == self.editing.doc.model).ok_or("the model is still loading")?;
         let out = PathBuf::from(self.panels.fields.export_path.trim());
         let saved_at = self.editing.project_path.as_deref().filter(|_| !self.has_unsaved_work());
-        generate_args(&self.editing.doc, model, &out, &self.panels.export_options, saved_at)
+        generate_args(&self.editing.doc, model, &out, &self.export_options(), saved_at)
     }
 
     /// Puts the command line on the clipboard and shows it.
@@ -154,6 +154,9 @@ fn export_args(export: &ExportOptions) -> Vec<String> {
     };
     if let Some(root_motion) = root_motion {
         args.extend(["--root-motion".into(), root_motion.into()]);
+    }
+    if let Some(rig) = &export.rig {
+        args.extend(["--retarget-to".into(), rig.display().to_string()]);
     }
     args
 }

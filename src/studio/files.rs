@@ -13,6 +13,7 @@ use super::messages::{Level, Topic};
 use super::panels::{ExportRange, Guarded, InitTab};
 use super::project::{self, Project, StudioState};
 use super::retarget::PreviewFor;
+use super::worker::ExportJob;
 use crate::synth::export::{segments_in_range, ExportFormat};
 use crate::synth::{Document, InitPose};
 
@@ -144,13 +145,14 @@ impl StudioApp {
             self.messages.set(Topic::Export, Level::Error, format!("Could not export {}: {e:#}", project::shown_path(&path)));
             return;
         }
-        let motion = if (a, b) == (0, frames) { take.motion.clone() } else { Arc::new(take.motion.slice(a, b)) };
         let contacts = take.contacts.slice(a..b);
         let path = std::path::absolute(&path).unwrap_or(path);
         self.panels.fields.export_path = path.display().to_string();
         self.save_state();
         let source = Arc::new(model.spec.source_skeleton.clone());
-        self.engine.worker.export(motion, segments_in_range(&take.segments, a, b), contacts, path, self.panels.export_options.clone(), source);
+        let segments = segments_in_range(&take.segments, a, b);
+        let job = ExportJob { motion: take.motion.clone(), range: a..b, segments, contacts, path, options: self.export_options(), source, request: self.editing.doc.request() };
+        self.engine.worker.export(job);
     }
 
     pub fn use_init_file(&mut self, path: PathBuf, frame: usize) {

@@ -65,6 +65,8 @@ pub struct Fields {
     pub model_path: String,
     pub project_path: String,
     pub export_path: String,
+    /// A BVH whose skeleton the export is written on (empty: the model's own).
+    pub export_rig: String,
     pub init_path: String,
     pub init_frame: usize,
     pub new_class: usize,

@@ -293,6 +293,7 @@ impl StudioApp {
                 }
             }
         });
+        path_field(ui, "On a rig (optional): a BVH whose skeleton the take is written on", &mut self.panels.fields.export_rig, "my_rig.bvh");
         self.export_format(ui);
         self.export_buttons(ui);
     }

@@ -27,6 +27,7 @@ use crate::motion::cycle::Cycle;
 use crate::synth::export::{export_with_contacts, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
+use crate::synth::rig::take_on_rig;
 use crate::synth::{GenerateOptions, Generated, InitPose, Request as TakeRequest, SegmentSpan, TakeCache, TakeEvents};
 
 /// What the UI knows of a loaded model.
@@ -164,8 +165,22 @@ pub enum Job {
     Retarget { purpose: PreviewFor, path: PathBuf, frame: usize, joint_map: Option<UserJointMap> },
     /// Checks that an initial pose can start a take on the current model.
     CheckInit(InitPose),
-    /// `contacts` (per frame of `motion`) go into a JSON export that keeps the take's frames.
-    Export { motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton> },
+    Export(ExportJob),
+}
+
+/// A take to write: frames `range` of `motion` (the whole take, which a rig's own start is
+/// read against), its `segments` and `contacts` over that range (a JSON export keeps them),
+/// on the rig `options` may name with `request`'s joint map.
+#[derive(Clone)]
+pub struct ExportJob {
+    pub motion: Arc<Motion>,
+    pub range: std::ops::Range<usize>,
+    pub segments: Vec<SegmentSpan>,
+    pub contacts: FootContacts,
+    pub path: PathBuf,
+    pub options: ExportOptions,
+    pub source: Arc<Skeleton>,
+    pub request: TakeRequest,
 }
 
 impl Job {
@@ -176,7 +191,7 @@ impl Job {
             Job::Generate { id, .. } => Reply::GenerateFailed { id: *id, error, cancelled: false },
             Job::CheckInit(init) => Reply::InitFailed { init: init.clone(), error },
             Job::Retarget { purpose, path, frame, .. } => Reply::Retarget(Retargeting::Failed(Arc::new(RetargetFailure { purpose: *purpose, path: path.clone(), frame: *frame, error, joints: Default::default() }))),
-            Job::Export { path, .. } => Reply::ExportFailed { path: path.clone(), error },
+            Job::Export(job) => Reply::ExportFailed { path: job.path.clone(), error },
         }
     }
 }
@@ -270,8 +285,8 @@ impl Worker {
         self.send(Job::Retarget { purpose, path, frame, joint_map });
     }
 
-    pub fn export(&mut self, motion: Arc<Motion>, segments: Vec<SegmentSpan>, contacts: FootContacts, path: PathBuf, options: ExportOptions, source: Arc<Skeleton>) {
-        self.send(Job::Export { motion, segments, contacts, path, options, source });
+    pub fn export(&mut self, job: ExportJob) {
+        self.send(Job::Export(job));
     }
 
     /// Every reply that has arrived.
@@ -363,15 +378,27 @@ impl WorkerState {
                     Err(e) => Reply::InitFailed { init, error: format!("{e:#}") },
                 });
             }
-            Job::Export { motion, segments, contacts, path, options, source } => {
-                let written = prepare(&motion, &segments, &options, &source).and_then(|(m, s)| export_with_contacts(&m, &s, Some(&contacts), &path));
-                return Some(match written {
+            Job::Export(job) => {
+                let path = job.path.clone();
+                return Some(match self.export(job) {
                     Ok(()) => Reply::Exported(path),
                     Err(e) => Reply::ExportFailed { path, error: format!("{e:#}") },
                 });
             }
         }
         None
+    }
+
+    /// Writes `job`'s frames, on its rig if it names one.
+    fn export(&self, job: ExportJob) -> Result<()> {
+        let ExportJob { motion, range, segments, contacts, path, options, source, request } = job;
+        let on_rig = match &options.rig {
+            Some(rig) => Arc::new(take_on_rig(self.model.as_ref().context("no model is loaded")?, &request, &motion, rig)?),
+            None => motion,
+        };
+        let frames = if range == (0..on_rig.frames()) { on_rig } else { Arc::new(on_rig.slice(range.start, range.end)) };
+        let (m, s) = prepare(&frames, &segments, &options, &source)?;
+        export_with_contacts(&m, &s, Some(&contacts), &path)
     }
 
     fn load(&mut self, dir: PathBuf) {

@@ -56,7 +56,7 @@ pub fn onto_skeleton_file(take: &Motion, skeleton_path: &Path, user: Option<&Use
 /// the request's joint map naming that file's joints: a start from that very file shows its
 /// own frames ([`with_own_start`]).
 pub fn take_on_rig(model: &GlocalModel, request: &Request, motion: &Motion, rig: &Path) -> Result<Motion> {
-    with_own_start(model, &request.options, onto_skeleton_file(motion, rig, request.joint_map.as_ref())?)
+    with_own_start(model, &request.engine_options(), onto_skeleton_file(motion, rig, request.joint_map.as_ref())?)
 }
 
 /// A BVH does not say its unit: the one of [`PLAUSIBLE_UNITS`] that gives the closest to a
