@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::data::joint_map::UserJointMap;
 use crate::data::write::{check_extension, check_output};
 use crate::model::glocal::GlocalModel;
-use crate::synth::rig::take_on_rig;
+use crate::synth::own_start::take_on_rig;
 use crate::synth::export::{export_with_contacts, prepare, ExportFormat, ExportOptions};
 use crate::synth::render::{write_contact_sheet, SheetOptions};
 use super::args::{JointNamesArg, RootMotionArg, TransitionArg, UnitsArg};

@@ -27,7 +27,7 @@ use crate::motion::cycle::Cycle;
 use crate::synth::export::{export_with_contacts, prepare, ExportOptions};
 use crate::synth::init::initial_features;
 use crate::synth::render::class_color;
-use crate::synth::rig::take_on_rig;
+use crate::synth::own_start::take_on_rig;
 use crate::synth::{GenerateOptions, Generated, InitPose, Request as TakeRequest, SegmentSpan, TakeCache, TakeEvents};
 
 /// What the UI knows of a loaded model.

@@ -196,7 +196,7 @@ pub struct ExportOptions {
     #[serde(default)]
     pub root_motion: RootMotion,
     /// A BVH whose skeleton (hierarchy, rest pose, joint names) the take is written on
-    /// ([`super::rig::take_on_rig`]); None: the model's own.
+    /// ([`super::own_start::take_on_rig`]); None: the model's own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rig: Option<PathBuf>,
 }

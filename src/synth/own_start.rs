@@ -7,6 +7,8 @@
 //! the retargeting's foot placement could straighten a landing leg it cannot bend back (a
 //! Rigify shin 40 degrees off the armature's in the last sparse step before the join).
 
+use std::path::Path;
+
 use anyhow::Result;
 use glam::{Quat, Vec3};
 
@@ -15,6 +17,8 @@ use super::init::{read_on_own_skeleton, window_frames, InitPose};
 use super::keys::place_keys;
 use super::options::GenerateOptions;
 use super::plan::SparseTimeline;
+use super::project::Request;
+use super::rig::onto_skeleton_file;
 use crate::model::glocal::GlocalModel;
 use crate::motion::{JointRoles, LocalPose, Motion, Skeleton};
 
@@ -23,6 +27,13 @@ use crate::motion::{JointRoles, LocalPose, Motion, Skeleton};
 /// through the model's skeleton comes within a few centimetres; further means the file is not
 /// this take's start.
 const MOST_APART: f32 = 0.1;
+
+/// The take `motion` that `request` made on `model`, on the skeleton of the BVH file `rig`,
+/// the request's joint map naming that file's joints: a start from that very file shows its
+/// own frames ([`with_own_start`]).
+pub fn take_on_rig(model: &GlocalModel, request: &Request, motion: &Motion, rig: &Path) -> Result<Motion> {
+    with_own_start(model, &request.engine_options(), onto_skeleton_file(motion, rig, request.joint_map.as_ref())?)
+}
 
 /// `retargeted` (the take on the skeleton of the file it started from) with the file's own
 /// frames over its given start, turned and moved onto where the take puts them, and the

@@ -7,10 +7,6 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
-use super::own_start::with_own_start;
-use super::project::Request;
-use crate::model::glocal::GlocalModel;
-
 use crate::data::bvh::read_bvh;
 use crate::data::joint_map::{key_joints, UserJointMap};
 use crate::data::registry::CMU_METRES_PER_UNIT;
@@ -50,13 +46,6 @@ pub fn onto_skeleton_file(take: &Motion, skeleton_path: &Path, user: Option<&Use
     let source_keys = key_joints(&take.skeleton, None, "the take's skeleton")?;
     let retarget = Retarget::new(&take.skeleton, &source_keys, target.into(), &target_keys).with_context(|| format!("{name}: cannot retarget"))?;
     Ok(retarget.with_toes_to_tips(&take.skeleton).apply(take))
-}
-
-/// The take `motion` that `request` made on `model`, on the skeleton of the BVH file `rig`,
-/// the request's joint map naming that file's joints: a start from that very file shows its
-/// own frames ([`with_own_start`]).
-pub fn take_on_rig(model: &GlocalModel, request: &Request, motion: &Motion, rig: &Path) -> Result<Motion> {
-    with_own_start(model, &request.engine_options(), onto_skeleton_file(motion, rig, request.joint_map.as_ref())?)
 }
 
 /// A BVH does not say its unit: the one of [`PLAUSIBLE_UNITS`] that gives the closest to a
