@@ -205,7 +205,8 @@ fn the_command_line_the_studio_copies_makes_the_same_take() {
 fn the_studio_writes_a_take_on_a_rig_as_the_command_line_does() {
     let _g = serial();
     let dir = temp_dir("rig-export");
-    let mut h = harness("rig-export");
+    let storage = options("rig-export");
+    let mut h = harness_with(storage.clone(), egui::vec2(1280.0, 800.0));
     wait_take(&mut h);
     let rig = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/assets/blender-unreal-salsa.bvh");
     h.state_mut().use_init_file(rig.clone(), 60);
@@ -236,6 +237,10 @@ fn the_studio_writes_a_take_on_a_rig_as_the_command_line_does() {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_glocal")).args(&args).output().unwrap();
     assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
     assert!(std::fs::read(&cli).unwrap() == std::fs::read(&studio).unwrap(), "the command line's take on the rig differs from the studio's: {args:?}");
+    // The studio opened again remembers the rig, as it remembers the export file.
+    drop(h);
+    let mut h = harness_with(storage, egui::vec2(1280.0, 800.0));
+    assert_eq!(h.state_mut().fields_mut().export_rig, rig.display().to_string());
 }
 
 /// A one-frame pose's height, lowest joint to highest, in metres.

@@ -77,7 +77,7 @@ impl StudioApp {
             model_path: doc.model.display().to_string(),
             project_path: state.project_path.as_ref().map_or_else(|| work.join("project.glocal.json"), Clone::clone).display().to_string(),
             export_path: state.export_path.clone().unwrap_or_else(|| work.join("take.bvh")).display().to_string(),
-            export_rig: String::new(),
+            export_rig: state.export_rig.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
             init_path: String::new(),
             init_frame: 0,
             new_class: 0,

@@ -165,6 +165,7 @@ impl StudioApp {
         let state = StudioState {
             project_path: self.editing.project_path.clone(),
             export_path: Some(PathBuf::from(self.panels.fields.export_path.trim())).filter(|p| !p.as_os_str().is_empty()),
+            export_rig: self.export_options().rig,
             class_table: self.storage.class_table.clone(),
         };
         if let Err(e) = state.save(path) {

@@ -147,6 +147,9 @@ pub fn keep_broken_autosave(path: &Path) -> Result<PathBuf> {
 pub struct StudioState {
     pub project_path: Option<PathBuf>,
     pub export_path: Option<PathBuf>,
+    /// The rig the last export was written on, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub export_rig: Option<PathBuf>,
     #[serde(default)]
     pub class_table: Vec<(String, String)>,
 }
