@@ -126,7 +126,6 @@ fn meant(name: &str, names: &[String]) -> String {
     super::class_map::closest(name, names).map(|n| format!(" (did you mean '{n}'?)")).unwrap_or_default()
 }
 
-/// Where a model's class or style `name` is among `names`, whatever its case.
 /// An activity as a timeline spells it: `CLASS`, or `CLASS/STYLE` where it names a style.
 pub fn spelled(class: &str, style: Option<&str>) -> String {
     match style {
@@ -135,6 +134,7 @@ pub fn spelled(class: &str, style: Option<&str>) -> String {
     }
 }
 
+/// Where a model's class or style `name` is among `names`, whatever its case.
 fn position_of(names: &[String], name: &str) -> Option<usize> {
     names.iter().position(|n| n.eq_ignore_ascii_case(name))
 }

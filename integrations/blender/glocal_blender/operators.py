@@ -221,25 +221,29 @@ STARTUP_SECONDS = 0.15
 SECONDS_PER_TAKE_SECOND = 0.005
 
 
+def _timing(part):
+    """The seconds and pace of one segment of a --timeline text (CLASS:SECONDS[@PACE][~T]),
+    as numbers: None where one is not given or not a number."""
+    seconds, _, pace = part.rpartition(":")[2].split("~")[0].partition("@")
+
+    def number(text):
+        try:
+            return float(text)
+        except ValueError:
+            return None
+
+    return number(seconds), number(pace)
+
+
 def first_pace(timeline):
-    """The pace of a --timeline text's first segment (CLASS:SECONDS[@PACE][~T]), 1 unless given."""
-    pace = timeline.split(",")[0].rpartition(":")[2].split("~")[0].partition("@")[2]
-    try:
-        return float(pace) if pace else 1.0
-    except ValueError:
-        return 1.0
+    """The pace of a --timeline text's first segment, 1 unless given."""
+    pace = _timing(timeline.split(",")[0])[1]
+    return 1.0 if pace is None else pace
 
 
 def take_seconds(timeline):
-    """The length a timeline text asks for (CLASS:SECONDS[@PACE][~T], comma-separated)."""
-    total = 0.0
-    for part in timeline.split(","):
-        seconds = part.rpartition(":")[2].split("~")[0].split("@")[0]
-        try:
-            total += float(seconds)
-        except ValueError:
-            pass
-    return total
+    """The length a timeline text asks for (its segments' seconds, comma-separated)."""
+    return sum((seconds for seconds, _ in map(_timing, timeline.split(",")) if seconds is not None), 0.0)
 
 
 def put_on_armature(scene, arm, take, name, progress):
