@@ -54,6 +54,23 @@ fn first_takes_stand_on_the_floor() {
     }
 }
 
+/// No first take's hips climb faster over 0.2 s than those of any of its dataset's real clips
+/// (h36m's fastest 1.75 m/s): before a file start's change into its first segment waited for
+/// the network to stand the body up, a walk started from S11 sitting on the floor stood up
+/// within the seam after the file's frames, its hips climbing 1.88 m/s with a foot off the
+/// floor.
+#[test]
+fn first_takes_stand_up_no_faster_than_real_bodies() {
+    for model in first_takes() {
+        let (dataset, real) = (&model["dataset"], model["real_fastest_rise_m_s"].as_f64().expect("the real clips' fastest rise"));
+        for take in model["takes"].as_array().expect("takes") {
+            let rise = take["fastest_rise_m_s"].as_f64().expect("a take's fastest rise");
+            eprintln!("{dataset} {}: hips climb at most {rise:.2} m/s (real clips {real:.2})", take["command"]);
+            assert!(rise <= real, "{dataset} {}: the hips climb {rise:.2} m/s over 0.2 s, faster than any real clip's {real:.2}", take["command"]);
+        }
+    }
+}
+
 /// No hand end (h36m's wrist end and thumb) turns farther in one frame than the real test
 /// clips' p99.9 in any first take: `--timeline eating:3,walking:6,sitting:3 --init seed:37`
 /// turned the right thumb 68 degrees (at 30 fps) against the real 24.

@@ -94,6 +94,18 @@ const SLOW_TAKE_STRENGTH: std::ops::Range<f32> = 0.8..0.95;
 /// leans the context towards a seed window as it does for a stalled take.
 const LOOP_TOLERANCE: f32 = 0.25;
 
+/// A take started from a file whose start holds the hips lower than its first segment's
+/// class's own height by more than this share of it (a floor sit or a chair before a walk)
+/// waits with that class's easing for the network to stand the body up ([`Steering::block`]).
+const POSTURE_GAP: f32 = 0.25;
+
+/// Seconds the change into the first segment waits at most for the body to stand up: the
+/// network rises at its own pace, from a chair or the floor in about 3 s (waiting up to 4 s,
+/// h36m's walks started from S11 sitting stood 3.3-3.5 s after the file's frames), and the
+/// anchoring that ends the wait takes the rest of the way, a gap the wait leaves short
+/// enough to climb at a person's speed (1.4-1.6 s after the file's frames, at most 1.1 m/s).
+const POSTURE_WAIT_SECONDS: f32 = 2.0;
+
 /// A context being eased towards a real window of its class, by a growing share at each of
 /// its `blocks` blocks (the seam join keeps the easing from popping).
 #[derive(Clone)]
@@ -127,6 +139,11 @@ pub(super) struct Steering {
     /// windows): leaning on it again from a similar pose replays the start of the take.
     start_window: Option<(usize, usize)>,
     since_anchor: usize,
+    /// Blocks the change from a file start into the first segment's class has waited for the
+    /// body to stand up ([`POSTURE_GAP`]); `None` once the take is in a class of its timeline,
+    /// or when it starts from a seed.
+    posture_wait: Option<usize>,
+    posture_wait_blocks: usize,
     /// Blocks steered since the last one of a class change (an anchored change's switch or
     /// easing, the first block of a class cut or blended to without one): 0 when the last
     /// block steered was one, `usize::MAX` before any. A change's [`CHANGE_SETTLE_SECONDS`]
@@ -164,9 +181,11 @@ impl Steering {
             start_window,
             bank: Arc::new(bank),
             since_anchor: 0,
+            posture_wait: matches!(opts.init, InitPose::File { .. }).then_some(0),
+            posture_wait_blocks: blocks_in(POSTURE_WAIT_SECONDS, spec),
             since_change: usize::MAX,
-            settle_blocks: (CHANGE_SETTLE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
-            change_pace_blocks: (CHANGE_PACE_SECONDS * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize,
+            settle_blocks: blocks_in(CHANGE_SETTLE_SECONDS, spec),
+            change_pace_blocks: blocks_in(CHANGE_PACE_SECONDS, spec),
             last_anchor: None,
             anchors: anchor_draws(opts.seed),
             keep_alive: opts.keep_alive,
@@ -228,7 +247,20 @@ impl Steering {
         // still held, and never walked. (A segment a block long may go by: a 2 s sittingdown
         // anchored between a walk and a sit left the sit's end less seated.)
         let eased_into_another = switching && plan.lasting && self.easing.as_ref().is_some_and(|e| e.change && plan.run <= e.blocks - e.step);
-        if eased_into_another || (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
+        // A file's poses are given, so the change into the first segment has no time before
+        // its boundary: anchored at once, a floor sit stood up into a walk within the seam
+        // join, the hips climbing 2.5 m/s with a foot off the floor. Guided towards the
+        // class, the network stands up through its feet by itself; the easing waits for it
+        // ([`POSTURE_WAIT_SECONDS`] at most). Not on a seed start: there the wait cost the
+        // class control after another class's seed (DESIGN, "A file start stands up").
+        if !new_class {
+            self.posture_wait = None;
+        }
+        let waiting = new_class && self.posture_wait.is_some_and(|w| w < self.posture_wait_blocks) && self.bank.posture_gap(plan.target, input) > POSTURE_GAP;
+        if waiting {
+            self.posture_wait = self.posture_wait.map(|w| w + 1);
+        } else if eased_into_another || (self.easing.is_none() && (switching || stalled || looping)) || (leaning && looping && !switching) {
+            self.posture_wait = None;
             // A take slow for seconds starts its next block from (nearly) a lively window, one
             // block only: twice from the same context gives the same block twice.
             let (blocks, strength) = if switching {
@@ -314,6 +346,11 @@ impl Steering {
     }
 }
 
+/// The blocks `seconds` of sparse poses take (at pace 1), rounded up.
+fn blocks_in(seconds: f32, spec: &crate::model::spec::ModelSpec) -> usize {
+    (seconds * spec.fps / (spec.stride * spec.block_len) as f32).ceil() as usize
+}
+
 /// The random stream anchor windows are drawn from, for a variation seed.
 fn anchor_draws(seed: u64) -> StdRng {
     StdRng::seed_from_u64(seed ^ 0xA1C4_0125)
@@ -335,6 +372,11 @@ struct AnchorBank {
     /// The sparse features' spread, which takes a normalised difference back to the
     /// skeleton's units.
     spread: Vec<f32>,
+    /// Per class: the mean hips height of its windows, in the skeleton's units.
+    hips: Vec<f32>,
+    /// The root height's normalisation (mean, spread), which takes a context's back to the
+    /// skeleton's units.
+    root_height: (f32, f32),
 }
 
 impl AnchorBank {
@@ -355,7 +397,20 @@ impl AnchorBank {
         let mean = |values: Vec<f32>| if values.is_empty() { 0.0 } else { values.iter().sum::<f32>() / values.len() as f32 };
         let typical = windows.iter().map(|w| mean(w.iter().map(|(_, m)| *m).collect())).collect();
         let typical_step = windows.iter().map(|w| mean(w.iter().map(|(window, _)| skeleton_step(window, &spread)).collect())).collect();
-        Self { windows, styles, typical, typical_step, spread }
+        let root_height = (model.spec.sparse_norm.mean[0], spread[0]);
+        let height = |window: &[f32]| mean(window.chunks_exact(dim).map(|pose| root_height.0 + pose[0] * root_height.1).collect());
+        let hips = windows.iter().map(|w| mean(w.iter().map(|(window, _)| height(window)).collect())).collect();
+        Self { windows, styles, typical, typical_step, spread, hips, root_height }
+    }
+
+    /// How far below `class`'s own height the last pose of the normalised `context` holds the
+    /// hips, as a share of it (negative above it).
+    fn posture_gap(&self, class: usize, context: &[f32]) -> f32 {
+        let dim = self.spread.len();
+        let Some(&own) = self.hips.get(class).filter(|h| **h > f32::EPSILON) else { return 0.0 };
+        let last = context.len() / dim * dim;
+        let Some(pose) = context.get(last.saturating_sub(dim)..last) else { return 0.0 };
+        (own - (self.root_height.0 + pose[0] * self.root_height.1)) / own
     }
 
     /// Whether `class` has a window of `style`.

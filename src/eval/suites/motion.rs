@@ -164,6 +164,8 @@ struct ModelResult {
     /// often real motion itself goes past them.
     train_snaps: SnapTally,
     first_takes: Vec<FirstTake>,
+    /// The real clips' fastest climb of the hips, which the first takes' is read against.
+    real_rise: f32,
     /// Bones over the real p99.9 turn in one frame, in the first takes.
     first_snaps: SnapTally,
     /// The model of everything: transition peaks between activities of two datasets, then
@@ -258,6 +260,7 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
     let shipped = generated_pools(&model, cfg, &ctx.generation, true, Some((&limits, &mut snaps)))?;
     let mut first_snaps = SnapTally::default();
     let first_takes = first_takes::first_takes(dataset, ctx, &limits, &mut first_snaps, log)?;
+    let real_rise = first_takes::real_fastest_rise(&corpus)?;
     let pairs = if dataset == Dataset::Combined {
         log("motion: all, changes between datasets");
         [pair_transition_peaks(&model, cfg, &ctx.generation, &ACROSS_DATASETS)?, pair_transition_peaks(&model, cfg, &ctx.generation, &WITHIN_A_DATASET)?]
@@ -276,6 +279,7 @@ fn model_result(dataset: Dataset, ctx: &SuiteContext, cfg: &MotionSuiteConfig, l
         snaps,
         train_snaps: real_training_snaps(&corpus, &limits, cfg.take_seconds),
         first_takes,
+        real_rise,
         first_snaps,
         pairs,
         class_sources: spec.class_sources.clone(),
@@ -351,7 +355,7 @@ fn model_markdown(r: &ModelResult, md: &mut Markdown) {
     }
     md.table(per_class);
     tag_markdown(r, md);
-    first_takes::markdown(r.dataset, &r.first_takes, md);
+    first_takes::markdown(r.dataset, &r.first_takes, r.real_rise, md);
     md.text(&format!("\nBones over the real p99.9 in one frame, first takes: {}.\n", r.first_snaps.describe()));
 }
 
@@ -399,5 +403,5 @@ fn tag_markdown(r: &ModelResult, md: &mut Markdown) {
 }
 
 fn model_json(r: &ModelResult) -> Value {
-    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "training_clips_bone_snaps": r.train_snaps, "first_takes": r.first_takes, "first_takes_bone_snaps": r.first_snaps, "transitions_across_datasets": r.pairs[0], "transitions_within_a_dataset": r.pairs[1], "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
+    json!({"dataset": r.dataset.name(), "model": r.dir, "bone_snaps": r.snaps, "training_clips_bone_snaps": r.train_snaps, "first_takes": r.first_takes, "first_takes_real_fastest_rise_m_s": r.real_rise, "first_takes_bone_snaps": r.first_snaps, "transitions_across_datasets": r.pairs[0], "transitions_within_a_dataset": r.pairs[1], "classes": r.classes, "sources": r.sources.iter().map(Source::json).collect::<Vec<_>>(), "train_joint_speed": r.train_speed, "joint_speed_per_tag": r.tag_speeds})
 }
