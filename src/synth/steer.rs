@@ -143,6 +143,7 @@ pub(super) struct Steering {
     /// body to stand up ([`POSTURE_GAP`]); `None` once the take is in a class of its timeline,
     /// or when it starts from a seed.
     posture_wait: Option<usize>,
+    /// [`POSTURE_WAIT_SECONDS`] in blocks.
     posture_wait_blocks: usize,
     /// Blocks steered since the last one of a class change (an anchored change's switch or
     /// easing, the first block of a class cut or blended to without one): 0 when the last
@@ -398,7 +399,7 @@ impl AnchorBank {
         let typical = windows.iter().map(|w| mean(w.iter().map(|(_, m)| *m).collect())).collect();
         let typical_step = windows.iter().map(|w| mean(w.iter().map(|(window, _)| skeleton_step(window, &spread)).collect())).collect();
         let root_height = (model.spec.sparse_norm.mean[0], spread[0]);
-        let height = |window: &[f32]| mean(window.chunks_exact(dim).map(|pose| root_height.0 + pose[0] * root_height.1).collect());
+        let height = |window: &[f32]| mean(window.chunks_exact(dim).map(|pose| hips_height(root_height, pose)).collect());
         let hips = windows.iter().map(|w| mean(w.iter().map(|(window, _)| height(window)).collect())).collect();
         Self { windows, styles, typical, typical_step, spread, hips, root_height }
     }
@@ -410,7 +411,7 @@ impl AnchorBank {
         let Some(&own) = self.hips.get(class).filter(|h| **h > f32::EPSILON) else { return 0.0 };
         let last = context.len() / dim * dim;
         let Some(pose) = context.get(last.saturating_sub(dim)..last) else { return 0.0 };
-        (own - (self.root_height.0 + pose[0] * self.root_height.1)) / own
+        (own - hips_height(self.root_height, pose)) / own
     }
 
     /// Whether `class` has a window of `style`.
@@ -432,6 +433,12 @@ impl AnchorBank {
         let &(k, (window, _)) = if fresh.is_empty() { pool.first().copied()? } else { *fresh[rng.random_range(0..fresh.len())] };
         Some((k, window.clone()))
     }
+}
+
+/// The height of the hips (the root) of a normalised pose, by the root height's normalisation
+/// (mean, spread).
+fn hips_height((mean, spread): (f32, f32), pose: &[f32]) -> f32 {
+    mean + pose[0] * spread
 }
 
 /// A block's poses after the pose before it (all normalised), as raw features.
