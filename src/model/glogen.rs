@@ -3,10 +3,11 @@
 //! caller brings a [`BlockWorkspace`].
 
 use super::block::{BlockWorkspace, FrozenBlock};
-use super::seam::join_seam;
+use super::seam::{half_block, join_seam};
 use super::spec::{GloGenSpec, ModelSpec};
 use super::target::{has_target, straight_way};
 use crate::data::features::Normalizer;
+use crate::motion::JointRoles;
 
 #[derive(Clone, Debug)]
 pub struct GloGen {
@@ -25,12 +26,23 @@ pub struct GloGen {
     /// ([`ModelSpec::class_contrasts`]), and how far.
     contrasts: Vec<Option<Vec<f32>>>,
     contrast_strength: f32,
+    /// The skeleton's leg (hip to knee to ankle at rest), which a seam's change of height is
+    /// measured against ([`LONG_JOIN_LEGS`]); 0 where the legs are not found.
+    leg: f32,
 }
+
+/// A block whose first pose holds the hips further than this many leg lengths from the pose
+/// before it (a seat before a stand, a stand before a sit: an anchored change of posture) is
+/// joined over the whole block rather than its first half. Over the first half, a crouch
+/// before a walk stood up in 0.3 s (the hips climbing 1.7 m/s once the foot lock kept the
+/// feet planted; Human3.6M's fastest real climb is 1.75), in a second over the whole block.
+const LONG_JOIN_LEGS: f32 = 0.25;
 
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
         let class_len = spec.label_len();
-        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0 };
+        let leg = JointRoles::new(&spec.layout.skeleton).map_or(0.0, |roles| roles.rest_leg_length(&spec.layout.skeleton));
+        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0, leg };
         glogen.set_contrasts(spec);
         glogen
     }
@@ -153,11 +165,15 @@ impl GloGen {
     /// steps on from the context's last pose, and fades the shift out over the first half of
     /// the block with a raised cosine, which keeps the block's own motion and its end where
     /// GloGen put it; a two-sided join ([`super::spec::SeamJoin`]) moves the block before by
-    /// half of it.
+    /// half of it. A block that changes the body's height a long way is joined over the whole
+    /// of it ([`LONG_JOIN_LEGS`]).
     pub fn rollout_block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.block(ws, input, class, strength, out);
         if let Some(before) = join {
-            join_seam(before, out, self.dim, self.spec.seam_join, !self.aims(class));
+            let climb = (before[before.len() - self.dim] - out[0]) * self.norm.std[0];
+            let poses = out.len() / self.dim;
+            let span = if climb.abs() > LONG_JOIN_LEGS * self.leg { poses } else { half_block(poses) };
+            join_seam(before, out, self.dim, self.spec.seam_join, !self.aims(class), span);
         }
         embedding
     }

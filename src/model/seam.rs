@@ -28,7 +28,11 @@ use crate::data::features::ROOT_FEATURES;
 /// A block on its way to a key (`steps: false`) keeps its root's steps: they are the
 /// straight line to where the key stands, and a step bent towards the context's would turn
 /// the whole way off it (Bandai's 2 s in-betweens strayed 13 cm from the line).
-pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin, steps: bool) {
+///
+/// The shift fades out over `span` poses: the first half of the block ([`half_block`]), or
+/// the whole of a block that changes the body's height a long way (standing up from a
+/// seat, [`super::glogen::GloGen::rollout_block`]).
+pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin, steps: bool, span: usize) {
     let poses = block.len() / dim;
     if poses < 2 {
         return;
@@ -44,7 +48,7 @@ pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJo
         })
         .collect();
     let share = seam_share(kind, before.len() == block.len());
-    let fade = join_fade(poses);
+    let fade = join_fade(poses, span);
     for (k, w) in fade.iter().enumerate() {
         block[k * dim..(k + 1) * dim].iter_mut().zip(&shift).for_each(|(v, d)| *v += share * d * w);
     }
@@ -66,10 +70,14 @@ fn seam_share(kind: SeamJoin, whole_block_before: bool) -> f32 {
     }
 }
 
+/// The poses of a block of `poses` that a seam's shift usually fades over: its first half.
+pub fn half_block(poses: usize) -> usize {
+    poses / 2
+}
+
 /// The share of a seam's shift each of a block's `poses` keeps: a raised cosine from 1 at its
-/// first pose to 0 at its middle.
-fn join_fade(poses: usize) -> Vec<f32> {
-    let span = poses / 2;
+/// first pose to 0 at pose `span`.
+fn join_fade(poses: usize, span: usize) -> Vec<f32> {
     (0..poses).map(|k| if k < span { 0.5 * (1.0 + (std::f32::consts::PI * k as f32 / span as f32).cos()) } else { 0.0 }).collect()
 }
 
@@ -99,7 +107,7 @@ pub fn join_seams_tensor(before: &Tensor, blocks: &Tensor, kind: SeamJoin, steps
         shift = shift.broadcast_mul(&weight)?;
     }
     let share = seam_share(kind, before.dim(1)? == poses) as f64;
-    let fade = join_fade(poses);
+    let fade = join_fade(poses, half_block(poses));
     let head = Tensor::from_vec(fade.clone(), (1, poses, 1), device)?;
     let joined = (blocks + shift.broadcast_mul(&head)?.affine(share, 0.0)?)?;
     if share == 1.0 {
@@ -134,7 +142,8 @@ mod tests {
                     let (width, before_width) = (poses * dim, before_poses * dim);
                     let mut block = blocks[b * width..(b + 1) * width].to_vec();
                     let mut prior = before[b * before_width..(b + 1) * before_width].to_vec();
-                    join_seam(&mut prior, &mut block, dim, kind, b == 0);
+                    let span = half_block(block.len() / dim);
+                    join_seam(&mut prior, &mut block, dim, kind, b == 0, span);
                     if b == 1 {
                         let steps_kept = (0..poses).all(|k| (1..ROOT_FEATURES).all(|f| block[k * dim + f] == blocks[b * width + k * dim + f]));
                         assert!(steps_kept, "a block on its way to a key had its root steps joined");
@@ -161,7 +170,8 @@ mod tests {
         let mut seams = Vec::new();
         for kind in [SeamJoin::OneSided, SeamJoin::TwoSided] {
             let (mut prior, mut joined) = (before.clone(), block.clone());
-            join_seam(&mut prior, &mut joined, dim, kind, true);
+            let span = half_block(joined.len() / dim);
+            join_seam(&mut prior, &mut joined, dim, kind, true, span);
             let last = &prior[(poses - 1) * dim..];
             seams.push((ROOT_FEATURES..dim).map(|f| joined[f] - last[f]).collect::<Vec<f32>>());
         }
