@@ -21,7 +21,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use crate::motion::Motion;
+use crate::motion::{JointRoles, Motion, RolesError};
 
 /// Bandwidth exponents of the MMD kernel: `b = 10^k`.
 pub const MMD_BANDWIDTH_EXPONENTS: std::ops::RangeInclusive<i32> = -4..=9;
@@ -318,4 +318,19 @@ pub fn window_stats(m: &Motion, window_s: f32, class_speed: f32, min_bone: f32) 
         start += w;
     }
     out
+}
+
+/// The window (seconds) over which the hips' climb is measured ([`fastest_rise`]).
+const RISE_WINDOW_S: f32 = 0.2;
+
+/// The fastest the hips climb (metres a second) over any [`RISE_WINDOW_S`] of `m` from frame
+/// `from` on: a body that stands up without pushing through its feet rises faster than any
+/// real one.
+pub fn fastest_rise(m: &Motion, from: usize) -> Result<f32, RolesError> {
+    let hips = JointRoles::new(&m.skeleton)?.body_root;
+    let unit = m.skeleton.meters_per_unit();
+    let span = ((RISE_WINDOW_S * m.fps).round() as usize).max(1);
+    let seconds = span as f32 / m.fps;
+    let height = |t: usize| m.frame(t)[hips].y * unit;
+    Ok((from..m.frames().saturating_sub(span)).map(|t| (height(t + span) - height(t)) / seconds).fold(0.0, f32::max))
 }

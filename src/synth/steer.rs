@@ -376,9 +376,9 @@ struct AnchorBank {
     spread: Vec<f32>,
     /// Per class: the mean hips height of its windows, in the skeleton's units.
     hips: Vec<f32>,
-    /// The root height's normalisation (mean, spread), which takes a context's back to the
-    /// skeleton's units.
-    root_height: (f32, f32),
+    /// The root height's mean, which with its spread takes a context's back to the
+    /// skeleton's units ([`hips_height`]).
+    root_mean: f32,
 }
 
 impl AnchorBank {
@@ -399,20 +399,18 @@ impl AnchorBank {
         let mean = |values: Vec<f32>| if values.is_empty() { 0.0 } else { values.iter().sum::<f32>() / values.len() as f32 };
         let typical = windows.iter().map(|w| mean(w.iter().map(|(_, m)| *m).collect())).collect();
         let typical_step = windows.iter().map(|w| mean(w.iter().map(|(window, _)| skeleton_step(window, &spread)).collect())).collect();
-        let root_height = (model.spec.sparse_norm.mean[0], spread[0]);
-        let height = |window: &[f32]| mean(window.chunks_exact(dim).map(|pose| hips_height(root_height, pose)).collect());
+        let root_mean = model.spec.sparse_norm.mean[0];
+        let height = |window: &[f32]| mean(window.chunks_exact(dim).map(|pose| hips_height(root_mean, spread[0], pose)).collect());
         let hips = windows.iter().map(|w| mean(w.iter().map(|(window, _)| height(window)).collect())).collect();
-        Self { windows, styles, typical, typical_step, spread, hips, root_height }
+        Self { windows, styles, typical, typical_step, spread, hips, root_mean }
     }
 
     /// How far below `class`'s own height the last pose of the normalised `context` holds the
     /// hips, as a share of it (negative above it).
     fn posture_gap(&self, class: usize, context: &[f32]) -> f32 {
-        let dim = self.spread.len();
         let Some(&own) = self.hips.get(class).filter(|h| **h > f32::EPSILON) else { return 0.0 };
-        let last = context.len() / dim * dim;
-        let Some(pose) = context.get(last.saturating_sub(dim)..last) else { return 0.0 };
-        (own - hips_height(self.root_height, pose)) / own
+        let Some(pose) = context.chunks_exact(self.spread.len()).last() else { return 0.0 };
+        (own - hips_height(self.root_mean, self.spread[0], pose)) / own
     }
 
     /// Whether `class` has a window of `style`.
@@ -437,8 +435,8 @@ impl AnchorBank {
 }
 
 /// The height of the hips (the root) of a normalised pose, by the root height's normalisation
-/// (mean, spread).
-fn hips_height((mean, spread): (f32, f32), pose: &[f32]) -> f32 {
+/// (`mean`, `spread`).
+fn hips_height(mean: f32, spread: f32, pose: &[f32]) -> f32 {
     mean + pose[0] * spread
 }
 

@@ -9,21 +9,6 @@ use crate::motion::{JointRoles, Motion, Side};
 /// A lowest foot joint this far above the floor (metres) is up.
 pub(super) const FEET_UP_M: f32 = 0.05;
 
-/// The window (seconds) over which the hips' climb is measured ([`fastest_rise`]).
-const RISE_WINDOW_S: f32 = 0.2;
-
-/// The fastest the hips climb (metres a second) over any [`RISE_WINDOW_S`] of `m` from frame
-/// `from` on: a body that stands up without pushing through its feet rises faster than any
-/// real one.
-pub(super) fn fastest_rise(m: &Motion, from: usize) -> Result<f32> {
-    let hips = JointRoles::new(&m.skeleton)?.body_root;
-    let unit = m.skeleton.meters_per_unit();
-    let span = ((RISE_WINDOW_S * m.fps).round() as usize).max(1);
-    let seconds = span as f32 / m.fps;
-    let height = |t: usize| m.frame(t)[hips].y * unit;
-    Ok((from..m.frames().saturating_sub(span)).map(|t| (height(t + span) - height(t)) / seconds).fold(0.0, f32::max))
-}
-
 /// Feet up (fraction of frames), the longest float (s) and the locked contacts' frames off the
 /// floor (fraction), over the export's floor.
 pub(super) fn feet_on_the_floor(m: &Motion, contacts: &FootContacts) -> Result<(f64, f32, f64)> {

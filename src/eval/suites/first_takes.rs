@@ -14,10 +14,11 @@ use serde::Serialize;
 use serde_json::{json, Value};
 
 use super::context::SuiteContext;
-use super::feet_up::{fastest_rise, feet_on_the_floor};
+use super::feet_up::feet_on_the_floor;
 use super::random_takes::{self, random_takes};
 use crate::data::registry::Dataset;
 use crate::data::write::write_atomic;
+use crate::eval::metrics::fastest_rise;
 use crate::eval::motion::COMMON_FPS;
 use crate::eval::snaps::{Snap, SnapLimits, SnapTally};
 use crate::eval::table::{fixed_or, Markdown, Table};
