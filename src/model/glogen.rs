@@ -29,20 +29,31 @@ pub struct GloGen {
     /// The skeleton's leg (hip to knee to ankle at rest), which a seam's change of height is
     /// measured against ([`LONG_JOIN_LEGS`]); 0 where the legs are not found.
     leg: f32,
+    /// The poses a change of posture's seam is joined over ([`LONG_JOIN_SECONDS`]).
+    long_span: usize,
 }
 
 /// A block whose first pose holds the hips further than this many leg lengths from the pose
 /// before it (a seat before a stand, a stand before a sit: an anchored change of posture) is
-/// joined over the whole block rather than its first half. Over the first half, a crouch
-/// before a walk stood up in 0.3 s (the hips climbing 1.7 m/s once the foot lock kept the
-/// feet planted; Human3.6M's fastest real climb is 1.75), in a second over the whole block.
+/// joined over [`LONG_JOIN_SECONDS`] rather than its first half. Over the first half (1 s on
+/// Human3.6M), a crouch before a walk stood up in 0.3 s (the hips climbing 1.7 m/s once the
+/// foot lock kept the feet planted; Human3.6M's fastest real climb is 1.75).
 const LONG_JOIN_LEGS: f32 = 0.25;
+
+/// How long a change of posture's seam shift fades over, the block's length at most. Over
+/// Human3.6M's whole 2 s block, a body rising from a floor seat was still rising 1 s into the
+/// new class (class control 1 s after a change from another class's seed 92.5 -> 88.3%);
+/// over 1.4 s it reads 91.9% and climbs no faster (h36m walks from its 160 seed windows: 11
+/// over 1.2 m/s and 1 over 1.75, against 8 and 2 over the whole block and 18 and 9 over its
+/// half). Bandai's and `all`'s blocks are 1 s: joined whole, as before.
+const LONG_JOIN_SECONDS: f32 = 1.4;
 
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
         let class_len = spec.label_len();
         let leg = JointRoles::new(&spec.layout.skeleton).map_or(0.0, |roles| roles.rest_leg_length(&spec.layout.skeleton));
-        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0, leg };
+        let long_span = ((LONG_JOIN_SECONDS * spec.fps / spec.stride as f32).round() as usize).clamp(half_block(spec.block_len), spec.block_len);
+        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0, leg, long_span };
         glogen.set_contrasts(spec);
         glogen
     }
@@ -165,14 +176,14 @@ impl GloGen {
     /// steps on from the context's last pose, and fades the shift out over the first half of
     /// the block with a raised cosine, which keeps the block's own motion and its end where
     /// GloGen put it; a two-sided join ([`super::spec::SeamJoin`]) moves the block before by
-    /// half of it. A block that changes the body's height a long way is joined over the whole
-    /// of it ([`LONG_JOIN_LEGS`]).
+    /// half of it. A block that changes the body's height a long way is joined over longer
+    /// ([`LONG_JOIN_LEGS`], [`LONG_JOIN_SECONDS`]).
     pub fn rollout_block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.block(ws, input, class, strength, out);
         if let Some(before) = join {
             let climb = (before[before.len() - self.dim] - out[0]) * self.norm.std[0];
             let poses = out.len() / self.dim;
-            let span = if climb.abs() > LONG_JOIN_LEGS * self.leg { poses } else { half_block(poses) };
+            let span = if climb.abs() > LONG_JOIN_LEGS * self.leg { self.long_span.min(poses) } else { half_block(poses) };
             join_seam(before, out, self.dim, self.spec.seam_join, !self.aims(class), span);
         }
         embedding

@@ -30,8 +30,8 @@ use crate::data::features::ROOT_FEATURES;
 /// the whole way off it (Bandai's 2 s in-betweens strayed 13 cm from the line).
 ///
 /// The shift fades out over `span` poses: the first half of the block ([`half_block`]), or
-/// the whole of a block that changes the body's height a long way (standing up from a
-/// seat, [`super::glogen::GloGen::rollout_block`]).
+/// longer for a block that changes the body's height a long way (standing up from a seat,
+/// [`super::glogen::GloGen::rollout_block`]).
 pub fn join_seam(before: &mut [f32], block: &mut [f32], dim: usize, kind: SeamJoin, steps: bool, span: usize) {
     let poses = block.len() / dim;
     if poses < 2 {
