@@ -174,33 +174,10 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         let fps = corpus.fps;
         for (class_name, title) in classes {
             let class = corpus.classes.iter().position(|c| c == class_name).with_context(|| format!("{dataset} has no class {class_name}"))?;
-            // Test windows: t0 is the last observed frame.
-            let mut starts = Vec::new();
-            for (ti, t) in corpus.test.iter().enumerate().filter(|(_, t)| t.class == class) {
-                let n = t.motion.frames();
-                if n > CMU_CONTEXT + CMU_HORIZON + 1 {
-                    starts.extend((CMU_CONTEXT..n - CMU_HORIZON - 1).step_by(5).map(|t0| (ti, t0)));
-                }
-            }
-            let step = (starts.len() as f64 / CMU_WINDOWS_PER_CLASS as f64).max(1.0);
-            let starts: Vec<(usize, usize)> = (0..).map(|k| (k as f64 * step) as usize).take_while(|&i| i < starts.len()).map(|i| starts[i]).collect();
-            if starts.is_empty() {
-                bail!("{dataset} {class_name}: no test window");
-            }
-            let truths: Vec<Vec<Vec3>> = starts.iter().map(|&(ti, t0)| (0..=CMU_HORIZON).flat_map(|k| corpus.test[ti].motion.frame(t0 + k).to_vec()).collect()).collect();
-            let mut rows: Vec<(String, [f64; 8])> = Vec::new();
-            let mean_rows = |preds: &[Vec<Vec3>], pred_fps: f32| -> [f64; 8] {
-                let mut acc = [0.0; 8];
-                for (p, t) in preds.iter().zip(&truths) {
-                    let e = metrics::horizon_errors(p, t, j, pred_fps, fps);
-                    for k in 0..8 {
-                        acc[k] += e[k] / preds.len() as f64;
-                    }
-                }
-                acc
-            };
-            let zero: Vec<Vec<Vec3>> = starts.iter().map(|&(ti, t0)| corpus.test[ti].motion.frame(t0).to_vec()).collect();
-            rows.push(("Zero-velocity".into(), mean_rows(&zero, fps)));
+            let starts = test_windows(&corpus, class, "", CMU_CONTEXT)?;
+            let truths = true_futures(&corpus, &starts);
+            let mean_rows = |preds: &[Vec<Vec3>], pred_fps: f32| mean_errors(preds, &truths, j, pred_fps, fps);
+            let mut rows = vec![("Zero-velocity".to_string(), mean_rows(&zero_velocity(&corpus, &starts), fps))];
             let observed: Vec<Vec<f32>> = starts.iter().map(|&(ti, t0)| layout.encode_motion(&corpus.test[ti].motion, t0 + 1 - CMU_CONTEXT, 1, CMU_CONTEXT)).collect();
             for (kind, b) in &bases {
                 let Some(b) = b else {
@@ -222,14 +199,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
             }
             for (label, model) in glogens.iter_mut() {
                 let k = model.spec.classes.iter().position(|c| c == class_name).unwrap_or(0);
-                let mut preds = Vec::new();
-                for &(ti, t0) in &starts {
-                    let m = &corpus.test[ti].motion;
-                    let mut p = m.frame(t0).to_vec();
-                    p.extend(model.forecast(m, t0, k, 1, join_seams)?);
-                    preds.push(p);
-                }
-                rows.push((label.to_string(), mean_rows(&preds, fps / CMU_STRIDE as f32)));
+                rows.push((label.to_string(), mean_rows(&forecasts(model, &corpus, &starts, k, join_seams)?, fps / CMU_STRIDE as f32)));
             }
             let unit = corpus.layout.skeleton.meters_per_unit();
             md.text(&format!(
@@ -253,5 +223,94 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
             }));
         }
     }
-    Ok((md, json!({"horizons_ms": HORIZONS_MS, "tables": out})))
+    let shipped = shipped_all(ctx, &mut md)?;
+    Ok((md, json!({"horizons_ms": HORIZONS_MS, "tables": out, "shipped_all": shipped})))
+}
+
+/// The studio's own model, `models/all`, forecasting the same three motions' test clips
+/// retargeted onto its skeleton, against zero-velocity on the same windows: the tables above
+/// train each GloGen on one CMU set at its stride; this is the shipped GloGen itself.
+fn shipped_all(ctx: &SuiteContext, md: &mut Markdown) -> Result<Value> {
+    let dir = ctx.model_dir(Dataset::Combined);
+    let model = GlocalModel::load(&dir).with_context(|| format!("the shipped model {}", dir.display()))?;
+    let corpus = Corpus::load(Dataset::Combined, &ctx.options.data, model.spec.stride, 3)?;
+    let (j, fps) = (corpus.layout.joints(), corpus.fps);
+    let context = model.spec.observed_span() + model.spec.stride;
+    md.text(&format!(
+        "\n**The shipped `{}`** (every clip retargeted onto its skeleton, metres; it forecasts {} sparse poses {} frames apart from {} observed, class strength 1, blocks joined as in generation; the same test clips as above, windows of each motion's clips from its CMU set only)\n\n",
+        dir.display(),
+        model.spec.block_len,
+        model.spec.stride,
+        model.spec.block_len
+    ));
+    let mut table = Table::new(std::iter::once("motion, method".to_string()).chain(HORIZONS_MS.map(|h| format!("{h} ms"))));
+    let mut out = Vec::new();
+    for (class_name, source, title) in [("walking", "cmu-expmap", "Walking"), ("indian", "cmu-dance", "Indian Dance"), ("martial", "cmu-dance", "Martial Arts")] {
+        let class = corpus.classes.iter().position(|c| c == class_name).with_context(|| format!("{} has no class {class_name}", dir.display()))?;
+        let starts = test_windows(&corpus, class, source, context)?;
+        let truths = true_futures(&corpus, &starts);
+        let zero = mean_errors(&zero_velocity(&corpus, &starts), &truths, j, fps, fps);
+        let glogen = mean_errors(&forecasts(&model, &corpus, &starts, class, ctx.generation.join_seams)?, &truths, j, fps / model.spec.stride as f32, fps);
+        for (label, r) in [("Zero-velocity", zero), ("GloGen (shipped)", glogen)] {
+            table.row(std::iter::once(format!("{title} ({} windows), {label}", starts.len())).chain(r.map(|v| f(v * 1000.0, 1))));
+        }
+        out.push(json!({"motion": title, "windows": starts.len(), "zero_velocity_m": zero, "glogen_m": glogen}));
+    }
+    md.text("Errors in millimetres.\n\n");
+    md.table(table);
+    Ok(Value::Array(out))
+}
+
+/// Up to [`CMU_WINDOWS_PER_CLASS`] test windows of `class`, evenly over those of its clips
+/// whose file starts with `source` (every clip for ""), as (clip, last observed frame) with
+/// `context` frames observed before and [`CMU_HORIZON`] after.
+fn test_windows(corpus: &Corpus, class: usize, source: &str, context: usize) -> Result<Vec<(usize, usize)>> {
+    let mut starts = Vec::new();
+    for (ti, t) in corpus.test.iter().enumerate().filter(|(_, t)| t.class == class && t.file.starts_with(source)) {
+        let n = t.motion.frames();
+        if n > context + CMU_HORIZON + 1 {
+            starts.extend((context..n - CMU_HORIZON - 1).step_by(5).map(|t0| (ti, t0)));
+        }
+    }
+    let step = (starts.len() as f64 / CMU_WINDOWS_PER_CLASS as f64).max(1.0);
+    let starts: Vec<(usize, usize)> = (0..).map(|k| (k as f64 * step) as usize).take_while(|&i| i < starts.len()).map(|i| starts[i]).collect();
+    if starts.is_empty() {
+        bail!("{} {}: no test window", corpus.dataset, corpus.classes[class]);
+    }
+    Ok(starts)
+}
+
+/// Each window's last observed frame and the [`CMU_HORIZON`] frames after it.
+fn true_futures(corpus: &Corpus, starts: &[(usize, usize)]) -> Vec<Vec<Vec3>> {
+    starts.iter().map(|&(ti, t0)| (0..=CMU_HORIZON).flat_map(|k| corpus.test[ti].motion.frame(t0 + k).to_vec()).collect()).collect()
+}
+
+/// Each window's last observed frame, held.
+fn zero_velocity(corpus: &Corpus, starts: &[(usize, usize)]) -> Vec<Vec<Vec3>> {
+    starts.iter().map(|&(ti, t0)| corpus.test[ti].motion.frame(t0).to_vec()).collect()
+}
+
+/// `model`'s block after each window, its last observed frame first.
+fn forecasts(model: &GlocalModel, corpus: &Corpus, starts: &[(usize, usize)], class: usize, join_seams: bool) -> Result<Vec<Vec<Vec3>>> {
+    starts
+        .iter()
+        .map(|&(ti, t0)| {
+            let m = &corpus.test[ti].motion;
+            let mut p = m.frame(t0).to_vec();
+            p.extend(model.forecast(m, t0, class, 1, join_seams)?);
+            Ok(p)
+        })
+        .collect()
+}
+
+/// The mean over windows of the joint error at each horizon.
+fn mean_errors(preds: &[Vec<Vec3>], truths: &[Vec<Vec3>], joints: usize, pred_fps: f32, truth_fps: f32) -> [f64; 8] {
+    let mut acc = [0.0; 8];
+    for (p, t) in preds.iter().zip(truths) {
+        let e = metrics::horizon_errors(p, t, joints, pred_fps, truth_fps);
+        for k in 0..8 {
+            acc[k] += e[k] / preds.len() as f64;
+        }
+    }
+    acc
 }
