@@ -147,84 +147,67 @@ fn cell_bwd_impl(
     }
 }
 
-/// `z[n] += sum_k h[k] * wt[k, n]` (small-batch recurrent product with `W_hhᵀ` stored `[H, 4H]`).
-/// Register-blocked over column chunks so the accumulators stay in registers and only the weights
-/// stream from memory.
+/// `z_r[n] += sum_k h_r[k] * wt[k, n]` for `R` batch rows at once (the small-batch recurrent
+/// product with `W_hhᵀ` stored `[H, 4H]`). Register-blocked over column chunks so the
+/// accumulators stay in registers and only the weights stream from memory, once for all `R`
+/// rows: batch-1 inference is bound by that stream, so a guided block's second and third
+/// passes (the unconditioned one, a contrast's) are nearly free.
 #[inline(always)]
-fn axpy_rows_impl(hk: &[f32], wt: &[f32], z: &mut [f32]) {
+fn axpy_rows_n<const R: usize>(hs: [&[f32]; R], wt: &[f32], mut zs: [&mut [f32]; R]) {
     #[inline(always)]
-    fn chunk<const C: usize>(hk: &[f32], wt: &[f32], z: &mut [f32], j: usize) {
-        let n = z.len();
-        let mut acc = [0f32; C];
-        acc.copy_from_slice(&z[j..j + C]);
-        for (k, &hv) in hk.iter().enumerate() {
+    fn chunk<const R: usize, const C: usize>(hs: &[&[f32]; R], wt: &[f32], zs: &mut [&mut [f32]; R], j: usize) {
+        let n = zs[0].len();
+        let mut acc = [[0f32; C]; R];
+        for (a, z) in acc.iter_mut().zip(zs.iter()) {
+            a.copy_from_slice(&z[j..j + C]);
+        }
+        for k in 0..hs[0].len() {
             let row: &[f32; C] = wt[k * n + j..k * n + j + C].try_into().unwrap();
-            for c in 0..C {
-                acc[c] += hv * row[c];
+            for (a, h) in acc.iter_mut().zip(hs) {
+                let hv = h[k];
+                for c in 0..C {
+                    a[c] += hv * row[c];
+                }
             }
         }
-        z[j..j + C].copy_from_slice(&acc);
+        for (a, z) in acc.iter().zip(zs.iter_mut()) {
+            z[j..j + C].copy_from_slice(a);
+        }
     }
-    let n = z.len();
-    assert!(wt.len() >= hk.len() * n);
+    let (n, k) = (zs[0].len(), hs[0].len());
+    assert!(hs.iter().all(|h| h.len() == k) && zs.iter().all(|z| z.len() == n) && wt.len() >= k * n);
     let mut j = 0;
     while j + 128 <= n {
-        chunk::<128>(hk, wt, z, j);
+        chunk::<R, 128>(&hs, wt, &mut zs, j);
         j += 128;
     }
     while j + 32 <= n {
-        chunk::<32>(hk, wt, z, j);
+        chunk::<R, 32>(&hs, wt, &mut zs, j);
         j += 32;
     }
     while j + 8 <= n {
-        chunk::<8>(hk, wt, z, j);
+        chunk::<R, 8>(&hs, wt, &mut zs, j);
         j += 8;
     }
     while j < n {
-        chunk::<1>(hk, wt, z, j);
+        chunk::<R, 1>(&hs, wt, &mut zs, j);
         j += 1;
     }
 }
 
-/// [`axpy_rows_impl`] for two batch rows at once: each weight row streams from memory once for
-/// both (batch-1 inference is bound by that stream, so the second row is nearly free).
+#[inline(always)]
+fn axpy_rows_impl(hk: &[f32], wt: &[f32], z: &mut [f32]) {
+    axpy_rows_n([hk], wt, [z]);
+}
+
 #[inline(always)]
 fn axpy_rows2_impl(ha: &[f32], hb: &[f32], wt: &[f32], za: &mut [f32], zb: &mut [f32]) {
-    #[inline(always)]
-    fn chunk<const C: usize>(ha: &[f32], hb: &[f32], wt: &[f32], za: &mut [f32], zb: &mut [f32], j: usize) {
-        let n = za.len();
-        let (mut acc_a, mut acc_b) = ([0f32; C], [0f32; C]);
-        acc_a.copy_from_slice(&za[j..j + C]);
-        acc_b.copy_from_slice(&zb[j..j + C]);
-        for (k, (&va, &vb)) in ha.iter().zip(hb).enumerate() {
-            let row: &[f32; C] = wt[k * n + j..k * n + j + C].try_into().unwrap();
-            for c in 0..C {
-                acc_a[c] += va * row[c];
-                acc_b[c] += vb * row[c];
-            }
-        }
-        za[j..j + C].copy_from_slice(&acc_a);
-        zb[j..j + C].copy_from_slice(&acc_b);
-    }
-    let n = za.len();
-    assert!(zb.len() == n && hb.len() == ha.len() && wt.len() >= ha.len() * n);
-    let mut j = 0;
-    while j + 128 <= n {
-        chunk::<128>(ha, hb, wt, za, zb, j);
-        j += 128;
-    }
-    while j + 32 <= n {
-        chunk::<32>(ha, hb, wt, za, zb, j);
-        j += 32;
-    }
-    while j + 8 <= n {
-        chunk::<8>(ha, hb, wt, za, zb, j);
-        j += 8;
-    }
-    while j < n {
-        chunk::<1>(ha, hb, wt, za, zb, j);
-        j += 1;
-    }
+    axpy_rows_n([ha, hb], wt, [za, zb]);
+}
+
+#[inline(always)]
+fn axpy_rows3_impl(ha: &[f32], hb: &[f32], hc: &[f32], wt: &[f32], za: &mut [f32], zb: &mut [f32], zc: &mut [f32]) {
+    axpy_rows_n([ha, hb, hc], wt, [za, zb, zc]);
 }
 
 /// Defines `$name`, which runs `$impl_` compiled for AVX-512 or AVX2+FMA when the CPU has them
@@ -268,6 +251,7 @@ dispatch_simd!(cell_fwd, cell_fwd_impl, (h: usize, z: &[f32], g: &[f32], bias: &
 dispatch_simd!(cell_bwd, cell_bwd_impl, (h: usize, dout: &[f32], dh_rec: &[f32], dc: &mut [f32], acts: &[f32], c: &[f32], c_prev: &[f32], dz: &mut [f32]));
 dispatch_simd!(axpy_rows, axpy_rows_impl, (hk: &[f32], wt: &[f32], z: &mut [f32]));
 dispatch_simd!(axpy_rows2, axpy_rows2_impl, (ha: &[f32], hb: &[f32], wt: &[f32], za: &mut [f32], zb: &mut [f32]));
+dispatch_simd!(axpy_rows3, axpy_rows3_impl, (ha: &[f32], hb: &[f32], hc: &[f32], wt: &[f32], za: &mut [f32], zb: &mut [f32], zc: &mut [f32]));
 
 /// A matrix read from a slice: element `(r, c)` at `r * row_stride + c * col_stride`.
 #[derive(Clone, Copy)]

@@ -2,7 +2,7 @@
 //! inference path: per step the recurrent product `h_{t-1} · W_hhᵀ` (the register-blocked
 //! kernels at small batch, gemm above it), then the fused cell for every batch row. Each
 //! direction has buffers of its own, so the two can run on two threads with plain borrows.
-use super::kernels::{axpy_rows, axpy_rows2, cell_fwd, matmul, Strided};
+use super::kernels::{axpy_rows, axpy_rows2, axpy_rows3, cell_fwd, matmul, Strided};
 use gemm::Parallelism;
 
 /// Batches up to this size use the register-blocked small-batch kernels.
@@ -83,11 +83,16 @@ fn recurrent_product(b: usize, t: usize, h: usize, tp: usize, hs: &[f32], whh_t:
     if b <= SMALL_BATCH {
         z.fill(0.0);
         let hrow = |bb: usize| &hs[(bb * t + tp) * h..(bb * t + tp + 1) * h];
+        // Rows in pairs, the last three together: the weights stream once per pair or triple.
         let mut rows = z.chunks_exact_mut(h4).enumerate();
         while let Some((bb, za)) = rows.next() {
-            match rows.next() {
-                Some((_, zb)) => axpy_rows2(hrow(bb), hrow(bb + 1), whh_t, za, zb),
-                None => axpy_rows(hrow(bb), whh_t, za),
+            match (rows.next(), rows.len()) {
+                (Some((_, zb)), 1) => {
+                    let (_, zc) = rows.next().expect("one row left");
+                    axpy_rows3(hrow(bb), hrow(bb + 1), hrow(bb + 2), whh_t, za, zb, zc);
+                }
+                (Some((_, zb)), _) => axpy_rows2(hrow(bb), hrow(bb + 1), whh_t, za, zb),
+                (None, _) => axpy_rows(hrow(bb), whh_t, za),
             }
         }
     } else {
