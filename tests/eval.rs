@@ -212,3 +212,29 @@ fn keyed_gaps_beat_linear_interpolation() {
         }
     }
 }
+
+/// The studio's own model forecasting CMU's held-out clips (issue 39's CMU line, read on the
+/// shipped `models/all` rather than a GloGen trained per CMU set), through the cmu-euclid
+/// suite with nothing trained in its cache: the suite runs, says which of its own GloGens and
+/// baselines are not trained, and the shipped GloGen beats holding the last pose on Walking,
+/// Indian Dance and Martial Arts at every horizon from 160 ms on. (At 80 ms on Martial Arts
+/// it is 1.2% behind, 56.3 against 55.6 mm: the line is not met; docs/RESULTS.md.)
+#[test]
+fn the_shipped_model_forecasts_cmu_better_than_holding_the_pose() {
+    let cache = tempfile::tempdir().unwrap();
+    let options = glocal::eval::SuiteOptions { cache: cache.path().to_path_buf(), ..Default::default() };
+    let ctx = glocal::eval::SuiteContext::new(options).expect("the shipped models are readable");
+    let report = glocal::eval::run_suite(glocal::eval::Suite::CmuEuclid, &ctx, &mut |m| eprintln!("{m}")).expect("the cmu-euclid suite runs untrained");
+    let untrained = report.json["tables"].as_array().unwrap().iter().flat_map(|t| t["rows"].as_array().unwrap()).filter(|r| r["method"].as_str().unwrap().contains("not trained")).count();
+    assert!(untrained > 0, "no row says its method is not trained, with an empty cache");
+    let shipped = report.json["shipped_all"].as_array().unwrap();
+    assert_eq!(shipped.len(), 3);
+    for motion in shipped {
+        let errors = |key: &str| -> Vec<f64> { motion[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect() };
+        let (zero, glogen) = (errors("zero_velocity_m"), errors("glogen_m"));
+        eprintln!("{}: GloGen {glogen:.4?} against zero-velocity {zero:.4?} m", motion["motion"]);
+        for (k, (g, z)) in glogen.iter().zip(&zero).enumerate().skip(1) {
+            assert!(g < z, "{} at {} ms: {g:.4} m against zero-velocity's {z:.4}", motion["motion"], metrics::HORIZONS_MS[k]);
+        }
+    }
+}

@@ -67,15 +67,18 @@ fn variant_dir(opts: &SuiteOptions, dataset: Dataset, suffix: &str) -> PathBuf {
     opts.cache.join(format!("glogen-{}{suffix}", dataset.name()))
 }
 
-fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
+/// The cached variant, trained first with `--train-baselines`; None when it is missing and
+/// training was not asked for (its row then says so).
+fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &mut dyn FnMut(&str)) -> Result<Option<PathBuf>> {
     let dir = variant_dir(opts, dataset, variant.suffix);
     let steps = if variant.joins.is_some() { CMU_JOINED_STEPS } else { CMU_GLOGEN_STEPS };
     let done = ModelSpec::read(&dir).ok().and_then(|s| s.training.glogen).is_some_and(|r| r.steps >= steps);
     if done {
-        return Ok(dir);
+        return Ok(Some(dir));
     }
     if !opts.train_baselines {
-        bail!("{} is not trained yet; run with --train-baselines", dir.display());
+        log(&format!("{} on {dataset} is not trained yet; run with --train-baselines", variant.label));
+        return Ok(None);
     }
     log(&format!("training {} on {dataset} into {} ({steps} steps)", variant.label, dir.display()));
     let mut t = TrainOptions::new(dataset, Stage::Glogen, dir.clone());
@@ -107,7 +110,7 @@ fn cmu_glogen(opts: &SuiteOptions, dataset: Dataset, variant: &CmuGlogen, log: &
             eprintln!("  step {}: loss {:.4}, validation error {v:.3} ({:.0} s)", p.step, p.loss, started.elapsed().as_secs_f32());
         }
     }, &AtomicBool::new(false))?;
-    Ok(dir)
+    Ok(Some(dir))
 }
 
 /// The cached baseline, trained first with `--train-baselines`; None when it is missing
@@ -161,7 +164,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
     for (dataset, classes) in sets {
         let mut glogens = Vec::new();
         for variant in &GLOGEN_VARIANTS {
-            glogens.push((variant.label, GlocalModel::load(&cmu_glogen(opts, dataset, variant, log)?)?));
+            glogens.push((variant.label, cmu_glogen(opts, dataset, variant, log)?.map(|dir| GlocalModel::load(&dir)).transpose()?));
         }
         let corpus = Corpus::load(dataset, &opts.data, CMU_STRIDE, 3)?;
         let (_, dense_norm) = corpus.normalizers();
@@ -181,7 +184,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
             let observed: Vec<Vec<f32>> = starts.iter().map(|&(ti, t0)| layout.encode_motion(&corpus.test[ti].motion, t0 + 1 - CMU_CONTEXT, 1, CMU_CONTEXT)).collect();
             for (kind, b) in &bases {
                 let Some(b) = b else {
-                    rows.push((format!("{} (not trained: run with --train-baselines)", kind.label()), [f64::NAN; 8]));
+                    rows.push(untrained(kind.label()));
                     continue;
                 };
                 let feats = b.predict(&observed, CMU_HORIZON)?;
@@ -197,7 +200,11 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
                     .collect();
                 rows.push((b.record.config.kind.label().to_string(), mean_rows(&preds, fps)));
             }
-            for (label, model) in glogens.iter_mut() {
+            for (label, model) in &glogens {
+                let Some(model) = model else {
+                    rows.push(untrained(label));
+                    continue;
+                };
                 let k = model.spec.classes.iter().position(|c| c == class_name).unwrap_or(0);
                 rows.push((label.to_string(), mean_rows(&forecasts(model, &corpus, &starts, k, join_seams)?, fps / CMU_STRIDE as f32)));
             }
@@ -278,6 +285,11 @@ fn test_windows(corpus: &Corpus, class: usize, source: &str, context: usize) -> 
         bail!("{} {}: no test window", corpus.dataset, corpus.classes[class]);
     }
     Ok(starts)
+}
+
+/// The row of a method not trained yet.
+fn untrained(label: &str) -> (String, [f64; 8]) {
+    (format!("{label} (not trained: run with --train-baselines)"), [f64::NAN; 8])
 }
 
 /// Each window's last observed frame and the [`CMU_HORIZON`] frames after it.
