@@ -65,11 +65,12 @@ fn styles_change_the_take_and_activities_of_every_dataset_follow_each_other() {
 
 /// A style asked for by name keeps the pace of its clips (model.json's `style_speed`): a
 /// network's byebye moves about 2x between styles whose clips differ 35x (before, from 6 s
-/// on: active 0.42x its clips' speed, normal 2.3x, proud 2.9x).
+/// on: active 0.42x its clips' speed, normal 2.3x, proud 2.9x; feminine 3.8x and sad 1.7x
+/// until a styled segment's blocks were scaled down to its pace).
 #[test]
 fn a_style_asked_for_keeps_the_pace_of_its_clips() {
     let model = GlocalModel::load(&shipped("all")).unwrap();
-    for style in ["active", "normal", "proud"] {
+    for style in ["active", "normal", "proud", "feminine", "sad"] {
         let wave = take(&model, &format!("byebye/{style}:12"), "byebye");
         let settled = wave.slice((6.0 * wave.fps) as usize, wave.frames());
         let clips = model.spec.style_speed["byebye"][style];

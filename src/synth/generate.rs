@@ -365,6 +365,9 @@ impl RolloutSteps for TakeSteps<'_, '_> {
     }
 
     fn appended(&mut self, b: usize, glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut [f32]) -> Result<()> {
+        if !self.holds(b) {
+            self.state.steering.hold_style_pace(self.model, &self.plans[b], sparse);
+        }
         let block = PlannedBlock { plan: &self.plans[b], strength: self.strength, join_seams: self.opts.join_seams };
         for constraint in self.constraints {
             constraint.on_block(&block, (glogen, &mut *ws), sparse);
