@@ -13,7 +13,7 @@ use super::options::GenerateOptions;
 use super::plan::BlockPlan;
 use super::init::InitPose;
 use super::pace::RecentPace;
-use crate::data::features::{Normalizer, ROOT_FEATURES};
+use crate::data::features::ROOT_FEATURES;
 use crate::model::glocal::GlocalModel;
 
 /// Guidance at least this strong in the blocks of an anchored class change and the
@@ -357,17 +357,23 @@ impl Steering {
     /// every step scaled by the same share, so it starts where the join put it and keeps its
     /// own shape, smaller.
     pub fn hold_style_pace(&mut self, model: &GlocalModel, plan: &BlockPlan, sparse: &mut [f32]) {
-        let Some(style) = plan.style.filter(|_| self.keep_alive) else { return };
-        let Some(pace) = self.pace.of((plan.target, Some(style))).filter(|_| self.pace.scale((plan.target, Some(style))) < 1.0) else { return };
+        if !self.keep_alive {
+            return;
+        }
+        let Some(key) = plan.style.map(|style| (plan.target, Some(style))) else { return };
+        let Some(pace) = self.pace.of(key).filter(|_| self.pace.scale(key) < 1.0) else { return };
         if pace.whole <= STYLE_PACE_ABOVE {
             return;
         }
         let share = (STYLE_PACE_ABOVE / pace.whole).max(STYLE_DAMPING_FLOOR);
-        let (dim, t) = (self.dim, self.block_len);
-        let start = sparse.len() - t * dim;
-        let (before, block) = sparse.split_at_mut(start);
-        damp_block(&before[start - dim..], block, share, &model.spec.sparse_norm);
-        self.pace.amend_last(model, &raw_block(&model.spec, &before[start - dim..], block));
+        let dim = self.dim;
+        let start = sparse.len() - self.block_len * dim;
+        let mut poses = raw_block(&model.spec, &sparse[start - dim..start], &sparse[start..]);
+        damp_block(&mut poses, dim, share);
+        self.pace.amend_last(model, &poses);
+        let block = &mut poses[dim..];
+        model.spec.sparse_norm.normalize(block);
+        sparse[start..].copy_from_slice(block);
     }
 
     /// The last block recorded, again as the next block's seam join left it (a two-sided
@@ -471,18 +477,14 @@ fn hips_height(mean: f32, spread: f32, pose: &[f32]) -> f32 {
     mean + pose[0] * spread
 }
 
-/// `block` (normalised poses) moving `share` as far from `previous`, the pose before it:
-/// positions come `share` of the way from `previous`, the root's steps over the ground and
-/// turns (features 1-3, velocities) are scaled by `share` in the raw.
-fn damp_block(previous: &[f32], block: &mut [f32], share: f32, norm: &Normalizer) {
-    for pose in block.chunks_exact_mut(previous.len()) {
-        for (f, (v, p)) in pose.iter_mut().zip(previous).enumerate() {
-            *v = if (1..ROOT_FEATURES).contains(&f) {
-                let raw = *v * norm.std[f] + norm.mean[f];
-                (share * raw - norm.mean[f]) / norm.std[f]
-            } else {
-                p + share * (*v - p)
-            };
+/// A block of raw poses after the pose before it (`poses`, `dim` features each, that pose
+/// first) moving `share` as far: positions come `share` of the way from the pose before, the
+/// root's steps over the ground and turns (features 1-3, velocities) are scaled by `share`.
+fn damp_block(poses: &mut [f32], dim: usize, share: f32) {
+    let (previous, block) = poses.split_at_mut(dim);
+    for pose in block.chunks_exact_mut(dim) {
+        for (f, (v, p)) in pose.iter_mut().zip(&*previous).enumerate() {
+            *v = if (1..ROOT_FEATURES).contains(&f) { share * *v } else { p + share * (*v - p) };
         }
     }
 }
