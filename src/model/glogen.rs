@@ -26,9 +26,10 @@ pub struct GloGen {
     /// ([`ModelSpec::class_contrasts`]), and how far.
     contrasts: Vec<Option<Vec<f32>>>,
     contrast_strength: f32,
-    /// The skeleton's leg (hip to knee to ankle at rest), which a seam's change of height is
-    /// measured against ([`LONG_JOIN_LEGS`]); 0 where the legs are not found.
-    leg: f32,
+    /// The change of the hips' height at a seam past which it is joined over
+    /// [`LONG_JOIN_SECONDS`]: [`LONG_JOIN_LEGS`] of the skeleton's leg (hip to knee to ankle at
+    /// rest), in its units; 0 where the legs are not found.
+    long_climb: f32,
     /// The poses a change of posture's seam is joined over ([`LONG_JOIN_SECONDS`]).
     long_span: usize,
 }
@@ -51,9 +52,9 @@ const LONG_JOIN_SECONDS: f32 = 1.4;
 impl GloGen {
     pub fn new(block: FrozenBlock, spec: &ModelSpec) -> Self {
         let class_len = spec.label_len();
-        let leg = JointRoles::new(&spec.layout.skeleton).map_or(0.0, |roles| roles.rest_leg_length(&spec.layout.skeleton));
+        let long_climb = LONG_JOIN_LEGS * JointRoles::new(&spec.layout.skeleton).map_or(0.0, |roles| roles.rest_leg_length(&spec.layout.skeleton));
         let long_span = ((LONG_JOIN_SECONDS * spec.fps / spec.stride as f32).round() as usize).clamp(half_block(spec.block_len), spec.block_len);
-        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0, leg, long_span };
+        let mut glogen = Self { block, spec: spec.glogen.clone(), block_len: spec.block_len, dim: spec.layout.dim(), class_len, norm: spec.sparse_norm.clone(), contrasts: Vec::new(), contrast_strength: 0.0, long_climb, long_span };
         glogen.set_contrasts(spec);
         glogen
     }
@@ -183,7 +184,7 @@ impl GloGen {
         if let Some(before) = join {
             let climb = (before[before.len() - self.dim] - out[0]) * self.norm.std[0];
             let poses = out.len() / self.dim;
-            let span = if climb.abs() > LONG_JOIN_LEGS * self.leg { self.long_span.min(poses) } else { half_block(poses) };
+            let span = if climb.abs() > self.long_climb { self.long_span.min(poses) } else { half_block(poses) };
             join_seam(before, out, self.dim, self.spec.seam_join, !self.aims(class), span);
         }
         embedding
