@@ -66,7 +66,8 @@ fn styles_change_the_take_and_activities_of_every_dataset_follow_each_other() {
 /// A style asked for by name keeps the pace of its clips (model.json's `style_speed`): a
 /// network's byebye moves about 2x between styles whose clips differ 35x (before, from 6 s
 /// on: active 0.42x its clips' speed, normal 2.3x, proud 2.9x; feminine 3.8x and sad 1.7x
-/// until a styled segment's blocks were scaled down to its pace).
+/// until a styled segment's blocks were scaled down to its pace, feminine 1.60x when its
+/// class's texture grew until a calm style took its own share of it; now 1.27x and 1.34x).
 #[test]
 fn a_style_asked_for_keeps_the_pace_of_its_clips() {
     let model = GlocalModel::load(&shipped("all")).unwrap();

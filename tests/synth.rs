@@ -306,18 +306,22 @@ fn ten_minutes(m: &mut GlocalModel, class: usize) -> ((f32, f32), (f32, f32)) {
     (speeds, glocal::eval::motion::longest_repeat(&motion))
 }
 
-/// Ten minutes of one class, for every class of both models: no stretch of poses repeats
-/// exactly, and no 10 s window freezes or explodes against the class's training speed.
+/// Ten minutes of one class, for every class of the three models: no stretch of poses
+/// repeats exactly, and no 10 s window freezes or explodes against the class's training
+/// speed. The model of everything's walks once repeated themselves: their loops were judged
+/// in normalised features, where joints that barely move against the hips weigh most (its
+/// walk repeated 12.1 s of itself at a lag of 174 s, its walk to the right 2.7 s, each within
+/// millimetres while the loop guard read them 1.3x or more over its tolerance).
 #[test]
 fn ten_minute_takes_stay_at_their_class_speed() {
     // The issue's bounds: no class repeats itself, and every 10 s window runs at 0.5-2x its
-    // class's training speed. Measured on the shipped models: h36m 0.51-1.66x (its posing
-    // and greeting the slowest, its eating the fastest), Bandai 0.57-1.66x (its guiding the
-    // slowest, its bowing the fastest).
+    // class's training speed. Measured on the shipped models: h36m 0.54-1.60x (its smoking
+    // the slowest, its sittingdown the fastest), Bandai 0.57-1.57x (its guiding the slowest,
+    // its bye the fastest), `all` 0.57-1.88x (its smoking, its sittingdown). Before the pace
+    // held a segment's blocks (`Steering::hold_pace`) h36m's eating reached 1.91x and `all`'s
+    // sittingdown 2.14x.
     let mut failures = Vec::new();
-    // The model of everything is measured in docs/RESULTS.md and left out but for its walks
-    // (below): its ten-minute sittingdown runs at up to 2.15x (issue 35).
-    for name in ["h36m", "bandai"] {
+    for name in ["h36m", "bandai", "all"] {
         let mut m = model(name);
         for class in 0..m.spec.classes.len() {
             let ((lo, hi), (repeat, lag)) = ten_minutes(&mut m, class);
@@ -332,21 +336,6 @@ fn ten_minute_takes_stay_at_their_class_speed() {
         }
     }
     assert!(failures.is_empty(), "outside 0.5-2x or repeating: {failures:?}");
-}
-
-/// The model of everything's ten-minute walks do not repeat themselves. Their loops were
-/// judged in normalised features, where joints that barely move against the hips weigh most:
-/// its walk repeated 12.1 s of itself at a lag of 174 s, and its walk to the right 2.7 s,
-/// each within millimetres while the loop guard read them 1.3x or more over its tolerance.
-#[test]
-fn the_model_of_everythings_ten_minute_walks_do_not_repeat() {
-    let mut m = model("all");
-    for class_name in ["walking", "walk-back", "walk-left", "walk-right", "running"] {
-        let class = m.spec.class_index(class_name).unwrap();
-        let ((lo, hi), (repeat, lag)) = ten_minutes(&mut m, class);
-        eprintln!("all {class_name}: 10 s windows at {lo:.2}-{hi:.2}x the training speed; longest exact repeat {repeat:.1} s (lag {lag:.1} s)");
-        assert_eq!(repeat, 0.0, "{class_name} repeats itself for {repeat:.1} s at a lag of {lag:.1} s");
-    }
 }
 
 /// A take long enough to be finished in chunks (20 s each) stands on one floor: each chunk's

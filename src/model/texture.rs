@@ -55,6 +55,14 @@ pub struct Texture {
     feet: [(usize, Vec<usize>); 2],
 }
 
+/// What a take's sparse pose reads of the texture: its class's, and how much of it (a pose
+/// in a style calmer than its class gets that style's share of the class's pace).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexturedPose {
+    pub class: usize,
+    pub share: f32,
+}
+
 impl Texture {
     /// The bank of `corpus`'s training clips for a model of `spec`.
     pub fn build(corpus: &Corpus, spec: &ModelSpec) -> Result<Self, RolesError> {
@@ -95,14 +103,15 @@ impl Texture {
 
     /// Lays the texture over `dense`: the frames from sparse pose `first` of a take onwards,
     /// `stride` per interval, the interval starting at each pose textured from the class of
-    /// that pose in `pose_classes` (the whole take's). Each class's texture is scaled by its
-    /// share in `spec`'s `texture_gains`, a change of class fades one class's texture into
-    /// the next's over [`BLEND_SECONDS`] either side of it, and a foot's fades out as it slows
-    /// to a stand ([`swing_weights`]). Which stretch of a class's bank a take reads is chosen by `seed`;
+    /// that pose in `poses` (the whole take's), scaled by the pose's own share of it. Each
+    /// class's texture is also scaled by its share in `spec`'s `texture_gains`, a change of
+    /// class or of share fades one into the next over [`BLEND_SECONDS`] either side of it,
+    /// and a foot's fades out as it slows to a stand ([`swing_weights`]). Which stretch of a
+    /// class's bank a take reads is chosen by `seed`;
     /// the interval at the take's sparse pose `k` reads the bank's interval `offset + k`, so a
     /// class's texture runs on unbroken through its segment and any stretch of the take gets
     /// the same texture whether it is finished alone or with the rest.
-    pub fn lay_over(&self, dense: &mut [Vec3], spec: &ModelSpec, first: usize, pose_classes: &[usize], seed: u64) {
+    pub fn lay_over(&self, dense: &mut [Vec3], spec: &ModelSpec, first: usize, poses: &[TexturedPose], seed: u64) {
         let (s, j, layout) = (self.stride, self.joints, &spec.layout);
         let gains = spec.texture_gain_per_class();
         let reach = (BLEND_SECONDS * spec.fps / s as f32).round() as usize;
@@ -111,11 +120,11 @@ impl Texture {
         let (mut mix, mut reads, mut texture, mut weights, mut laid) = (Vec::new(), Vec::new(), vec![Vec3::ZERO; j], vec![1.0; j], Vec::with_capacity(j));
         for (i, interval) in dense.chunks_mut(s * j).enumerate() {
             let k = first + i;
-            if k >= pose_classes.len() {
+            if k >= poses.len() {
                 break;
             }
             // Each class's share of the interval and the bank interval it reads, once for its frames.
-            shares_around(pose_classes, k, reach, &gains, &mut mix);
+            shares_around(poses, k, reach, &gains, &mut mix);
             reads.clear();
             reads.extend(mix.iter().filter_map(|&(class, share)| {
                 let n = self.intervals(class);
@@ -253,15 +262,16 @@ fn hold_turns(frame: &[Vec3], moves: &mut [Vec3], laid: &mut Vec<Vec3>, weights:
     }
 }
 
-/// Each class's share of the texture at sparse pose `k` of a take whose poses are of
-/// `pose_classes`: its share of the poses within `reach` of `k`, times its gain.
-fn shares_around(pose_classes: &[usize], k: usize, reach: usize, gains: &[f32], mix: &mut Vec<(usize, f32)>) {
+/// Each class's share of the texture at sparse pose `k` of a take of `poses`: the sum of
+/// the poses' own shares within `reach` of `k` over how many poses that is, times the
+/// class's gain.
+fn shares_around(poses: &[TexturedPose], k: usize, reach: usize, gains: &[f32], mix: &mut Vec<(usize, f32)>) {
     mix.clear();
-    let around = &pose_classes[k.saturating_sub(reach)..(k + reach + 1).min(pose_classes.len())];
-    for &class in around {
-        match mix.iter_mut().find(|(c, _)| *c == class) {
-            Some((_, count)) => *count += 1.0,
-            None => mix.push((class, 1.0)),
+    let around = &poses[k.saturating_sub(reach)..(k + reach + 1).min(poses.len())];
+    for pose in around {
+        match mix.iter_mut().find(|(c, _)| *c == pose.class) {
+            Some((_, sum)) => *sum += pose.share,
+            None => mix.push((pose.class, pose.share)),
         }
     }
     let total = around.len() as f32;
@@ -309,10 +319,15 @@ mod tests {
     #[test]
     fn a_change_of_class_shares_the_texture_around_it() {
         let mut mix = Vec::new();
-        shares_around(&[0, 0, 0, 1, 1, 1], 2, 1, &[1.0, 0.5], &mut mix);
+        let poses = [0, 0, 0, 1, 1, 1].map(|class| TexturedPose { class, share: 1.0 });
+        shares_around(&poses, 2, 1, &[1.0, 0.5], &mut mix);
         assert_eq!(mix, vec![(0, 2.0 / 3.0), (1, 0.5 / 3.0)]);
-        shares_around(&[0, 0, 0, 1, 1, 1], 0, 1, &[1.0, 0.5], &mut mix);
+        shares_around(&poses, 0, 1, &[1.0, 0.5], &mut mix);
         assert_eq!(mix, vec![(0, 1.0)]);
+        // A pose's own share (a calm style's) weighs in as its class's gain does.
+        let calm = [(0, 1.0), (0, 1.0), (0, 0.25)].map(|(class, share)| TexturedPose { class, share });
+        shares_around(&calm, 1, 1, &[1.0], &mut mix);
+        assert_eq!(mix, vec![(0, 0.75)]);
     }
 
     /// A chain ankle -> toe -> toe end: 7 cm of texture across the 75 mm toe turns it by half

@@ -24,7 +24,7 @@ use super::plan::{paced_frames, TakeConstraint};
 use super::smoothstep;
 use crate::data::features::{wrap, FeatureLayout, Placement};
 use crate::model::glocal::GlocalModel;
-use crate::model::texture::Texture;
+use crate::model::texture::{Texture, TexturedPose};
 use crate::motion::contacts::{support_heights, FootContacts};
 use crate::motion::{solve_local_poses, spread_snaps, JointRoles, LocalPose, Motion, Skeleton};
 
@@ -75,8 +75,9 @@ pub(super) struct Finishing<'a> {
 /// The motion texture a take's frames get between its sparse poses.
 pub(super) struct Textured<'a> {
     pub bank: &'a Texture,
-    /// The class of each of the take's sparse poses (that of the block it belongs to).
-    pub pose_classes: Vec<usize>,
+    /// The class and share of each of the take's sparse poses (those of the block it
+    /// belongs to).
+    pub poses: Vec<TexturedPose>,
     /// The take's variation seed: where it reads each class's bank.
     pub seed: u64,
 }
@@ -145,7 +146,7 @@ impl Finishing<'_> {
     /// The texture laid over the dense frames of sparse poses `window`, when the take has one.
     fn lay_texture(&self, dense: &mut [Vec3], window: &Range<usize>) {
         if let Some(t) = &self.texture {
-            t.bank.lay_over(dense, &self.model.spec, window.start, &t.pose_classes, t.seed);
+            t.bank.lay_over(dense, &self.model.spec, window.start, &t.poses, t.seed);
         }
     }
 

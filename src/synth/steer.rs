@@ -64,7 +64,10 @@ const RUSH_ABOVE: f32 = 1.5;
 /// [`PACE_FAST`] is leant towards its class's calmer windows, with plain conditioning, until
 /// it slows. Measured on ten-minute takes of every class (`cargo test --test synth
 /// ten_minute`): without the pace, 10 s windows ran at 0.37-2.12x the training speed on
-/// h36m and 0.46-2.71x on Bandai; with it, 0.52-1.92x and 0.62-1.98x.
+/// h36m and 0.46-2.71x on Bandai; with it, 0.52-1.92x and 0.62-1.98x. A segment that has
+/// run faster than [`PACE_FAST`] over the pace's whole seconds also has its blocks scaled
+/// down to it ([`Steering::hold_pace`]): leaning alone left `all`'s sittingdown, restless in
+/// a half crouch, at 1.61x its clips.
 const PACE_SLOW: f32 = 0.7;
 const PACE_FAST: f32 = 1.3;
 
@@ -74,7 +77,7 @@ const RESTING_ABOVE: f32 = 1.2;
 
 /// A segment that names a style calmer than its class and has run faster than this multiple
 /// of the style's pace over the pace's last seconds has each block's motion scaled down to it
-/// ([`Steering::hold_style_pace`]): the network's byebye waves at about one speed whatever its
+/// ([`Steering::hold_pace`]): the network's byebye waves at about one speed whatever its
 /// style, where Bandai's feminine and sad byebye clips barely move (0.023 and 0.037 m/s
 /// against the class's 0.23), and neither guidance nor leaning on calm windows slowed it below
 /// 3.8x and 1.8x their clips. Held above 1.0 it slowed 44 of the styles suite's 140 settled
@@ -351,21 +354,31 @@ impl Steering {
         }
     }
 
-    /// Holds a segment that names a style calmer than its class to that style's pace: when its
-    /// last seconds ran faster than [`STYLE_PACE_ABOVE`] times the style's clips, the block
-    /// just appended to `sparse` (normalised) moves that much less from the pose before it,
-    /// every step scaled by the same share, so it starts where the join put it and keeps its
-    /// own shape, smaller.
-    pub fn hold_style_pace(&mut self, model: &GlocalModel, plan: &BlockPlan, sparse: &mut [f32]) {
+    /// Holds a segment to its pace: when its last seconds ran faster than [`PACE_FAST`] times
+    /// its class's clips (or [`STYLE_PACE_ABOVE`] times those of a style calmer than its
+    /// class that it names), the block just appended to `sparse` (normalised) moves that much
+    /// less from the pose before it, every step scaled by the same share, so it starts where
+    /// the join put it and keeps its own shape, smaller. A class's pace is held only
+    /// [`CHANGE_PACE_SECONDS`] after a class change, as its lean is: `all`'s bye cut to from
+    /// a guide, whose momentum its first seconds carry, was held to a still wave (0.56x its
+    /// class's speed from 6 s on).
+    pub fn hold_pace(&mut self, model: &GlocalModel, plan: &BlockPlan, sparse: &mut [f32]) {
         if !self.keep_alive {
             return;
         }
-        let Some(key) = plan.style.map(|style| (plan.target, Some(style))) else { return };
-        let Some(pace) = self.pace.of(key).filter(|_| self.pace.scale(key) < 1.0) else { return };
-        if pace.whole <= STYLE_PACE_ABOVE {
+        let key = (plan.target, plan.style);
+        let Some(pace) = self.pace.of(key) else { return };
+        let above = if self.pace.scale(key) < 1.0 {
+            STYLE_PACE_ABOVE
+        } else if self.since_change >= self.change_pace_blocks {
+            PACE_FAST
+        } else {
+            return;
+        };
+        if pace.whole <= above {
             return;
         }
-        let share = (STYLE_PACE_ABOVE / pace.whole).max(STYLE_DAMPING_FLOOR);
+        let share = (above / pace.whole).max(STYLE_DAMPING_FLOOR);
         let dim = self.dim;
         let start = sparse.len() - self.block_len * dim;
         let mut poses = raw_block(&model.spec, &sparse[start - dim..start], &sparse[start..]);
