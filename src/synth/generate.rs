@@ -151,14 +151,12 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
 /// in the feminine style (0.02 m/s against the class's 0.23) waved at 1.60x its clips with
 /// its class's whole share.
 fn textured_poses(spec: &ModelSpec, plans: &[BlockPlan], block_len: usize, total: usize) -> Vec<TexturedPose> {
-    let Some(last) = plans.len().checked_sub(1) else { return Vec::new() };
-    let share = |plan: &BlockPlan| plan.style.and_then(|style| spec.style_pace(plan.target, style)).map_or(1.0, |pace| pace.min(1.0));
-    (0..total)
-        .map(|i| {
-            let plan = &plans[(i.saturating_sub(block_len) / block_len).min(last)];
-            TexturedPose { class: plan.target, share: share(plan) }
-        })
-        .collect()
+    let blocks: Vec<TexturedPose> = plans
+        .iter()
+        .map(|plan| TexturedPose { class: plan.target, share: plan.style.and_then(|style| spec.style_pace(plan.target, style)).map_or(1.0, |pace| pace.min(1.0)) })
+        .collect();
+    let Some(last) = blocks.len().checked_sub(1) else { return Vec::new() };
+    (0..total).map(|i| blocks[(i.saturating_sub(block_len) / block_len).min(last)]).collect()
 }
 
 /// The take's constraints in the order they apply: a file start's floor carries the take, a

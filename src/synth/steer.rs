@@ -83,9 +83,9 @@ const RESTING_ABOVE: f32 = 1.2;
 /// 3.8x and 1.8x their clips. Held above 1.0 it slowed 44 of the styles suite's 140 settled
 /// speeds, some to 0.65x their clips; above 1.3 the feminine wave stayed at 1.60x.
 const STYLE_PACE_ABOVE: f32 = 1.2;
-/// The least share of its motion a block held to its style's pace keeps: at 0.3 the feminine
-/// wave stayed at 1.61x its clips.
-const STYLE_DAMPING_FLOOR: f32 = 0.2;
+/// The least share of its motion a block held to its pace keeps (its class's or its style's,
+/// [`Steering::hold_pace`]): at 0.3 the feminine wave stayed at 1.61x its clips.
+const PACE_DAMPING_FLOOR: f32 = 0.2;
 
 /// Blocks a keep-alive waits after any anchoring before it may re-anchor again, so a
 /// naturally still moment (a pause in a gesture) is not cut short at once.
@@ -378,7 +378,7 @@ impl Steering {
         if pace.whole <= above {
             return;
         }
-        let share = (above / pace.whole).max(STYLE_DAMPING_FLOOR);
+        let share = (above / pace.whole).max(PACE_DAMPING_FLOOR);
         let dim = self.dim;
         let start = sparse.len() - self.block_len * dim;
         let mut poses = raw_block(&model.spec, &sparse[start - dim..start], &sparse[start..]);
