@@ -88,20 +88,24 @@ fn no_hand_end_snaps_in_the_first_takes() {
     }
 }
 
-/// Of each model's random takes (200 timelines of 1-4 segments from random seed poses), those
-/// without a class whose real clips leave the ground are over a first-take line in at most 5%
-/// of takes, and no joint of any goes more than 1 cm under its floor. Before a float at
-/// walking speed had to be launched, 6 of `all`'s 59 such takes were over (sidesteps gliding
-/// with both feet 3-8 cm up); before hands were kept on top of the floor, 21 of h36m's 200
-/// takes pushed a wrist end up to 12 cm through it.
+/// Of each model's random takes (200 timelines of 1-4 segments from random seed poses, 100
+/// more from random frames of its real test clips' files), those without a class whose real
+/// clips leave the ground are over a first-take line in at most 5% of takes, and no joint of
+/// any goes more than 1 cm under its floor. Before a float at walking speed had to be
+/// launched, 6 of `all`'s 59 such takes were over (sidesteps gliding with both feet 3-8 cm up);
+/// before hands were kept on top of the floor, 21 of h36m's 200 takes pushed a wrist end up to
+/// 12 cm through it.
 #[test]
 fn random_takes_stand_on_the_floor() {
     for model in first_takes() {
         let (dataset, random) = (&model["dataset"], &model["random_takes"]);
-        let (grounded, over) = (random["grounded_takes"].as_u64().unwrap(), random["grounded_over"].as_array().unwrap());
-        eprintln!("{dataset}: {} of {grounded} grounded takes over a line: {over:?}; through the floor {}", over.len(), random["through_floor"]);
-        assert!(grounded >= 50, "{dataset}: only {grounded} takes without an airborne class");
-        assert!(over.len() as f64 <= 0.05 * grounded as f64, "{dataset}: {} of {grounded} random takes over a first-take line: {over:?}", over.len());
+        for (start, grounded, over, least) in [("seed", "grounded_takes", "grounded_over", 50), ("file", "file_grounded", "file_over", 25)] {
+            let (grounded, over) = (random[grounded].as_u64().unwrap(), random[over].as_array().unwrap());
+            eprintln!("{dataset}, {start} starts: {} of {grounded} grounded takes over a line: {over:?}", over.len());
+            assert!(grounded >= least, "{dataset}: only {grounded} takes from a {start} without an airborne class");
+            assert!(over.len() as f64 <= 0.05 * grounded as f64, "{dataset}: {} of {grounded} random takes from a {start} over a first-take line: {over:?}", over.len());
+        }
+        eprintln!("{dataset}: through the floor {}", random["through_floor"]);
         assert_eq!(random["through_floor"], 0, "{dataset}: takes with a joint through the floor (deepest {} m)", random["deepest_m"]);
     }
 }

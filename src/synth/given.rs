@@ -8,6 +8,7 @@ use super::options::GenerateOptions;
 use super::plan::TakeConstraint;
 use super::raised_cosine;
 use crate::data::features::FeatureLayout;
+use crate::model::glocal::GlocalModel;
 use crate::motion::contacts::{foot_contacts, ContactConfig, FootContacts};
 use crate::motion::{solve_local_poses, JointRoles, Motion};
 
@@ -19,6 +20,13 @@ const GIVEN_BLEND_SECONDS: f32 = 0.5;
 /// captured at (the first segment's pace 1).
 pub(super) fn keeps_given_frames(opts: &GenerateOptions) -> bool {
     opts.timeline.segments.first().and_then(|s| s.pace).unwrap_or(opts.pace) == 1.0
+}
+
+/// How many frames at the start of a take from a motion file are the file's own: its given
+/// frames and the fade after them (where no key comes sooner).
+pub fn file_start_frames(model: &GlocalModel) -> usize {
+    let spec = &model.spec;
+    spec.observed_span() + 1 + (GIVEN_BLEND_SECONDS * spec.fps).round() as usize
 }
 
 /// The floor of a file start's given frames as a constraint: the finished take raised or

@@ -66,6 +66,7 @@ pub use take::{generate, generate_with};
 pub use options::{GenerateOptions, KeyMethod, Transition, DEFAULT_TRANSITION_SECONDS};
 pub use plan::SegmentSpan;
 pub use constraints::{Key, KeySource, RootPath, Waypoint};
+pub use given::file_start_frames;
 pub use init::InitPose;
 pub use preset::Preset;
 pub use project::{Document, Request};

@@ -132,7 +132,7 @@ pub fn first_takes(dataset: Dataset, ctx: &SuiteContext, limits: &SnapLimits, sn
             log(&format!("first takes: {dataset} {command}"));
             let opts = GenerateOptions { timeline: recipe.timeline.parse()?, init, ..ctx.generation.clone() }.varied(recipe.seed);
             let g = generate(&model, &opts, &mut |_| true)?;
-            let (feet_up, longest_float_s, contacts_off_floor) = feet_on_the_floor(&g.motion, &g.contacts)?;
+            let (feet_up, longest_float_s, contacts_off_floor) = feet_on_the_floor(&g.motion, &g.contacts, 0)?;
             // A file start's given frames are the file's motion (a salsa's hips turn 20 degrees
             // a frame); the turns judged are those after the last of them.
             let given_seconds = match recipe.start {
@@ -214,7 +214,7 @@ pub(super) fn run(ctx: &SuiteContext, log: &mut dyn FnMut(&str)) -> Result<(Mark
         let real_rise = real_fastest_rise(&corpus)?;
         markdown(dataset, &takes, real_rise, &mut md);
         md.text(&format!("\nBones over the real p99.9 in one frame: {}.\n", snaps.describe()));
-        let random = random_takes(&model, &corpus, &ctx.generation, log)?;
+        let random = random_takes(&model, &corpus, &ctx.generation, &|entry| archive_file(entry, ctx), log)?;
         random_takes::markdown(&random, &mut md);
         models.push(json!({"dataset": dataset.name(), "takes": takes, "real_fastest_rise_m_s": real_rise, "bone_snaps": snaps, "random_takes": random}));
     }
