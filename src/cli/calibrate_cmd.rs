@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 
 use crate::data::archive::DataRoot;
-use crate::eval::calibrate::{calibrate, LIVELY_SHARE};
+use crate::eval::calibrate::{calibrate, LIVELY_CEILING, LIVELY_SHARE};
 use crate::model::corpus::Corpus;
 use crate::model::glocal::{GlocalModel, SEEDS_FILE};
 use crate::model::train::{set_seed_styles, write_seeds};
@@ -70,6 +70,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     spec.class_strengths = classes.iter().filter(|c| c.chosen != spec.class_strength).map(|c| (c.class.clone(), c.chosen)).collect();
     spec.texture_gains = classes.iter().filter_map(|c| Some((c.class.clone(), c.texture?.1))).filter(|(_, gain)| *gain != 1.0).collect();
+    spec.lively_classes = classes.iter().filter(|c| c.over_lively()).map(|c| c.class.clone()).collect();
     if model.texture().is_some() {
         say!("\n| class | training clips' jerk (m/s^3) | chosen strength, generated jerk over the training clips' | with all of the texture | texture share chosen |\n|---|---|---|---|---|");
         for c in &classes {
@@ -78,6 +79,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
     }
     say!("{} of {} classes need more than the model's guidance ({}) to reach {LIVELY_SHARE} of their training clips' jerk", spec.class_strengths.len(), classes.len(), spec.class_strength);
+    let lively: Vec<&str> = spec.lively_classes.iter().map(String::as_str).collect();
+    say!("over {LIVELY_CEILING} of it at their own, kept at it through a class change: {}", if lively.is_empty() { "none".to_string() } else { lively.join(", ") });
     write(&spec, &args)
 }
 

@@ -45,7 +45,9 @@ pub enum Command {
     /// Run an evaluation suite and print its table.
     Eval(eval_cmd::EvalArgs),
     /// Tune a trained model's guidance per class: the lowest at which each class's generated
-    /// motion is as lively as its training clips (writes model.json's `class_strengths`).
+    /// motion is as lively as its training clips (writes model.json's `class_strengths`, and its
+    /// `lively_classes`: those livelier than their clips already, kept at their own through a
+    /// class change).
     Calibrate(calibrate_cmd::CalibrateArgs),
     /// Time the engine's parts.
     Bench {

@@ -21,6 +21,10 @@ use crate::synth::GenerateOptions;
 /// A class is lively enough once its generated mean jerk is this share of its training
 /// clips': issue 39's lower bound on jerk against real motion.
 pub const LIVELY_SHARE: f64 = 0.7;
+/// A class whose generated mean jerk at its own guidance is over this share of its training
+/// clips' (issue 39's upper bound) is lively already: more guidance only exaggerates it
+/// ([`crate::model::spec::ModelSpec::lively_classes`]).
+pub const LIVELY_CEILING: f64 = 1.3;
 /// A stronger guidance is not taken where any of the class's takes travels less than this
 /// share of what the same take travels at the model's own, less [`TRAVEL_SLACK`] (m/s) for
 /// classes that stand: calibrated on takes with variation noise, `all`'s walk got 3.5, and
@@ -106,6 +110,12 @@ impl ClassCalibration {
     /// The mean jerk of the class's takes at the strength chosen, without texture.
     pub fn chosen_jerk(&self) -> f64 {
         jerk_at(&self.readings, self.chosen)
+    }
+
+    /// Whether the class's takes at the strength chosen move more sharply than
+    /// [`LIVELY_CEILING`] of its training clips.
+    pub fn over_lively(&self) -> bool {
+        self.chosen_jerk() > LIVELY_CEILING * self.real_jerk
     }
 }
 
@@ -194,6 +204,15 @@ mod tests {
         assert_eq!(choose(&readings(&[(1.5, 60.0, 0.0), (2.5, 95.0, 0.0), (3.5, 120.0, 0.0)]), 100.0), 2.5);
         assert_eq!(choose(&readings(&[(1.5, 90.0, 0.0)]), 100.0), 1.5);
         assert_eq!(choose(&readings(&[(1.5, 30.0, 0.0), (2.5, 50.0, 0.0), (3.5, 45.0, 0.0)]), 100.0), 2.5);
+    }
+
+    /// A class is lively already when its takes at the strength chosen move more sharply than
+    /// 1.3x its training clips; more jerk at a stronger guidance not chosen does not count.
+    #[test]
+    fn a_class_over_the_ceiling_at_its_own_guidance_is_lively() {
+        let class = |chosen: f32, of: &[(f32, f64, f64)]| ClassCalibration { class: "bow".into(), real_jerk: 100.0, readings: readings(of), chosen, texture: None };
+        assert!(class(1.5, &[(1.5, 131.0, 0.0)]).over_lively());
+        assert!(!class(1.5, &[(1.5, 129.0, 0.0), (2.5, 160.0, 0.0)]).over_lively());
     }
 
     #[test]

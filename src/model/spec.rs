@@ -2,7 +2,7 @@
 //! self-contained: skeleton, classes, frame rate, feature layout and normalisation,
 //! hyperparameters, how it was trained and how well it validated.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use anyhow::{Context, Result};
@@ -295,6 +295,13 @@ pub struct ModelSpec {
     /// (docs/DESIGN.md, "Sidesteps steered away from walking").
     #[serde(default = "default_contrast_strength")]
     pub contrast_strength: f32,
+    /// The classes whose takes at their own guidance already move more sharply than their
+    /// training clips (mean jerk over 1.3x theirs, issue 39's bound, found by `glocal
+    /// calibrate`): a class change keeps them at their own guidance instead
+    /// of raising it to the change's, which exaggerates them (`all`'s bow, at 1.31x its clips'
+    /// jerk, pitched and shifted back until it read as walking backwards).
+    #[serde(default, skip_serializing_if = "BTreeSet::is_empty")]
+    pub lively_classes: BTreeSet<String>,
     /// Per class, the share of its motion texture a take lays over its frames (the model's
     /// `texture.safetensors`, [`crate::model::texture`]), tuned by `glocal calibrate` so the
     /// class is as lively as its training clips: a class not named gets all of it.
@@ -556,6 +563,9 @@ impl ModelSpec {
             in_range(&format!("class_strengths.{class}"), strength, 0.0, MAX_CLASS_STRENGTH)?;
         }
         in_range("contrast_strength", self.contrast_strength, 0.0, MAX_CLASS_STRENGTH)?;
+        if let Some(class) = self.lively_classes.iter().find(|c| !self.classes.contains(c)) {
+            return Err(E::field("lively_classes", format!("names '{}', which is not one of the model's classes", clipped(class))));
+        }
         for (class, &gain) in &self.texture_gains {
             if !self.classes.contains(class) {
                 return Err(E::field("texture_gains", format!("names '{}', which is not one of the model's classes", clipped(class))));
@@ -796,6 +806,16 @@ mod tests {
         assert!(unknown.contains("class_strengths") && unknown.contains("'salsa'"), "{unknown}");
         let strong = with(&mut model, serde_json::json!({"walking": 11.0})).unwrap_err().to_string();
         assert!(strong.contains("class_strengths.walking") && strong.contains("between 0 and 10"), "{strong}");
+    }
+
+    /// The lively classes are the model's own: an unknown one is refused, naming the field.
+    #[test]
+    fn lively_classes_are_the_models_classes() {
+        let mut model = shipped_json("h36m");
+        let spec = with_field(&mut model, "lively_classes", serde_json::json!(["eating"])).unwrap();
+        assert!(spec.lively_classes.contains("eating"));
+        let unknown = with_field(&mut model, "lively_classes", serde_json::json!(["bow"])).unwrap_err().to_string();
+        assert!(unknown.contains("lively_classes") && unknown.contains("'bow'"), "{unknown}");
     }
 
     /// A class's texture gain names one of the model's classes and is a share of its texture;

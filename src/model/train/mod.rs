@@ -10,7 +10,7 @@ mod stage;
 mod styles;
 mod widen;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -550,10 +550,12 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
             opts.stage.set_shape(&mut spec, shapes);
         }
         // A GloGen trained again is calibrated again (`glocal calibrate`): its classes' own
-        // guidance (strengths and contrasts) was tuned to the weights it replaces (new styles leave them as they were).
+        // guidance (strengths, contrasts, the lively classes) was tuned to the weights it
+        // replaces (new styles leave them as they were).
         if opts.stage == Stage::Glogen && opts.only_styles.is_empty() {
             spec.class_strengths.clear();
             spec.class_contrasts.clear();
+            spec.lively_classes.clear();
         }
         // The texture's shares make up what the dense frames lack, which either network moves.
         if opts.stage != Stage::Inbetween && opts.only_styles.is_empty() {
@@ -589,6 +591,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         class_strengths: BTreeMap::new(),
         class_contrasts: BTreeMap::new(),
         contrast_strength: DEFAULT_CONTRAST_STRENGTH,
+        lively_classes: BTreeSet::new(),
         texture_gains: BTreeMap::new(),
         bone_turn_limits: corpus.bone_turn_limits(),
         glogen: shapes.glogen,
