@@ -46,8 +46,8 @@ pub enum Command {
     Eval(eval_cmd::EvalArgs),
     /// Tune a trained model's guidance per class: the lowest at which each class's generated
     /// motion is as lively as its training clips (writes model.json's `class_strengths`, and its
-    /// `lively_classes`: those livelier than their clips already, kept at their own through a
-    /// class change).
+    /// `lively_classes`: those livelier than their clips already, calmed and kept at their own
+    /// through a class change).
     Calibrate(calibrate_cmd::CalibrateArgs),
     /// Time the engine's parts.
     Bench {

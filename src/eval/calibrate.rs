@@ -21,10 +21,14 @@ use crate::synth::GenerateOptions;
 /// A class is lively enough once its generated mean jerk is this share of its training
 /// clips': issue 39's lower bound on jerk against real motion.
 pub const LIVELY_SHARE: f64 = 0.7;
-/// A class whose generated mean jerk at its own guidance is over this share of its training
-/// clips' (issue 39's upper bound) is lively already: more guidance only exaggerates it
-/// ([`crate::model::spec::ModelSpec::lively_classes`]).
+/// A class whose generated mean jerk at the model's guidance is over this share of its
+/// training clips' (issue 39's upper bound) is lively already: more guidance only exaggerates
+/// it ([`crate::model::spec::ModelSpec::lively_classes`]), and it is calmed with less
+/// ([`CALMER_STRENGTHS`]).
 pub const LIVELY_CEILING: f64 = 1.3;
+/// The guidance under the model's own (1.5) a lively class is tried at, calmest last. (At 1.4
+/// `all`'s bow, dash and walk-right read as at 1.5.)
+const CALMER_STRENGTHS: [f32; 2] = [1.25, 1.0];
 /// A stronger guidance is not taken where any of the class's takes travels less than this
 /// share of what the same take travels at the model's own, less [`TRAVEL_SLACK`] (m/s) for
 /// classes that stand: calibrated on takes with variation noise, `all`'s walk got 3.5, and
@@ -71,7 +75,10 @@ impl Reading {
 /// own first) from its first seed windows, against the mean jerk of its training clips (in
 /// `corpus`, the data it was trained on): the
 /// lowest strength at which the class reaches [`LIVELY_SHARE`] of it, or the liveliest when
-/// none does, but never one at which it travels less than [`KEPT_TRAVEL`] of its own.
+/// none does, but never one at which it travels less than [`KEPT_TRAVEL`] of its own; a
+/// class over [`LIVELY_CEILING`] of it at the model's own and not steered apart from another
+/// ([`crate::model::spec::ModelSpec::class_contrasts`]), the first of the
+/// [`CALMER_STRENGTHS`] that brings it under, or the calmest still lively enough.
 pub fn calibrate(model: &GlocalModel, corpus: &Corpus, strengths: &[f32], log: &mut dyn FnMut(&str)) -> Result<Vec<ClassCalibration>> {
     let spec = &model.spec;
     if strengths.is_empty() || strengths.windows(2).any(|w| w[0] >= w[1]) || strengths[0] < spec.class_strength {
@@ -92,7 +99,13 @@ pub fn calibrate(model: &GlocalModel, corpus: &Corpus, strengths: &[f32], log: &
                 break;
             }
         }
-        let chosen = choose(&readings, real_jerk);
+        let mut chosen = choose(&readings, real_jerk);
+        // A class steered apart keeps its guidance: it carries the push from its pair
+        // (`all`'s walk-right calmed to 1.25 kept its class in 0.77 of its styled takes after
+        // 2 s, against 0.90).
+        if readings[0].jerk > LIVELY_CEILING * real_jerk && spec.contrast_indices()[class].is_none() {
+            chosen = calmed(model, &roles, class, &mut readings, real_jerk, log)?;
+        }
         let texture = match model.texture() {
             Some(_) => {
                 log(&format!("calibrate: {name} textured"));
@@ -106,16 +119,39 @@ pub fn calibrate(model: &GlocalModel, corpus: &Corpus, strengths: &[f32], log: &
     Ok(out)
 }
 
+/// The strength a class lively already at the model's own guidance (the first of
+/// `readings`) is calmed to: the first of [`CALMER_STRENGTHS`] under the model's own at which
+/// its jerk is within [`LIVELY_CEILING`] of `real_jerk`, else the calmest at which it keeps
+/// [`LIVELY_SHARE`] of it and its travel; each strength read is added to `readings`.
+fn calmed(model: &GlocalModel, roles: &JointRoles, class: usize, readings: &mut Vec<Reading>, real_jerk: f64, log: &mut dyn FnMut(&str)) -> Result<f32> {
+    let own = readings[0].strength;
+    let mut chosen = own;
+    for strength in CALMER_STRENGTHS.into_iter().filter(|&s| s < own) {
+        log(&format!("calibrate: {} at {strength}, calmer", model.spec.classes[class]));
+        let reading = read_class(model, roles, class, strength, false)?;
+        let (lively, within) = (reading.jerk >= LIVELY_SHARE * real_jerk && keeps_travel(&readings[0], &reading), reading.jerk <= LIVELY_CEILING * real_jerk);
+        readings.push(reading);
+        if !lively {
+            break;
+        }
+        chosen = strength;
+        if within {
+            break;
+        }
+    }
+    Ok(chosen)
+}
+
 impl ClassCalibration {
     /// The mean jerk of the class's takes at the strength chosen, without texture.
     pub fn chosen_jerk(&self) -> f64 {
         jerk_at(&self.readings, self.chosen)
     }
 
-    /// Whether the class's takes at the strength chosen move more sharply than
-    /// [`LIVELY_CEILING`] of its training clips.
+    /// Whether the class's takes at the model's own guidance (the first strength read) move
+    /// more sharply than [`LIVELY_CEILING`] of its training clips.
     pub fn over_lively(&self) -> bool {
-        self.chosen_jerk() > LIVELY_CEILING * self.real_jerk
+        self.readings.first().is_some_and(|own| own.jerk > LIVELY_CEILING * self.real_jerk)
     }
 }
 
