@@ -80,7 +80,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     say!("{} of {} classes need more than the model's guidance ({}) to reach {LIVELY_SHARE} of their training clips' jerk", spec.class_strengths.len(), classes.len(), spec.class_strength);
     let lively: Vec<&str> = spec.lively_classes.iter().map(String::as_str).collect();
-    say!("over {LIVELY_CEILING} of it at their own, kept at it through a class change: {}", if lively.is_empty() { "none".to_string() } else { lively.join(", ") });
+    say!("over {LIVELY_CEILING} of it at the model's own, calmed unless steered apart and kept at their own through a class change: {}", if lively.is_empty() { "none".to_string() } else { lively.join(", ") });
     write(&spec, &args)
 }
 

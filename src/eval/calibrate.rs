@@ -242,12 +242,14 @@ mod tests {
         assert_eq!(choose(&readings(&[(1.5, 30.0, 0.0), (2.5, 50.0, 0.0), (3.5, 45.0, 0.0)]), 100.0), 2.5);
     }
 
-    /// A class is lively already when its takes at the strength chosen move more sharply than
-    /// 1.3x its training clips; more jerk at a stronger guidance not chosen does not count.
+    /// A class is lively already when its takes at the model's own guidance (the first read)
+    /// move more sharply than 1.3x its training clips, calmed since or not; more jerk at a
+    /// stronger guidance does not count.
     #[test]
-    fn a_class_over_the_ceiling_at_its_own_guidance_is_lively() {
+    fn a_class_over_the_ceiling_at_the_models_guidance_is_lively() {
         let class = |chosen: f32, of: &[(f32, f64, f64)]| ClassCalibration { class: "bow".into(), real_jerk: 100.0, readings: readings(of), chosen, texture: None };
         assert!(class(1.5, &[(1.5, 131.0, 0.0)]).over_lively());
+        assert!(class(1.25, &[(1.5, 131.0, 0.0), (1.25, 122.0, 0.0)]).over_lively());
         assert!(!class(1.5, &[(1.5, 129.0, 0.0), (2.5, 160.0, 0.0)]).over_lively());
     }
 

@@ -295,11 +295,12 @@ pub struct ModelSpec {
     /// (docs/DESIGN.md, "Sidesteps steered away from walking").
     #[serde(default = "default_contrast_strength")]
     pub contrast_strength: f32,
-    /// The classes whose takes at their own guidance already move more sharply than their
+    /// The classes whose takes at the model's guidance already move more sharply than their
     /// training clips (mean jerk over 1.3x theirs, issue 39's bound, found by `glocal
-    /// calibrate`): a class change keeps them at their own guidance instead
-    /// of raising it to the change's, which exaggerates them (`all`'s bow, at 1.31x its clips'
-    /// jerk, pitched and shifted back until it read as walking backwards).
+    /// calibrate`, which also calms those not steered apart in [`Self::class_strengths`]): a
+    /// class change keeps them at their own guidance instead of raising it to the change's,
+    /// which exaggerates them (`all`'s bow, at 1.31x its clips' jerk, pitched and shifted back
+    /// until it read as walking backwards).
     #[serde(default, skip_serializing_if = "BTreeSet::is_empty")]
     pub lively_classes: BTreeSet<String>,
     /// Per class, the share of its motion texture a take lays over its frames (the model's

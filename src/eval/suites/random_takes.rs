@@ -1,10 +1,11 @@
 //! The first-takes suite's random takes: beyond the fixed first takes, timelines a user trying
 //! the model might lay out (1-4 segments of 2-6 s, classes drawn at random, started from a
 //! random seed-bank pose or from a random frame of one of the model's real test clips, a
-//! random variation seed), each measured as exported like a first take. A take of a class whose real clips leave the ground (a run, a jump, a dance's hops),
-//! or started from one's pose, may float; the takes without one are held to issue 39's
-//! first-take lines: feet up in at most 10% of frames, no float over 0.5 s. Every take is
-//! also checked for joints under its floor.
+//! random variation seed), each measured as exported like a first take. A take of a class
+//! whose real clips leave the ground (a run, a jump, a dance's hops), or started from one's
+//! pose, may float; the takes without one are held to issue 39's first-take lines: feet up in
+//! at most 10% of frames, no float over 0.5 s. Every take is also checked for joints under
+//! its floor.
 
 use std::ops::Range;
 use std::path::PathBuf;
