@@ -103,7 +103,7 @@ pub fn calibrate(model: &GlocalModel, corpus: &Corpus, strengths: &[f32], log: &
         // A class steered apart keeps its guidance: it carries the push from its pair
         // (`all`'s walk-right calmed to 1.25 kept its class in 0.77 of its styled takes after
         // 2 s, against 0.90).
-        if readings[0].jerk > LIVELY_CEILING * real_jerk && spec.contrast_indices()[class].is_none() {
+        if over_ceiling(&readings[0], real_jerk) && spec.contrast_indices()[class].is_none() {
             chosen = calmed(model, &roles, class, &mut readings, real_jerk, log)?;
         }
         let texture = match model.texture() {
@@ -129,7 +129,7 @@ fn calmed(model: &GlocalModel, roles: &JointRoles, class: usize, readings: &mut 
     for strength in CALMER_STRENGTHS.into_iter().filter(|&s| s < own) {
         log(&format!("calibrate: {} at {strength}, calmer", model.spec.classes[class]));
         let reading = read_class(model, roles, class, strength, false)?;
-        let (lively, within) = (reading.jerk >= LIVELY_SHARE * real_jerk && keeps_travel(&readings[0], &reading), reading.jerk <= LIVELY_CEILING * real_jerk);
+        let (lively, within) = (reading.jerk >= LIVELY_SHARE * real_jerk && keeps_travel(&readings[0], &reading), !over_ceiling(&reading, real_jerk));
         readings.push(reading);
         if !lively {
             break;
@@ -151,8 +151,13 @@ impl ClassCalibration {
     /// Whether the class's takes at the model's own guidance (the first strength read) move
     /// more sharply than [`LIVELY_CEILING`] of its training clips.
     pub fn over_lively(&self) -> bool {
-        self.readings.first().is_some_and(|own| own.jerk > LIVELY_CEILING * self.real_jerk)
+        self.readings.first().is_some_and(|own| over_ceiling(own, self.real_jerk))
     }
+}
+
+/// Whether takes of `reading` move more sharply than [`LIVELY_CEILING`] of `real_jerk`.
+fn over_ceiling(reading: &Reading, real_jerk: f64) -> bool {
+    reading.jerk > LIVELY_CEILING * real_jerk
 }
 
 /// The mean jerk of `readings` at guidance `strength` (NaN where none was read there).

@@ -26,7 +26,12 @@ pub(super) fn keeps_given_frames(opts: &GenerateOptions) -> bool {
 /// frames and the fade after them (where no key comes sooner).
 pub fn file_start_frames(model: &GlocalModel) -> usize {
     let spec = &model.spec;
-    spec.observed_span() + 1 + (GIVEN_BLEND_SECONDS * spec.fps).round() as usize
+    spec.observed_span() + 1 + blend_frames(spec.fps)
+}
+
+/// [`GIVEN_BLEND_SECONDS`] in frames at `fps`.
+fn blend_frames(fps: f32) -> usize {
+    (GIVEN_BLEND_SECONDS * fps).round() as usize
 }
 
 /// The floor of a file start's given frames as a constraint: the finished take raised or
@@ -68,7 +73,7 @@ impl StartFade {
     /// The fade after `given` frames (at least one) of a take of `frames` at `fps`, its first
     /// key at frame `until`.
     pub fn new(given: usize, frames: usize, until: usize, fps: f32) -> Self {
-        let blend = ((GIVEN_BLEND_SECONDS * fps).round() as usize).min(until.saturating_sub(given));
+        let blend = blend_frames(fps).min(until.saturating_sub(given));
         Self { last: given.saturating_sub(1), blend, end: frames.min(given + blend) }
     }
 

@@ -7,6 +7,7 @@
 //! at most 10% of frames, no float over 0.5 s. Every take is also checked for joints under
 //! its floor.
 
+use std::collections::hash_map::{Entry, HashMap};
 use std::ops::Range;
 use std::path::PathBuf;
 
@@ -96,11 +97,18 @@ pub fn random_takes(model: &GlocalModel, corpus: &Corpus, base: &GenerateOptions
     // the feet's markers): the take is judged after them.
     let own_formats = corpus.dataset != Dataset::Combined;
     let clips: Vec<_> = corpus.test.iter().filter(|t| own_formats || t.file.ends_with(".bvh")).collect();
-    for i in 0..if clips.is_empty() { 0 } else { FILE_TAKES } {
+    // Each file's frame count, read once (a clip is drawn several times).
+    let mut file_frames = HashMap::new();
+    let draws = if clips.is_empty() { 0 } else { FILE_TAKES };
+    for i in 0..draws {
         let (drawn, timeline, seed) = drawn_timeline(&mut rng, classes);
         let clip = clips[rng.random_range(0..clips.len())];
         let path = file_of(&clip.file)?;
-        let frame = rng.random_range(0..read_on_model_skeleton(model, &path, None)?.file_frames);
+        let frames = match file_frames.entry(clip.file.as_str()) {
+            Entry::Occupied(known) => *known.get(),
+            Entry::Vacant(new) => *new.insert(read_on_model_skeleton(model, &path, None)?.file_frames),
+        };
+        let frame = rng.random_range(0..frames);
         let command = format!("--timeline {timeline} --init clip:{}@{frame} --seed {seed}", clip.file);
         if i % 20 == 0 {
             log(&format!("random takes from files: {} {i}/{FILE_TAKES}", corpus.dataset));
