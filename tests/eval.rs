@@ -217,8 +217,9 @@ fn keyed_gaps_beat_linear_interpolation() {
 /// shipped `models/all` rather than a GloGen trained per CMU set), through the cmu-euclid
 /// suite with nothing trained in its cache: the suite runs, says which of its own GloGens and
 /// baselines are not trained, and the shipped GloGen beats holding the last pose on Walking,
-/// Indian Dance and Martial Arts at every horizon from 160 ms on. (At 80 ms on Martial Arts
-/// it is 1.2% behind, 56.3 against 55.6 mm: the line is not met; docs/RESULTS.md.)
+/// Indian Dance and Martial Arts at every horizon. (Martial Arts at 80 ms is the closest:
+/// 47.2 against 55.6 mm since the first step from given motion blends in that motion's own,
+/// 56.3 before it; docs/RESULTS.md.)
 #[test]
 fn the_shipped_model_forecasts_cmu_better_than_holding_the_pose() {
     let cache = tempfile::tempdir().unwrap();
@@ -233,7 +234,7 @@ fn the_shipped_model_forecasts_cmu_better_than_holding_the_pose() {
         let errors = |key: &str| -> Vec<f64> { motion[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect() };
         let (zero, glogen) = (errors("zero_velocity_m"), errors("glogen_m"));
         eprintln!("{}: GloGen {glogen:.4?} against zero-velocity {zero:.4?} m", motion["motion"]);
-        for (k, (g, z)) in glogen.iter().zip(&zero).enumerate().skip(1) {
+        for (k, (g, z)) in glogen.iter().zip(&zero).enumerate() {
             assert!(g < z, "{} at {} ms: {g:.4} m against zero-velocity's {z:.4}", motion["motion"], metrics::HORIZONS_MS[k]);
         }
     }

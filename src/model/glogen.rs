@@ -3,7 +3,7 @@
 //! caller brings a [`BlockWorkspace`].
 
 use super::block::{BlockWorkspace, FrozenBlock};
-use super::seam::{half_block, join_seam};
+use super::seam::{half_block, join_seam, Seam};
 use super::spec::{GloGenSpec, ModelSpec};
 use super::target::{has_target, straight_way};
 use crate::data::features::Normalizer;
@@ -168,8 +168,8 @@ impl GloGen {
 
     /// One step of the rollout: a block from `input` (the context as GloGen should see it,
     /// eased towards an anchor or noised), joined onto the poses actually before it
-    /// (normalised) when `join` names them: the whole block before, which a two-sided join
-    /// may move, or only its last pose, which stays. Returns the block's embedding.
+    /// (normalised) when `join` names them ([`Seam`]: GloGen's own, or real motion it was
+    /// given). Returns the block's embedding.
     ///
     /// A Bi-LSTM decoder places its first pose near, not at, where the context leaves off, so
     /// blocks pop at their seams (the interval before a seam moved 3.2x faster than those
@@ -177,15 +177,16 @@ impl GloGen {
     /// steps on from the context's last pose, and fades the shift out over the first half of
     /// the block with a raised cosine, which keeps the block's own motion and its end where
     /// GloGen put it; a two-sided join ([`super::spec::SeamJoin`]) moves the block before by
-    /// half of it. A block that changes the body's height a long way is joined over longer
-    /// ([`LONG_JOIN_LEGS`], [`LONG_JOIN_SECONDS`]).
-    pub fn rollout_block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, join: Option<&mut [f32]>, out: &mut [f32]) -> Vec<f32> {
+    /// half of it; onto given motion its first step blends in that motion's own
+    /// ([`super::seam::GIVEN_STEP_SHARE`]). A block that changes the body's height a long way
+    /// is joined over longer ([`LONG_JOIN_LEGS`], [`LONG_JOIN_SECONDS`]).
+    pub fn rollout_block(&self, ws: &mut BlockWorkspace, input: &[f32], class: &[f32], strength: f32, join: Option<Seam<'_>>, out: &mut [f32]) -> Vec<f32> {
         let embedding = self.block(ws, input, class, strength, out);
-        if let Some(before) = join {
-            let climb = (before[before.len() - self.dim] - out[0]) * self.norm.std[0];
+        if let Some(seam) = join {
+            let climb = (seam.last(self.dim)[0] - out[0]) * self.norm.std[0];
             let poses = out.len() / self.dim;
             let span = if climb.abs() > self.long_climb { self.long_span.min(poses) } else { half_block(poses) };
-            join_seam(before, out, self.dim, self.spec.seam_join, !self.aims(class), span);
+            join_seam(seam, out, self.dim, self.spec.seam_join, !self.aims(class), span);
         }
         embedding
     }

@@ -9,6 +9,7 @@ use anyhow::{bail, Result};
 
 use super::block::BlockWorkspace;
 use super::glogen::GloGen;
+use super::seam::Seam;
 
 /// What the caller of a [`rollout`] decides, block by block.
 pub trait RolloutSteps {
@@ -31,6 +32,14 @@ pub trait RolloutSteps {
     /// Whether the seam join may move the block before block `b` (b > 0): otherwise only its
     /// last pose is seen, and stays (observed or given poses).
     fn may_move_block_before(&self, _b: usize) -> bool {
+        true
+    }
+
+    /// Whether the rollout starts from real motion other than the model's seed bank (a file,
+    /// the held-out clip a forecast continues): the first block's first step then blends in
+    /// that motion's own last step ([`Seam::Given`]). A take from the seed bank, windows of
+    /// the clips GloGen learned to continue, joins its first block as every other.
+    fn starts_from_given_motion(&self) -> bool {
         true
     }
 
@@ -79,8 +88,15 @@ pub fn rollout_blocks(glogen: &GloGen, ws: &mut BlockWorkspace, sparse: &mut Vec
             continue;
         }
         let movable = b > 0 && steps.may_move_block_before(b);
-        let before = if movable { context } else { sparse.len() - dim };
-        embeddings.push(glogen.rollout_block(ws, &input, steps.class(b), strength, join_seams.then_some(&mut sparse[before..]), &mut out));
+        let seam = match (b, movable) {
+            (0, _) if steps.starts_from_given_motion() => Seam::Given(&sparse[context..]),
+            (_, true) => Seam::Own(&mut sparse[context..]),
+            (_, false) => {
+                let last = sparse.len() - dim;
+                Seam::Own(&mut sparse[last..])
+            }
+        };
+        embeddings.push(glogen.rollout_block(ws, &input, steps.class(b), strength, join_seams.then_some(seam), &mut out));
         steps.made(b, movable && join_seams, sparse, &out);
         if out.iter().any(|v| !v.is_finite()) {
             bail!("GloGen produced non-finite poses at block {b}");

@@ -16,7 +16,7 @@ use super::foot_lock::Travel;
 use super::generated::{Generated, TakeEvents};
 use super::given::{keeps_given_frames, GivenFloor, GivenStart};
 use super::held::HeldConstraint;
-use super::init::{given_frames, initial_features};
+use super::init::{given_frames, initial_features, InitPose};
 use super::keys::{filled_gaps, learnt_travel, place_keys, KeyConstraint, PlacedKey};
 use super::options::{variation_for, GenerateOptions, KeyMethod, Transition};
 use super::path_follow::{GroundPath, PathConstraint};
@@ -361,6 +361,10 @@ impl RolloutSteps for TakeSteps<'_, '_> {
     /// pose alone.
     fn may_move_block_before(&self, b: usize) -> bool {
         self.plans[b - 1].keys.is_empty()
+    }
+
+    fn starts_from_given_motion(&self) -> bool {
+        matches!(self.opts.init, InitPose::File { .. })
     }
 
     fn made(&mut self, b: usize, moved_before: bool, sparse: &[f32], block: &[f32]) {

@@ -22,6 +22,7 @@ use crate::model::block::BlockWorkspace;
 use crate::model::glocal::GlocalModel;
 use crate::model::inbetween::{bend_ends, BEND_SECONDS};
 use crate::model::glogen::GloGen;
+use crate::model::seam::Seam;
 use crate::motion::{solve_local_poses, Motion};
 
 /// Seconds before a key over which GloGen's sparse poses are warped towards it.
@@ -355,7 +356,7 @@ impl TakeConstraint for KeyConstraint<'_> {
             if after < sparse.len() && self.method == KeyMethod::RollOn {
                 let input = sparse[after - t * dim..after].to_vec();
                 let mut key = input[(t - 1) * dim..].to_vec();
-                glogen.rollout_block(ws, &input, &block.plan.class, block.strength, block.join_seams.then_some(&mut key[..]), &mut out);
+                glogen.rollout_block(ws, &input, &block.plan.class, block.strength, block.join_seams.then_some(Seam::Own(&mut key[..])), &mut out);
                 let rest = sparse.len() - after;
                 sparse[after..].copy_from_slice(&out[..rest]);
             }
