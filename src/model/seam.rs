@@ -1,6 +1,7 @@
 //! The seam join: a GloGen block shifted onto the poses before it, so blocks do not pop
 //! where they meet; once on plain f32 buffers for generation and once as differentiable
-//! tensor operations for training on joined rollouts (tested equal).
+//! tensor operations for training on joined rollouts (tested equal; the join onto given
+//! motion, [`Seam::Given`], is generation's alone: training joins the whole step).
 
 use candle_core::Tensor;
 
