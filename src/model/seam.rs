@@ -37,13 +37,14 @@ impl Seam<'_> {
 /// person's own last step is part of a better guess. On the held-out clips of Human3.6M
 /// (S11) and Bandai (its tired and musical styles) with `models/all`, the first forecast
 /// pose (0.1 s on) comes nearest the real one at a share of 0.4 (mean joint error 20.2 mm,
-/// against 26.7 with GloGen's own step alone) and 22.6 mm at 0.75; but the more of the given
-/// step, the more the first block's steps bend where GloGen's own take over: continuing a
-/// walk from a Rigify armature (the Blender add-on's test), a foot pointing down at the
-/// first toe-off pivoted and the retargeted heel turned 164 degrees in a frame at 0.4, 23 at
-/// 0.6, 19 at 0.75 and 17 with GloGen's own step. docs/DESIGN.md, "The first step from a
-/// file". CMU's clips, which the forecast table scores, were not used to choose it.
-pub const GIVEN_STEP_SHARE: f32 = 0.75;
+/// against 26.7 with GloGen's own step alone; 22.6 mm at 0.75). Continuing a walk from a
+/// Rigify armature (the Blender add-on's test), a foot pointing down at the first toe-off
+/// pivots more, the nearer the share comes to 0.4: while the retargeting levelled every foot,
+/// its heel turned 164 degrees in a frame at 0.4 (19 at 0.75); a steep foot now turns on its
+/// ankle's hinge (`motion::retarget`), and at 0.4 the heel turns 15.6 degrees a frame at most.
+/// docs/DESIGN.md, "The first step from a file". CMU's clips, which the forecast table
+/// scores, were not used to choose it.
+pub const GIVEN_STEP_SHARE: f32 = 0.4;
 
 /// Joins `block` onto the poses before it, `seam` (see [`super::glogen::GloGen::rollout_block`]).
 /// Features 1-3 (the root's ground displacement and heading change) are velocities already

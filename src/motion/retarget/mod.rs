@@ -152,6 +152,9 @@ pub struct Retarget {
     /// Target units of hips motion per source unit: the ratio of leg lengths.
     root_scale: f32,
     stance: Stance,
+    /// Whether a steep foot turns on its ankle's hinge rather than lying level
+    /// ([`foot_across_line`]; [`Retarget::with_every_foot_level`]).
+    steep_feet_on_hinges: bool,
     pub source_rest: RestPose,
     pub target_rest: RestPose,
 }
@@ -182,6 +185,7 @@ impl Retarget {
             source_rest: RestPose::detect(source, source_keys),
             target_rest: RestPose::detect(&target, target_keys),
             stance: Stance::new(source, source_keys, &target, target_keys, root_scale)?,
+            steep_feet_on_hinges: true,
             root: target.chain_from_root(hips)[0],
             sockets_at_rest: (rest[left] + rest[right]) / 2.0 - rest[hips],
             source_sockets: (required(source_keys, Key::LeftUpLeg, "source")?, required(source_keys, Key::RightUpLeg, "source")?),
@@ -208,6 +212,16 @@ impl Retarget {
                 link.turn = Turn::TowardsTip { tip, rest: self.rest_positions[end] - self.rest_positions[link.target] };
             }
         }
+        self
+    }
+
+    /// The mapping with every foot's side-to-side line level however steep the foot, as
+    /// `models/all`'s training clips were retargeted: its weights, seed bank and texture
+    /// learned those feet, and a steep foot's roll moves its heel and toes (Bandai's runs and
+    /// dashes in their back swing). The next training of `all` drops it (docs/DESIGN.md,
+    /// "The first step from a file").
+    pub fn with_every_foot_level(mut self) -> Retarget {
+        self.steep_feet_on_hinges = false;
         self
     }
 
@@ -255,7 +269,8 @@ impl Retarget {
                 Turn::Towards { child, rest, level } => {
                     let bone = frame[self.links[*child].source] - frame[link.source];
                     let turned = turn_towards(base, *rest, bone);
-                    level.map_or(turned, |across| level_across(turned, across, bone))
+                    let shin = link.parent.filter(|_| self.steep_feet_on_hinges).map(|p| frame[link.source] - frame[self.links[p].source]);
+                    level.map_or(turned, |across| level_foot(turned, across, bone, shin))
                 }
                 Turn::TowardsTip { tip, rest } => turn_towards(base, *rest, frame[*tip] - frame[link.source]),
                 Turn::Carried => base,
@@ -368,16 +383,43 @@ fn turn_towards(base: Quat, rest: Vec3, wanted: Vec3) -> Quat {
     (Quat::from_rotation_arc(from, to) * base).normalize()
 }
 
-/// `turn` twisted about `along` so that `across` (a rest direction, turned by `turn`) lies
-/// level, square to the floor's up; unchanged where `along` is within 6 degrees of upright.
-fn level_across(turn: Quat, across: Vec3, along: Vec3) -> Quat {
+/// How far below level (degrees) a foot's side-to-side line starts to fade from level onto
+/// the ankle's hinge, and where the hinge has it all.
+const HINGE_FADE_DEGREES: (f32, f32) = (50.0, 70.0);
+
+/// A foot's `turn` twisted about its bone `along` so that `across` (a rest direction, turned
+/// by `turn`) lies on the foot's side-to-side line, of the two sides the one nearer where
+/// the leg's turn left it; unchanged where there is no such line.
+fn level_foot(turn: Quat, across: Vec3, along: Vec3, shin: Option<Vec3>) -> Quat {
     let Some(along) = along.try_normalize() else { return turn };
     let now = turn * across;
+    let (Some(now), Some(line)) = ((now - along * now.dot(along)).try_normalize(), foot_across_line(along, shin)) else { return turn };
+    let line = if line.dot(now) < 0.0 { -line } else { line };
+    (Quat::from_rotation_arc(now, line) * turn).normalize()
+}
+
+/// The side-to-side line of a foot pointing along `along` (unit) below a shin running
+/// `shin` (knee to ankle; without one, level however steep). A foot up to 50 degrees down lies level, square to the floor's up
+/// (a heel flat on the floor, or lifting at toe-off). A steeper foot (a dancer's point, a run's
+/// back swing) fades onto the ankle's hinge, square to shin and foot, by 70 degrees down:
+/// the level line of a foot near upright swings half a turn as its heading does, and a foot
+/// so levelled is rolled off its own hinge (the two agree within 6 degrees on the training
+/// clips' feet 10-50 degrees down, 18-37 apart steeper).
+fn foot_across_line(along: Vec3, shin: Option<Vec3>) -> Option<Vec3> {
     let level = along.cross(Vec3::Y);
-    let (Some(now), true) = ((now - along * now.dot(along)).try_normalize(), level.length() > 0.1) else { return turn };
-    let level = level.normalize();
-    let level = if level.dot(now) < 0.0 { -level } else { level };
-    (Quat::from_rotation_arc(now, level) * turn).normalize()
+    let level = (level.length() > 0.1).then(|| level.normalize());
+    let (from, to) = HINGE_FADE_DEGREES;
+    let down = (-along.y).clamp(-1.0, 1.0).asin().to_degrees();
+    let share = ((down - from) / (to - from)).clamp(0.0, 1.0);
+    let hinge = shin.and_then(Vec3::try_normalize).map(|shin| shin.cross(along)).filter(|h| h.length() > 0.1).map(Vec3::normalize);
+    match (level, hinge) {
+        (Some(level), _) if share == 0.0 => Some(level),
+        (Some(level), Some(hinge)) => {
+            let hinge = if hinge.dot(level) < 0.0 { -hinge } else { hinge };
+            level.lerp(hinge, share).try_normalize()
+        }
+        (level, hinge) => level.or(hinge),
+    }
 }
 
 /// The joint of a key joint every humanoid has (checked when a [`Retarget`] is made).
@@ -538,6 +580,30 @@ mod tests {
             }
             let sockets = line(s, &sk, Key::RightUpLeg, Key::LeftUpLeg).angle_between(line(d, &dk, Key::RightUpLeg, Key::LeftUpLeg));
             assert!(sockets.to_degrees() < 0.1, "frame {t}: the socket line {} degrees off", sockets.to_degrees());
+        }
+    }
+
+    /// A foot up to 50 degrees down lies level; from 70 down it lies on its ankle's hinge,
+    /// square to shin and foot, even where the shin leans sideways and the level line would
+    /// roll it; in between the line turns smoothly from one onto the other.
+    #[test]
+    fn a_steep_foot_turns_on_its_hinge_a_flat_one_lies_level() {
+        let shin = Vec3::new(0.4, -1.0, 0.1);
+        let foot = |down_degrees: f32| {
+            let down = down_degrees.to_radians();
+            Vec3::new(0.0, -down.sin(), down.cos())
+        };
+        let flat = foot_across_line(foot(20.0), Some(shin)).unwrap();
+        assert!(flat.y.abs() < 1e-6 && flat.dot(foot(20.0)).abs() < 1e-6, "{flat}");
+        let hinge = shin.cross(foot(80.0)).normalize();
+        let steep = foot_across_line(foot(80.0), Some(shin)).unwrap();
+        assert!(steep.dot(hinge).abs() > 1.0 - 1e-6 && hinge.y.abs() > 0.1, "{steep} against the hinge {hinge}");
+        let mut before = flat;
+        for down in 21..=89 {
+            let line = foot_across_line(foot(down as f32), Some(shin)).unwrap();
+            let line = if line.dot(before) < 0.0 { -line } else { line };
+            assert!(line.angle_between(before).to_degrees() < 5.0, "{down} degrees down: {line} after {before}");
+            before = line;
         }
     }
 
