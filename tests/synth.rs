@@ -99,6 +99,21 @@ fn a_gesture_after_another_activity_keeps_its_pace() {
     }
 }
 
+/// A take that does not say is refined by LocGen as its model says: h36m's is, Bandai's is
+/// not (its LocGen takes the motion further from capture than the spline alone), and either
+/// is had by asking.
+#[test]
+fn a_take_that_does_not_say_refines_as_its_model_says() {
+    for (name, by_default) in [("h36m", true), ("bandai", false)] {
+        let m = model(name);
+        assert_eq!(m.spec.locgen.by_default, by_default, "{name}");
+        let take = |locgen: Option<bool>| generate(&m, &GenerateOptions { locgen, ..opts(&format!("{}:3", m.spec.classes[0])) }, &mut |_| true).unwrap().motion;
+        let (unsaid, refined, plain) = (take(None), take(Some(true)), take(Some(false)));
+        assert!(refined.positions() != plain.positions(), "{name}: LocGen changed nothing");
+        assert!(unsaid.positions() == if by_default { refined.positions() } else { plain.positions() }, "{name}: the unsaid take is not the model's choice");
+    }
+}
+
 #[test]
 fn pace_stretches_the_same_poses() {
     let m = model("h36m");
@@ -109,9 +124,9 @@ fn pace_stretches_the_same_poses() {
     // Same duration asked, so half the sparse poses spread over the same frames.
     assert!((slow.motion.frames() as i64 - base.motion.frames() as i64).abs() <= 10);
     let mut half = opts("walking:2@2.0");
-    half.locgen = false;
+    half.locgen = Some(false);
     let mut plain = opts("walking:1");
-    plain.locgen = false;
+    plain.locgen = Some(false);
     let (half, plain) = (generate(&m, &half, &mut |_| true).unwrap(), generate(&m, &plain, &mut |_| true).unwrap());
     // walking:2 at pace 2 shows the poses of walking:1 at pace 1, each frame twice as long.
     let (a, b) = (half.motion.frame(20)[3], plain.motion.frame(10)[3]);

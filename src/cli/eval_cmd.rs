@@ -86,7 +86,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         keep_alive: !args.no_keep_alive,
         join_seams: !args.no_seam_join,
         texture: !args.no_texture,
-        locgen: !args.no_locgen,
+        locgen: args.no_locgen.then_some(false),
         preset: Preset::from_paper_flag(args.paper),
         quick: args.quick,
         class_control_takes: args.class_control_takes as usize,

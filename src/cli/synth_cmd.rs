@@ -43,8 +43,12 @@ pub struct GenerateArgs {
     #[arg(long)]
     pub init: Option<String>,
     /// Plain interpolation between sparse poses instead of LocGen.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "locgen")]
     pub no_locgen: bool,
+    /// LocGen on a model whose takes go without it unless asked (Bandai's: its LocGen takes
+    /// them further from capture than the spline alone).
+    #[arg(long)]
+    pub locgen: bool,
     #[arg(long, value_enum, default_value = "anchor")]
     pub transition: TransitionArg,
     /// Seconds over which each class change happens, centred on its boundary (0: a cut).
@@ -258,7 +262,7 @@ fn options_from_args(args: &GenerateArgs, timeline: &str, model: &GlocalModel) -
         timeline,
         pace: args.pace,
         init,
-        locgen: !args.no_locgen,
+        locgen: if args.no_locgen { Some(false) } else { args.locgen.then_some(true) },
         transition: args.transition.into(),
         transition_seconds: args.transition_seconds,
         class_strength: args.class_strength,

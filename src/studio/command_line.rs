@@ -103,8 +103,10 @@ fn option_args(options: &GenerateOptions, model: &ModelInfo) -> Vec<String> {
             args.extend(["--key".into(), format!("{}={}{root}", key.seconds, init_arg(init, model))]);
         }
     }
+    let refines = options.locgen.unwrap_or(model.spec.locgen.by_default);
     let switches = [
-        (!options.locgen, "--no-locgen"),
+        (!refines, "--no-locgen"),
+        (refines && !model.spec.locgen.by_default, "--locgen"),
         (!options.project_bones, "--no-projection"),
         (!options.keep_alive, "--no-keep-alive"),
         (!options.join_seams, "--no-seam-join"),

@@ -295,7 +295,7 @@ mod tests {
         assert_eq!(p.version, PROJECT_VERSION);
         let o = &p.options;
         assert_eq!(o.timeline, "walking:4,sitting:3@1.5".parse().unwrap());
-        assert_eq!((o.pace, o.transition, o.class_strength, o.locgen), (1.2, Transition::Blend, Some(2.0), false));
+        assert_eq!((o.pace, o.transition, o.class_strength, o.locgen), (1.2, Transition::Blend, Some(2.0), Some(false)));
         assert_eq!(o.init, InitPose::SeedClass { class: "sitting".into(), variant: 3 });
         assert_eq!(*o, o.clone().varied(7), "the seed comes with its variation");
         assert_eq!((o.keys.len(), o.path.is_none()), (0, true));

@@ -238,8 +238,14 @@ impl StudioApp {
         }
         let locks_feet = self.engine.model.as_ref().is_some_and(|m| m.spec.foot_lock);
         ui.horizontal_wrapped(|ui| {
-            ui.add_enabled(has_locgen, egui::Checkbox::new(&mut self.editing.doc.options.locgen, "LocGen refinement"))
-                .on_hover_text("Adds natural in-between motion (weight shifts, swing) between the model's key poses. Off: straight-line in-betweens, for comparison");
+            let by_default = self.engine.model.as_ref().is_some_and(|m| m.spec.locgen.by_default);
+            let mut refines = self.editing.doc.options.locgen.unwrap_or(by_default);
+            let toggled = ui
+                .add_enabled(has_locgen, egui::Checkbox::new(&mut refines, "LocGen refinement"))
+                .on_hover_text("Adds in-between motion (weight shifts, swing) to the spline between the model's key poses. Off by default where it takes the motion further from capture (Bandai's)");
+            if toggled.changed() {
+                self.editing.doc.options.locgen = Some(refines);
+            }
             ui.add_enabled(locks_feet, egui::Checkbox::new(&mut self.editing.doc.options.foot_lock, "Foot lock"))
                 .on_hover_text("Keeps planted feet still on the floor (leg IK), marked orange on the feet and on the timeline's feet track. Off: the feet as the network made them, for comparison")
                 .on_disabled_hover_text("This model's takes are left as the network made them (its model.json turns the foot lock off)");

@@ -54,7 +54,9 @@ pub struct GenerateOptions {
     pub timeline: Timeline,
     pub pace: f32,
     pub init: InitPose,
-    pub locgen: bool,
+    /// Refine the frames between GloGen's poses with LocGen (off: the interpolation alone);
+    /// none, as the model's LocGen says ([`crate::model::spec::LocGenSpec::by_default`]).
+    pub locgen: Option<bool>,
     pub transition: Transition,
     /// Seconds over which the take changes class, centred on each boundary (a segment's own
     /// `transition` overrides it); 0 is a cut whatever `transition` says.
@@ -110,7 +112,7 @@ impl Default for GenerateOptions {
             timeline: Timeline::default(),
             pace: 1.0,
             init: InitPose::default(),
-            locgen: true,
+            locgen: None,
             transition: Transition::Anchor,
             transition_seconds: DEFAULT_TRANSITION_SECONDS,
             class_strength: None,

@@ -11,7 +11,8 @@ pub enum Preset {
     #[default]
     Shipped,
     /// The paper's GlocalNet: cut transitions, plain conditioning, no keep-alive, blocks that
-    /// pop at their seams, feet as the network made them, frames splined between its poses.
+    /// pop at their seams, feet as the network made them, LocGen refining the frames between
+    /// its poses.
     Paper,
 }
 
@@ -23,6 +24,7 @@ impl Preset {
             opts.transition = Transition::Cut;
             opts.transition_seconds = 0.0;
             opts.class_strength = Some(1.0);
+            opts.locgen = Some(true);
             opts.keep_alive = false;
             opts.join_seams = false;
             opts.foot_lock = false;
@@ -52,7 +54,7 @@ mod tests {
         let shipped = GenerateOptions::default();
         assert_eq!(Preset::Shipped.apply(shipped.clone()), shipped);
         let paper = Preset::Paper.apply(shipped);
-        assert_eq!((paper.transition, paper.transition_seconds, paper.class_strength), (Transition::Cut, 0.0, Some(1.0)));
+        assert_eq!((paper.transition, paper.transition_seconds, paper.class_strength, paper.locgen), (Transition::Cut, 0.0, Some(1.0), Some(true)));
         assert!(!(paper.keep_alive || paper.join_seams || paper.foot_lock || paper.hold_course || paper.texture || paper.spread_snaps));
     }
 }

@@ -108,7 +108,7 @@ impl From<DocumentV1> for Document {
             timeline: v1.timeline,
             pace: v1.pace,
             init: v1.init,
-            locgen: v1.locgen,
+            locgen: Some(v1.locgen),
             transition: v1.transition,
             class_strength: Some(v1.class_strength),
             ..Default::default()

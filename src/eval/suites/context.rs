@@ -33,8 +33,9 @@ pub struct SuiteOptions {
     pub join_seams: bool,
     /// The models' motion texture laid over the takes' frames ([`crate::model::texture`]).
     pub texture: bool,
-    /// LocGen refines the spline between GloGen's sparse poses (off: the spline alone).
-    pub locgen: bool,
+    /// LocGen refines the spline between GloGen's sparse poses (off: the spline alone; none:
+    /// as each model's LocGen says).
+    pub locgen: Option<bool>,
     /// Applied over the fields above: `Preset::Paper` is `glocal eval --paper`.
     pub preset: Preset,
     /// A reduced setting (fewer and shorter takes) where a suite has one.
@@ -46,7 +47,7 @@ pub struct SuiteOptions {
 
 impl Default for SuiteOptions {
     fn default() -> Self {
-        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, texture: true, locgen: true, preset: Preset::Shipped, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
+        Self { data: DataRoot::resolve(None), train_baselines: false, model: None, cache: cache_dir(), transition: Transition::default(), class_strength: None, keep_alive: true, join_seams: true, texture: true, locgen: None, preset: Preset::Shipped, quick: false, class_control_takes: CLASS_CONTROL_TAKES }
     }
 }
 

@@ -521,6 +521,7 @@ fn prepare_spec(opts: &TrainOptions, corpus: &Corpus, from: Option<&ModelSpec>) 
         interpolation: shape.interpolation,
         residual_scale: Vec::new(),
         keep_sparse_poses: true,
+        by_default: true,
     };
     let inbetween = InbetweenSpec {
         block: BlockConfig { in_dim: dim + GAP_CHANNELS, cond_dim: 0, cond_in_decoder: false, hidden: shape.hidden, out_dim: dim, dropout: 0.0 },
