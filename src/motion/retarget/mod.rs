@@ -111,7 +111,8 @@ enum Turn {
     /// bone's direction on the target at rest. A foot is then twisted about that bone so
     /// that its rest side-to-side line (`level`) lies level: the twist the leg hands down is
     /// arbitrary (a direction says nothing about it), and a rolled foot sinks one edge of its
-    /// heel into the floor (2 cm on a Rigify metarig).
+    /// heel into the floor (2 cm on a Rigify metarig); a steep foot turns on its ankle's hinge
+    /// instead ([`foot_across_line`]).
     Towards { child: usize, rest: Vec3, level: Option<Vec3> },
     /// A toe with a tip on both skeletons, for a generated take
     /// ([`Retarget::with_toes_to_tips`]): towards the source joint `tip` as the source's toe
@@ -219,7 +220,7 @@ impl Retarget {
     /// `models/all`'s training clips were retargeted: its weights, seed bank and texture
     /// learned those feet, and a steep foot's roll moves its heel and toes (Bandai's runs and
     /// dashes in their back swing). The next training of `all` drops it (docs/DESIGN.md,
-    /// "The first step from a file").
+    /// "Steep feet on their hinges").
     pub fn with_every_foot_level(mut self) -> Retarget {
         self.steep_feet_on_hinges = false;
         self
@@ -399,12 +400,13 @@ fn level_foot(turn: Quat, across: Vec3, along: Vec3, shin: Option<Vec3>) -> Quat
 }
 
 /// The side-to-side line of a foot pointing along `along` (unit) below a shin running
-/// `shin` (knee to ankle; without one, level however steep). A foot up to 50 degrees down lies level, square to the floor's up
-/// (a heel flat on the floor, or lifting at toe-off). A steeper foot (a dancer's point, a run's
-/// back swing) fades onto the ankle's hinge, square to shin and foot, by 70 degrees down:
-/// the level line of a foot near upright swings half a turn as its heading does, and a foot
-/// so levelled is rolled off its own hinge (the two agree within 6 degrees on the training
-/// clips' feet 10-50 degrees down, 18-37 apart steeper).
+/// `shin` (knee to ankle; without one, level however steep). A foot up to 50 degrees down
+/// lies level, square to the floor's up (a heel flat on the floor, or lifting at toe-off). A
+/// steeper foot (a dancer's point, a run's back swing) fades onto the ankle's hinge, square
+/// to shin and foot, by 70 degrees down: the level line of a foot near upright swings half a
+/// turn as its heading does, and a foot so levelled is rolled off its own hinge (the two
+/// agree within 6 degrees on the training clips' feet 10-50 degrees down, 18-37 apart
+/// steeper).
 fn foot_across_line(along: Vec3, shin: Option<Vec3>) -> Option<Vec3> {
     let level = along.cross(Vec3::Y);
     let level = (level.length() > 0.1).then(|| level.normalize());
