@@ -103,10 +103,12 @@ fn option_args(options: &GenerateOptions, model: &ModelInfo) -> Vec<String> {
             args.extend(["--key".into(), format!("{}={}{root}", key.seconds, init_arg(init, model))]);
         }
     }
-    let refines = options.locgen.unwrap_or(model.spec.locgen.by_default);
+    // LocGen's flags say only where the take's choice is not its model's.
+    let by_default = model.spec.locgen.by_default;
+    let refines = options.locgen.unwrap_or(by_default);
     let switches = [
-        (!refines, "--no-locgen"),
-        (refines && !model.spec.locgen.by_default, "--locgen"),
+        (by_default && !refines, "--no-locgen"),
+        (!by_default && refines, "--locgen"),
         (!options.project_bones, "--no-projection"),
         (!options.keep_alive, "--no-keep-alive"),
         (!options.join_seams, "--no-seam-join"),
@@ -176,7 +178,22 @@ fn quoted(arg: &str) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::quoted;
+    use super::{option_args, quoted, ModelInfo};
+    use crate::model::spec::ModelSpec;
+    use crate::synth::GenerateOptions;
+
+    /// LocGen's flag is written where the take's choice is not its model's: `--no-locgen` on
+    /// h36m, `--locgen` on Bandai (whose takes go without it unless asked), none otherwise.
+    #[test]
+    fn locgen_is_a_flag_only_against_the_models_word() {
+        for (name, asked, flag) in [("h36m", Some(false), Some("--no-locgen")), ("h36m", Some(true), None), ("h36m", None, None), ("bandai", Some(true), Some("--locgen")), ("bandai", Some(false), None), ("bandai", None, None)] {
+            let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models").join(name);
+            let model = ModelInfo { spec: ModelSpec::read(&dir).unwrap(), dir, seeds: Vec::new(), typical: Vec::new(), has_locgen: true, has_texture: false };
+            let args = option_args(&GenerateOptions { locgen: asked, ..Default::default() }, &model);
+            let flags: Vec<&str> = args.iter().map(String::as_str).filter(|a| a.contains("locgen")).collect();
+            assert_eq!(flags, flag.into_iter().collect::<Vec<_>>(), "{name}, {asked:?}");
+        }
+    }
 
     #[test]
     fn shell_words_are_quoted_only_when_needed() {
