@@ -179,6 +179,7 @@ pub struct LocGenSpec {
     /// refined by LocGen: Bandai's is not, its LocGen being further from the held-out styles
     /// than the spline it refines (1.076x between keys) and its takes jerkier for it (1.18x
     /// real's mean jerk, 1.04x with the spline alone; docs/DESIGN.md, "LocGen on the spline").
+    /// A LocGen trained again refines by default until it is measured otherwise.
     #[serde(default = "refines_by_default", skip_serializing_if = "is_true")]
     pub by_default: bool,
 }
