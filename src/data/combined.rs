@@ -144,7 +144,7 @@ struct ClipCheck {
 fn onto(motion: &Motion, joint_map: Option<&UserJointMap>, target: &Arc<Skeleton>, target_keys: &KeyJoints, roles: &JointRoles, file: &str) -> Result<(Motion, ClipCheck)> {
     let source = motion.resample(FPS);
     let source_keys = key_joints(&source.skeleton, joint_map, file)?;
-    let retarget = Retarget::new(&source.skeleton, &source_keys, target.clone(), target_keys).with_context(|| format!("{file}: cannot retarget onto the standard humanoid"))?.with_every_foot_level();
+    let retarget = Retarget::new(&source.skeleton, &source_keys, target.clone(), target_keys).with_context(|| format!("{file}: cannot retarget onto the standard humanoid"))?.as_all_was_trained();
     let moved = retarget.apply(&source);
     let lowest = lowest_foot_heights(&moved, roles);
     let floor = floor(&lowest);

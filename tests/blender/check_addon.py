@@ -13,7 +13,8 @@ take against the same generation exported as JSON with Mixamo names:
   piece changes. Both pieces' turns are read from the same lines on both skeletons: side to
   side (right to left hip socket, shoulder socket) and up (hips to chest, chest to neck), the
   chest's side-to-side line at rest the hip sockets' (as motion/retarget/body.rs reads them);
-- where the take's foot is planted, the rig's foot is within 2 cm of the floor;
+- where the take's foot is planted, the rig's foot is within 2 cm of the floor, and its
+  ankle moves across the floor as the take's does (scaled by the legs' ratio) within 1 cm;
 - no mapped bone keeps an identity track while the take's joint moves;
 - a pose marker of the Action names each segment where it starts;
 - Continue from the armature starts the take from the armature's own last seconds, where it
@@ -190,6 +191,7 @@ def check_generated(arm, keys, take, label, failures):
     source_turn = {pair: 0.0 for pair in BONES}
     track_turn = {pair: 0.0 for pair in BONES}
     lowest = {side: [] for side in ("left", "right")}
+    ankles = {side: [] for side in lowest}
     feet = {side: foot_bones(arm, keys[f"{side.title()}Foot"]) for side in lowest}
     first_dirs = {}
     for f in range(frames):
@@ -211,12 +213,15 @@ def check_generated(arm, keys, take, label, failures):
             track_turn[pair] = max(track_turn[pair], degrees(basis.angle))
         for side, bones in feet.items():
             if take["contacts"][f"{side}_foot"][f]:
+                foot = f"{side.title()}Foot"
+                ankles[side].append((f, heads[foot], points[source[foot]]))
                 lowest[side].append(min(min((arm.matrix_world @ arm.pose.bones[b].head).z, (arm.matrix_world @ arm.pose.bones[b].tail).z) for b in bones))
     means = {pair: sum(v) / len(v) for pair, v in angles.items()}
     worst = max(means, key=means.get)
     moving = [pair for pair in BONES if source_turn[pair] > 1.0]
     planted = [z for side in lowest.values() for z in side]
     floor = max(abs(z) for z in planted) if planted else float("nan")
+    slide = planted_slide(ankles, leg_ratio(arm, keys, take, source))
     shown = sorted(p for p in carried if "Right" not in p[1])
     print(f"{label}: action '{action.name}', {frames} frames at {fps:g} fps (scene {scene.frame_start}-{scene.frame_end}); "
           f"{len(means)} mapped bones against the take's directions (mean over the take): worst {worst[0]}->{worst[1]} {means[worst]:.2f} deg, "
@@ -224,7 +229,8 @@ def check_generated(arm, keys, take, label, failures):
           f"{', '.join(f'{a}->{b} {means[(a, b)]:.2f}' for a, b in shown)} deg "
           f"(against the take's own joint pair {', '.join(f'{sum(own_pair[p]) / len(own_pair[p]):.1f}' for p in shown)}); "
           f"{sum(track_turn[p] >= 1e-3 for p in moving)} of {len(moving)} moving bones keyed off identity; "
-          f"planted feet {len(planted)} foot-frames, farthest from the floor {100 * floor:.2f} cm")
+          f"planted feet {len(planted)} foot-frames, farthest from the floor {100 * floor:.2f} cm, "
+          f"their ankles at most {100 * slide:.2f} cm across the floor from the take's within a contact")
     for pair, mean in means.items():
         if mean > 5.0:
             failures.append(f"{label}: bone {pair[0]}->{pair[1]} is {mean:.2f} deg from the take's on average")
@@ -232,6 +238,33 @@ def check_generated(arm, keys, take, label, failures):
             failures.append(f"{label}: bone {keys[pair[0]]} keeps an identity track while the take's {pair[0]} turns {source_turn[pair]:.1f} deg")
     if not planted or floor > 0.02:
         failures.append(f"{label}: planted feet up to {floor} m from the floor")
+    if slide > 0.01:
+        failures.append(f"{label}: a planted ankle slides {100 * slide:.2f} cm from the take's within a contact")
+
+
+def leg_ratio(arm, keys, take, source):
+    """The rig's leg (thigh and shin at rest, in the scene's units) over the take's."""
+    legs = (("LeftUpLeg", "LeftLeg"), ("LeftLeg", "LeftFoot"))
+    bones = arm.data.bones
+    rig = sum((bones[keys[b]].head_local - bones[keys[a]].head_local).length for a, b in legs)
+    points = [blender_point(p) for p in take["frames"][0]]
+    own = sum((points[source[b]] - points[source[a]]).length for a, b in legs)
+    return arm.matrix_world.to_scale()[0] * rig / own
+
+
+def planted_slide(ankles, ratio):
+    """Within each run of planted frames, the farthest the rig's ankle moves across the
+    floor other than the take's ankle does, scaled by the legs' ratio (a heel rolling onto
+    its toes carries both ankles)."""
+    slide = 0.0
+    for frames in ankles.values():
+        start = None
+        for k, (f, rig, take) in enumerate(frames):
+            if k == 0 or f != frames[k - 1][0] + 1:
+                start = (rig, take)
+            moved = (rig - start[0]) - ratio * (take - start[1])
+            slide = max(slide, Vector((moved.x, moved.y)).length)
+    return slide
 
 
 def foot_bones(arm, foot):

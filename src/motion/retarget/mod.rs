@@ -154,7 +154,7 @@ pub struct Retarget {
     root_scale: f32,
     stance: Stance,
     /// Whether a steep foot turns on its ankle's hinge rather than lying level
-    /// ([`foot_across_line`]; [`Retarget::with_every_foot_level`]).
+    /// ([`foot_across_line`]; [`Retarget::as_all_was_trained`]).
     steep_feet_on_hinges: bool,
     pub source_rest: RestPose,
     pub target_rest: RestPose,
@@ -216,13 +216,15 @@ impl Retarget {
         self
     }
 
-    /// The mapping with every foot's side-to-side line level however steep the foot, as
-    /// `models/all`'s training clips were retargeted: its weights, seed bank and texture
-    /// learned those feet, and a steep foot's roll moves its heel and toes (Bandai's runs and
-    /// dashes in their back swing). The next training of `all` drops it (docs/DESIGN.md,
-    /// "Steep feet on their hinges").
-    pub fn with_every_foot_level(mut self) -> Retarget {
+    /// The mapping as `models/all`'s training clips were retargeted: every foot's
+    /// side-to-side line level however steep the foot, and each planted foot placed from its
+    /// hip socket frame by frame. Its weights, seed bank and texture learned those feet, and a
+    /// steep foot's roll moves its heel and toes (Bandai's runs and dashes in their back
+    /// swing). The next training of `all` drops it (docs/DESIGN.md, "Steep feet on their
+    /// hinges").
+    pub fn as_all_was_trained(mut self) -> Retarget {
         self.steep_feet_on_hinges = false;
+        self.stance.holds_planted_feet = false;
         self
     }
 
