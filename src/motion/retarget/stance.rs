@@ -69,7 +69,7 @@ pub(super) struct Stance {
     /// Target units per source unit.
     scale: f32,
     /// Whether a planted foot keeps, through its contact, the place across the floor its
-    /// hip socket gave it as the contact began ([`Stance::held_in_contact`]).
+    /// hip socket gave it as the contact began ([`held_in_contact`]).
     pub holds_planted_feet: bool,
 }
 
@@ -216,6 +216,16 @@ fn filled_in(values: &[Option<Vec3>]) -> Vec<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each contact holds the socket offset of its own first frame, fade-in included; the
+    /// frames between contacts hold none.
+    #[test]
+    fn a_contact_holds_the_offset_it_began_with() {
+        let weight = [0.0, 0.5, 1.0, 1.0, 0.0, 1.0, 0.5];
+        let sockets: Vec<[Vec3; 2]> = (0..weight.len()).map(|t| [Vec3::ZERO, Vec3::splat(t as f32)]).collect();
+        let held: Vec<(usize, f32)> = held_in_contact(&weight, &sockets, 1).into_iter().map(|(t, v)| (t, v.x)).collect();
+        assert_eq!(held, vec![(1, 1.0), (2, 1.0), (3, 1.0), (5, 5.0), (6, 5.0)]);
+    }
 
     #[test]
     fn gaps_are_bridged_and_ends_held() {
