@@ -217,9 +217,10 @@ fn keyed_gaps_beat_linear_interpolation() {
 /// shipped `models/all` rather than a GloGen trained per CMU set), through the cmu-euclid
 /// suite with nothing trained in its cache: the suite runs, says which of its own GloGens and
 /// baselines are not trained, and the shipped GloGen beats holding the last pose on Walking,
-/// Indian Dance and Martial Arts at every horizon. (Martial Arts at 80 ms is the closest:
-/// 47.2 against 55.6 mm since the first step from given motion blends in that motion's own,
-/// 56.3 before it; docs/RESULTS.md.)
+/// Indian Dance and Martial Arts at every horizon. (Martial Arts at 80 ms was the closest,
+/// 56.3 against 55.6 mm, while the first step after given motion was GloGen's own; with six
+/// tenths of that motion's own step it reads 40.0, and the closest is Martial Arts at 640
+/// ms, 322.7 against 357.0; docs/RESULTS.md.)
 #[test]
 fn the_shipped_model_forecasts_cmu_better_than_holding_the_pose() {
     let cache = tempfile::tempdir().unwrap();
