@@ -248,7 +248,7 @@ pub fn bench_generate(dir: &Path, repeats: usize, class_strength: Option<f32>, s
         }
         runs.push(GenerateRun { seconds, constrained, frames, ms: best });
     }
-    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen(), class_strength, foot_lock: stages.foot_lock, texture: stages.texture && model.texture().is_some(), runs })
+    Ok(GenerateBench { model: dir.display().to_string(), locgen: model.has_locgen() && GenerateOptions::default().locgen_for(&model.spec), class_strength, foot_lock: stages.foot_lock, texture: stages.texture && model.texture().is_some(), runs })
 }
 
 /// The 60 s take's time with keys and a path over its time without, measured in one run.

@@ -104,8 +104,7 @@ fn option_args(options: &GenerateOptions, model: &ModelInfo) -> Vec<String> {
         }
     }
     // LocGen's flags say only where the take's choice is not its model's.
-    let by_default = model.spec.locgen.by_default;
-    let refines = options.locgen.unwrap_or(by_default);
+    let (by_default, refines) = (model.spec.locgen.by_default, options.locgen_for(&model.spec));
     let switches = [
         (by_default && !refines, "--no-locgen"),
         (!by_default && refines, "--locgen"),

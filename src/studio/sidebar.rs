@@ -238,8 +238,8 @@ impl StudioApp {
         }
         let locks_feet = self.engine.model.as_ref().is_some_and(|m| m.spec.foot_lock);
         ui.horizontal_wrapped(|ui| {
-            let by_default = self.engine.model.as_ref().is_some_and(|m| m.spec.locgen.by_default);
-            let mut refines = self.editing.doc.options.locgen.unwrap_or(by_default);
+            let options = &self.editing.doc.options;
+            let mut refines = self.engine.model.as_ref().map_or(options.locgen == Some(true), |m| options.locgen_for(&m.spec));
             let toggled = ui
                 .add_enabled(has_locgen, egui::Checkbox::new(&mut refines, "LocGen refinement"))
                 .on_hover_text("Adds in-between motion (weight shifts, swing) to the spline between the model's key poses. Off by default where it takes the motion further from capture (Bandai's)");

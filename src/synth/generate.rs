@@ -75,7 +75,7 @@ pub fn generate_reusing(model: &GlocalModel, opts: &GenerateOptions, cache: &mut
     let block_classes: Vec<usize> = plans.iter().map(|p| p.target).collect();
     let texture = model.texture().filter(|_| opts.texture).map(|bank| Textured { bank, poses: textured_poses(spec, &plans, t, total), seed: opts.seed });
     let turn_limits = (opts.spread_snaps && !spec.bone_turn_limits.is_empty()).then(|| above_the_legs(spec.turn_limits_per_frame(), &spec.layout.skeleton));
-    let finishing = Finishing { model, locgen: opts.locgen.unwrap_or(model.spec.locgen.by_default), project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints, texture, turn_limits };
+    let finishing = Finishing { model, locgen: opts.locgen_for(&model.spec), project_bones: opts.project_bones, foot_lock: opts.foot_lock, travel, times: &timeline.frames, constraints: &constraints, texture, turn_limits };
     let segments = timeline.planned_spans(spec);
 
     // Only a resumable take is printed: the print of a request's held frames would cost

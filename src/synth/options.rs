@@ -160,6 +160,12 @@ impl GenerateOptions {
         self.class_strength.unwrap_or(spec.class_strength)
     }
 
+    /// Whether a take of the model `spec` describes is refined by LocGen: as the take asks,
+    /// else as the model's LocGen says ([`crate::model::spec::LocGenSpec::by_default`]).
+    pub fn locgen_for(&self, spec: &ModelSpec) -> bool {
+        self.locgen.unwrap_or(spec.locgen.by_default)
+    }
+
     /// The guidance the take's blocks of class `class` are made with: the take's own, else
     /// the class's ([`ModelSpec::class_strength_of`]).
     pub fn class_strength_of(&self, spec: &ModelSpec, class: usize) -> f32 {
